@@ -1,0 +1,103 @@
+// gsd/core.hpp — the types every module shares: errors, point clouds, meshes, grids, progress.
+//
+// Public headers take and return plain containers and Eigen types; nothing here knows about
+// Vulkan. Coordinates are double on the API; the GPU path converts to float32 internally.
+#pragma once
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace gsd {
+
+/// Library version ("major.minor.patch").
+std::string_view version();
+
+/// The one exception type thrown at the API boundary. `where` names the file, option or
+/// argument at fault (may be empty); `what()` says what is wrong with it.
+class Error : public std::runtime_error {
+public:
+    Error(std::string where, const std::string& what)
+        : std::runtime_error(what), where_(std::move(where)) {}
+    explicit Error(const std::string& what) : std::runtime_error(what) {}
+    const std::string& where() const noexcept { return where_; }
+
+private:
+    std::string where_;
+};
+
+/// N×3 row-major matrix: row i is (x, y, z) of element i. Row-major so that the coordinates
+/// of one point are contiguous (zero-copy into spatial indices and GPU uploads).
+using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+/// An oriented point cloud. `normals` has the same row count as `points`; normals need not be
+/// unit length on input (validate() normalizes them) but must not be zero.
+struct PointCloud {
+    Points points;
+    Points normals;
+
+    Eigen::Index size() const { return points.rows(); }
+    bool empty() const { return points.rows() == 0; }
+};
+
+/// A polygon mesh, faces stored compressed: face f has the vertex indices
+/// indices[offsets[f] .. offsets[f+1]). Triangles, quads and n-gons may be mixed.
+struct PolygonMesh {
+    Points vertices;
+    std::vector<std::uint32_t> indices;
+    std::vector<std::uint32_t> offsets{0};
+
+    std::size_t face_count() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+    std::size_t face_size(std::size_t f) const { return offsets[f + 1] - offsets[f]; }
+    void add_face(std::initializer_list<std::uint32_t> f);
+    void add_face(const std::uint32_t* f, std::size_t n);
+};
+
+/// Axis-aligned box.
+struct Box {
+    Eigen::Vector3d lo{0, 0, 0};
+    Eigen::Vector3d hi{0, 0, 0};
+
+    Eigen::Vector3d extent() const { return hi - lo; }
+    double diagonal() const { return (hi - lo).norm(); }
+};
+
+/// A regular grid of nodes on a box: node (i, j, k) sits at
+/// lo + (i·(hi−lo)_x/(nx−1), j·…/(ny−1), k·…/(nz−1)). Values are stored C order:
+/// index = (i·ny + j)·nz + k, the layout of a (nx, ny, nz) .npy array.
+struct GridSpec {
+    int nx = 0, ny = 0, nz = 0;
+    Box box;
+
+    static GridSpec cube(int n, const Box& b) { return {n, n, n, b}; }
+    std::size_t node_count() const { return std::size_t(nx) * std::size_t(ny) * std::size_t(nz); }
+    Eigen::Vector3d node(int i, int j, int k) const;
+    /// All node positions in storage order.
+    Points nodes() const;
+    /// Throws gsd::Error unless every dimension is ≥ 2 and the box is finite and non-empty.
+    void validate() const;
+};
+
+/// Bounding box of a set of points (throws on an empty set).
+Box bounding_box(const Points& p);
+
+/// Progress callback for long work: `stage` names the step, `fraction` runs from 0 to 1.
+/// Called from the calling thread only, at most a few hundred times per job.
+using ProgressFn = std::function<void(std::string_view stage, double fraction)>;
+
+/// Checks a point cloud once at the boundary: non-empty, equal row counts, finite
+/// coordinates, finite non-zero normals; normalizes the normals in place.
+/// `where` names the source (usually a file) for the error message.
+void validate(PointCloud& cloud, const std::string& where = {});
+
+/// Checks a mesh: at least one face, finite vertices, indices in range, faces with ≥ 3
+/// vertices. Degenerate (zero-area) faces are allowed here; algorithms that cannot use
+/// them say so.
+void validate(const PolygonMesh& mesh, const std::string& where = {});
+
+}  // namespace gsd

@@ -1,0 +1,70 @@
+// gsd/io.hpp — reading and writing point clouds, meshes, grids and query lists.
+//
+// Formats are chosen by file extension (case-insensitive). Every reader validates what it
+// reads and throws gsd::Error{path, what} on anything malformed: missing file, empty file,
+// truncated data, wrong counts, non-numeric tokens, NaN/Inf, missing normals. Writers write
+// to a temporary file beside the target and rename it, so a failure never leaves a partial
+// output behind.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <string>
+#include <vector>
+
+namespace gsd::io {
+
+// ---- point clouds with normals --------------------------------------------------------
+// .ply (ascii, binary_little_endian, binary_big_endian; vertex properties x y z nx ny nz in
+//       any order among others such as colors, any scalar type float/double/int/uchar/...;
+//       other elements such as faces are skipped)
+// .xyz .xyzn .txt (6 numbers per line: x y z nx ny nz; '#' comments and blank lines skipped)
+// .pc  (lines "v x y z" and "vn nx ny nz"; counts must match)
+// .obj (v and vn lines; vn paired with v by order)
+// .npy (N×6, float32 or float64, C order)
+// The returned cloud has passed gsd::validate (normals normalized).
+PointCloud read_point_cloud(const std::string& path);
+/// Writes .ply (binary little endian, float32), .xyz/.xyzn/.txt, .pc, .obj or .npy (float32).
+void write_point_cloud(const std::string& path, const PointCloud& cloud);
+
+// ---- meshes ---------------------------------------------------------------------------
+// .obj (v + f with polygons; "f v/vt/vn" forms and negative indices; l lines ignored)
+// .ply (vertex x y z + face vertex_indices/vertex_index list, any list/count types)
+// .off (OFF header, optional comments; colors after face indices ignored)
+// .stl (ascii or binary; coincident vertices are welded exactly)
+PolygonMesh read_mesh(const std::string& path);
+/// Writes .obj, .ply (binary little endian), .off or .stl (binary; polygons fan-triangulated).
+void write_mesh(const std::string& path, const PolygonMesh& mesh);
+
+/// True if the file at `path` holds faces (a mesh) rather than only points. Used by the CLI
+/// to decide how to treat an input that could be either (.ply, .obj).
+bool file_has_faces(const std::string& path);
+
+// ---- .npy arrays ----------------------------------------------------------------------
+/// A dense array in C order, values widened to double.
+struct NpyArray {
+    std::vector<std::size_t> shape;
+    std::vector<double> data;
+    std::size_t size() const { return data.size(); }
+};
+/// Reads a .npy file holding float32 or float64 (either byte order), C order
+/// (Fortran order is rejected with a clear message), any rank.
+NpyArray read_npy(const std::string& path);
+/// Writes float32 values with the given shape (product of shape must equal values.size()).
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+               const float* values, std::size_t count);
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+               const std::vector<float>& values);
+
+/// Reads an (M, 3) query list (.npy float32/float64). Throws on other shapes or non-finite values.
+Points read_queries(const std::string& path);
+/// Reads an (N, N, N) float grid.
+NpyArray read_grid(const std::string& path);
+
+/// Lower-cased extension including the dot (".ply"), or "" if none.
+std::string extension(const std::string& path);
+
+/// Writes `bytes` to `path` atomically (temporary file + rename). All writers use this.
+void write_file_atomic(const std::string& path, const std::string& bytes);
+
+}  // namespace gsd::io

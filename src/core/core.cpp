@@ -1,0 +1,101 @@
+#include <gsd/core.hpp>
+
+#include <cmath>
+#include <sstream>
+
+namespace gsd {
+
+std::string_view version() { return GSD_VERSION; }
+
+void PolygonMesh::add_face(std::initializer_list<std::uint32_t> f) { add_face(f.begin(), f.size()); }
+
+void PolygonMesh::add_face(const std::uint32_t* f, std::size_t n) {
+    if (offsets.empty()) offsets.push_back(0);
+    indices.insert(indices.end(), f, f + n);
+    offsets.push_back(static_cast<std::uint32_t>(indices.size()));
+}
+
+Eigen::Vector3d GridSpec::node(int i, int j, int k) const {
+    const Eigen::Vector3d e = box.extent();
+    return box.lo + Eigen::Vector3d(nx > 1 ? e.x() * i / (nx - 1) : 0.0,
+                                    ny > 1 ? e.y() * j / (ny - 1) : 0.0,
+                                    nz > 1 ? e.z() * k / (nz - 1) : 0.0);
+}
+
+Points GridSpec::nodes() const {
+    Points out(static_cast<Eigen::Index>(node_count()), 3);
+    Eigen::Index row = 0;
+    for (int i = 0; i < nx; ++i)
+        for (int j = 0; j < ny; ++j)
+            for (int k = 0; k < nz; ++k) out.row(row++) = node(i, j, k).transpose();
+    return out;
+}
+
+void GridSpec::validate() const {
+    if (nx < 2 || ny < 2 || nz < 2)
+        throw Error("--grid", "grid needs at least 2 nodes per axis");
+    // 2^31 nodes is 8 GiB of float32: far past what one .npy grid on this library's path can hold.
+    if (double(nx) * double(ny) * double(nz) > double(1u << 31))
+        throw Error("--grid", "grid has more than 2^31 nodes");
+    for (int a = 0; a < 3; ++a) {
+        if (!std::isfinite(box.lo[a]) || !std::isfinite(box.hi[a]))
+            throw Error("--bounds", "bounds must be finite numbers");
+        if (!(box.hi[a] > box.lo[a]))
+            throw Error("--bounds", "bounds must satisfy x0 < x1, y0 < y1, z0 < z1");
+    }
+}
+
+Box bounding_box(const Points& p) {
+    if (p.rows() == 0) throw Error("bounding box of an empty point set");
+    Box b;
+    b.lo = p.colwise().minCoeff().transpose();
+    b.hi = p.colwise().maxCoeff().transpose();
+    return b;
+}
+
+namespace {
+std::string at_row(const char* what, Eigen::Index i) {
+    std::ostringstream s;
+    s << what << " (element " << i << ")";
+    return s.str();
+}
+}  // namespace
+
+void validate(PointCloud& cloud, const std::string& where) {
+    if (cloud.points.rows() == 0) throw Error(where, "point cloud is empty");
+    if (cloud.normals.rows() == 0) throw Error(where, "point cloud has no normals");
+    if (cloud.normals.rows() != cloud.points.rows())
+        throw Error(where, "point and normal counts differ");
+    if (cloud.points.rows() < 2) throw Error(where, "point cloud needs at least 2 points");
+    for (Eigen::Index i = 0; i < cloud.points.rows(); ++i) {
+        if (!cloud.points.row(i).allFinite())
+            throw Error(where, at_row("non-finite coordinate", i));
+        if (!cloud.normals.row(i).allFinite())
+            throw Error(where, at_row("non-finite normal", i));
+        const double len = cloud.normals.row(i).norm();
+        if (!(len > 1e-30)) throw Error(where, at_row("zero-length normal", i));
+        cloud.normals.row(i) /= len;
+    }
+    const Box b = bounding_box(cloud.points);
+    if (!(b.diagonal() > 0)) throw Error(where, "all points coincide");
+}
+
+void validate(const PolygonMesh& mesh, const std::string& where) {
+    if (mesh.vertices.rows() == 0) throw Error(where, "mesh has no vertices");
+    if (mesh.face_count() == 0) throw Error(where, "mesh has no faces");
+    if (mesh.offsets.front() != 0 || mesh.offsets.back() != mesh.indices.size())
+        throw Error(where, "mesh face offsets are inconsistent");
+    for (Eigen::Index i = 0; i < mesh.vertices.rows(); ++i)
+        if (!mesh.vertices.row(i).allFinite())
+            throw Error(where, at_row("non-finite vertex coordinate", i));
+    const auto nv = static_cast<std::uint32_t>(mesh.vertices.rows());
+    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+        if (mesh.offsets[f + 1] < mesh.offsets[f] + 3)
+            throw Error(where, at_row("face with fewer than 3 vertices", Eigen::Index(f)));
+        for (auto k = mesh.offsets[f]; k < mesh.offsets[f + 1]; ++k)
+            if (mesh.indices[k] >= nv)
+                throw Error(where, at_row("vertex index out of range in face", Eigen::Index(f)));
+    }
+}
+
+}  // namespace gsd

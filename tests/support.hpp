@@ -1,0 +1,44 @@
+// Shared helpers for the test suites: scratch folders, running the CLI, real data paths.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <filesystem>
+#include <string>
+
+namespace gsd::test {
+
+/// A fresh empty folder under the system temp dir, removed when the object goes away.
+class ScratchDir {
+public:
+    explicit ScratchDir(const std::string& tag);
+    ~ScratchDir();
+    ScratchDir(const ScratchDir&) = delete;
+    ScratchDir& operator=(const ScratchDir&) = delete;
+    std::string file(const std::string& name) const { return (path_ / name).string(); }
+    const std::filesystem::path& path() const { return path_; }
+
+private:
+    std::filesystem::path path_;
+};
+
+/// Result of running a command: exit status and combined stdout+stderr.
+struct RunResult {
+    int exit_code = -1;
+    std::string output;
+};
+
+/// Runs the built `gsd` CLI with `args` (a shell-quoted argument string).
+RunResult run_cli(const std::string& args);
+/// Runs an arbitrary shell command.
+RunResult run_shell(const std::string& command);
+
+/// Path of a file under ../shared/data (real inputs made by others).
+std::string shared_data(const std::string& relative);
+
+/// Writes raw bytes to a file (for hand-made malformed inputs).
+void write_bytes(const std::string& path, const std::string& bytes);
+
+bool file_exists(const std::string& path);
+
+}  // namespace gsd::test

@@ -1,0 +1,97 @@
+#include <doctest/doctest.h>
+
+#include <gsd/core.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/spatial.hpp>
+
+#include <cmath>
+
+using namespace gsd;
+
+TEST_CASE("grid nodes follow the .npy C-order layout") {
+    GridSpec g{3, 4, 5, Box{{-1, -2, -3}, {1, 2, 3}}};
+    const Points n = g.nodes();
+    REQUIRE(n.rows() == 60);
+    // element [i, j, k] is at index (i*ny + j)*nz + k
+    const Eigen::Index idx = (2 * 4 + 1) * 5 + 3;
+    CHECK(n(idx, 0) == doctest::Approx(1.0));
+    CHECK(n(idx, 1) == doctest::Approx(-2.0 + 4.0 / 3.0));
+    CHECK(n(idx, 2) == doctest::Approx(-3.0 + 6.0 * 3.0 / 4.0));
+    CHECK_THROWS_AS((GridSpec{1, 4, 4, Box{{0, 0, 0}, {1, 1, 1}}}.validate()), Error);
+    CHECK_THROWS_AS((GridSpec{4, 4, 4, Box{{0, 0, 0}, {1, 0, 1}}}.validate()), Error);
+}
+
+TEST_CASE("validate rejects bad clouds and normalizes normals") {
+    PointCloud c;
+    CHECK_THROWS_AS(validate(c), Error);
+    c.points = Points::Random(4, 3);
+    c.normals = Points::Constant(4, 3, 2.0);
+    validate(c);
+    CHECK(c.normals.row(0).norm() == doctest::Approx(1.0));
+    c.normals(2, 1) = NAN;
+    CHECK_THROWS_AS(validate(c), Error);
+    c.normals.row(2).setZero();
+    CHECK_THROWS_AS(validate(c), Error);
+    c.normals.row(2) << 0, 0, 1;
+    c.points(1, 0) = INFINITY;
+    CHECK_THROWS_AS(validate(c), Error);
+}
+
+TEST_CASE("analytic shapes: samples lie on the surface with the SDF's gradient as normal") {
+    for (const char* name : {"sphere", "torus", "capsule", "rounded-box"}) {
+        CAPTURE(name);
+        auto s = shapes::by_name(name);
+        const PointCloud c = s->sample(2000, 7);
+        REQUIRE(c.size() == 2000);
+        double worst = 0, worst_n = 0;
+        for (Eigen::Index i = 0; i < c.size(); ++i) {
+            const Eigen::Vector3d p = c.points.row(i).transpose();
+            const Eigen::Vector3d n = c.normals.row(i).transpose();
+            worst = std::max(worst, std::abs(s->sdf(p)));
+            // finite-difference gradient of the exact SDF equals the sampled normal
+            const double e = 1e-6;
+            Eigen::Vector3d g;
+            for (int k = 0; k < 3; ++k) {
+                Eigen::Vector3d d = Eigen::Vector3d::Zero();
+                d[k] = e;
+                g[k] = (s->sdf(p + d) - s->sdf(p - d)) / (2 * e);
+            }
+            worst_n = std::max(worst_n, (g - n).norm());
+        }
+        CHECK(worst < 1e-12);
+        CHECK(worst_n < 1e-4);
+    }
+}
+
+TEST_CASE("area-uniform sampling: the share of samples in a region matches its area") {
+    // Capsule: cylinder part has area 2πrL, caps 4πr².
+    auto s = shapes::capsule({-0.4, 0, 0}, {0.4, 0, 0}, 0.3);
+    const PointCloud c = s->sample(40000, 3);
+    int on_cylinder = 0;
+    for (Eigen::Index i = 0; i < c.size(); ++i) on_cylinder += std::abs(c.points(i, 0)) < 0.4;
+    const double expect = 2 * M_PI * 0.3 * 0.8 / s->area();
+    CHECK(double(on_cylinder) / 40000 == doctest::Approx(expect).epsilon(0.02));
+}
+
+TEST_CASE("kd-tree neighbors agree with brute force; spacing and areas are sane") {
+    auto s = shapes::sphere({0, 0, 0}, 0.5);
+    const PointCloud c = s->sample(3000, 11);
+    KdTree tree(c.points);
+    const Eigen::Vector3d q(0.1, -0.3, 0.55);
+    auto nb = tree.knn(q, 10);
+    std::vector<double> d;
+    for (Eigen::Index i = 0; i < c.size(); ++i) d.push_back((c.points.row(i).transpose() - q).norm());
+    std::sort(d.begin(), d.end());
+    REQUIRE(nb.size() == 10);
+    for (int i = 0; i < 10; ++i) CHECK(nb[std::size_t(i)].distance == doctest::Approx(d[std::size_t(i)]));
+    std::vector<Neighbor> ball;
+    tree.radius(q, d[24] * 1.000001, ball);
+    CHECK(ball.size() == 25);
+    // Mean nearest-neighbor spacing of N uniform points on area A is ≈ 0.5·sqrt(A/N).
+    const double h = mean_spacing(tree);
+    CHECK(h == doctest::Approx(0.5 * std::sqrt(s->area() / 3000)).epsilon(0.15));
+    const auto areas = point_areas(tree);
+    double total = 0;
+    for (double a : areas) total += a;
+    CHECK(total == doctest::Approx(s->area()).epsilon(0.25));
+}
