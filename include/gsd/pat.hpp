@@ -1,0 +1,166 @@
+// gsd/pat.hpp — Points as Tori (thesis ch. 5): generalized signed distance from an oriented
+// point cloud by blending the signed distance functions of tori fitted at every point.
+//
+//   gsd::JetFitter fitter;                        // or TorusNet once it lands
+//   gsd::FittedTori tori = fitter.fit(cloud);     // once per cloud (save/load with the .tori format)
+//   gsd::TorusField field(tori);                  // options: exact sum, device, radius
+//   auto phi = field.evaluate(queries);           // φ at any points; gradients on request
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gsd {
+
+// ---- tori from local height functions ---------------------------------------------------
+
+/// The six coefficients of the height function Q(s,t) = a00 + a10 s + a01 t + a11 st + a20 s²
+/// + a02 t² that describes the surface near a point along its normal, in the point's tangent
+/// frame (s, t, n).
+struct Jet {
+    double a00 = 0, a10 = 0, a01 = 0, a11 = 0, a20 = 0, a02 = 0;
+};
+
+/// A torus in the curvature form that stays finite in the flat and cylindrical limits.
+/// `q` lies on the torus; `n` is the outward unit normal there; `e1` is the principal
+/// direction of `k1` (the curvature of larger magnitude) and is parallel to the torus axis.
+/// Curvatures are signed with respect to `n`: k < 0 bends away from n (convex, like the
+/// outside of a sphere), k > 0 bends toward it (concave). Minor radius r = 1/|k1|; the
+/// tube's center is q + n/k1 and the torus's center q + n/k2; k1 = k2 = 0 is a plane.
+struct Torus {
+    Eigen::Vector3d q = Eigen::Vector3d::Zero();
+    Eigen::Vector3d e1 = Eigen::Vector3d::UnitX();
+    Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
+    double k1 = 0, k2 = 0;
+};
+
+/// The classic parameters of a torus (thesis eq. 5.3): center c, unit axis u, major radius R,
+/// minor radius r, and the sign that makes g = sign·φ_T increase along the outward normal.
+/// Only defined when k1 ≠ 0 (a plane has no finite torus form); a cylinder has R = ∞.
+struct TorusGeometry {
+    Eigen::Vector3d c, u;
+    double R, r, sign;
+};
+TorusGeometry geometry(const Torus& t);
+
+/// A tangent frame for a unit normal n: returns s with s ⟂ n, |s| = 1; t = n × s. The choice
+/// is deterministic (it defines the coordinates the jet coefficients are expressed in).
+Eigen::Vector3d tangent_of(const Eigen::Vector3d& n);
+
+/// Builds the osculating torus of the height function `jet` at point p with unit normal n and
+/// tangent s (t = n × s): the surface point q = p + a00 n, normal, principal curvatures and
+/// directions from the first and second fundamental forms (II v = κ I v).
+Torus torus_from_jet(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const Eigen::Vector3d& s,
+                     const Jet& jet);
+
+/// Signed distance g(x) of the torus, positive on the side its normal points to; optionally its
+/// gradient. Evaluated in a form that is exact for tori and stays accurate in float32 as the
+/// radii grow (planes and cylinders are its limits).
+double torus_sdf(const Torus& t, const Eigen::Vector3d& x, Eigen::Vector3d* gradient = nullptr);
+
+// ---- fitting ------------------------------------------------------------------------------
+
+/// The result of fitting: per point, the frame and coefficients that define its torus.
+/// This is what the .tori file stores, so a cloud is fitted once.
+struct FittedTori {
+    Points points;               ///< p_i
+    Points normals;              ///< n_i (unit)
+    Points tangents;             ///< s_i (unit, ⟂ n_i); t_i = n_i × s_i
+    std::vector<Jet> jets;       ///< coefficients in the frame (s_i, t_i, n_i)
+    double spacing = 0;          ///< mean nearest-neighbor spacing h of the cloud
+    std::string fitter;          ///< which fitter made them ("jet", ...)
+
+    Eigen::Index size() const { return points.rows(); }
+    /// The torus of point i.
+    Torus torus(Eigen::Index i) const;
+    std::vector<Torus> tori() const;
+};
+
+/// Saves/loads the documented binary .tori format (docs/formats.md). Loading validates
+/// everything (magic, version, counts against the file size, finite values).
+void save_tori(const std::string& path, const FittedTori& tori);
+FittedTori load_tori(const std::string& path);
+
+struct JetFitterOptions {
+    /// Neighbors per fit, the point itself included.
+    int k = 24;
+    /// Gaussian weight exp(−d²/σ²) with σ = sigma_factor × (distance to the k-th neighbor).
+    double sigma_factor = 1.0;
+    /// Weight of the slope rows that make the fit match neighbor normals (Hermite fit),
+    /// relative to the height rows; 0 fits positions only (the classic jet).
+    double normal_weight = 1.0;
+    /// Neighbors whose normal makes an angle over this with n_i don't give slope rows
+    /// (their height function would be steep or flipped).
+    double max_normal_angle_deg = 60.0;
+};
+
+/// Weighted least-squares quadratic over the k nearest neighbors in each point's tangent frame
+/// (thesis fig. 5.17's classic baseline, here with optional normal rows). Multi-threaded.
+class JetFitter {
+public:
+    explicit JetFitter(JetFitterOptions options = {});
+    /// Fits every point of a validated cloud. Reports progress as ("fit", fraction).
+    FittedTori fit(const PointCloud& cloud, const ProgressFn& progress = {}) const;
+    const JetFitterOptions& options() const { return options_; }
+
+private:
+    JetFitterOptions options_;
+};
+
+// ---- evaluation ---------------------------------------------------------------------------
+
+/// Options shared by every blended field (PAT and the SSPD / signed Hopf–Cole baselines).
+struct BlendOptions {
+    /// Sum over all points (eq. 5.6 with σ_x from all of them) instead of the accelerated sum.
+    bool exact = false;
+    /// Accelerated mode: points within r_eval of the query are summed with the constant
+    /// λ = 2C / r_eval (eq. 5.7 for a full ball); if none lies within r_eval, the
+    /// `fallback_k` nearest with σ_x, λ_x from eq. 5.7. 0: r_eval_spacings × mean spacing.
+    double r_eval = 0;
+    double r_eval_spacings = 8.0;
+    int fallback_k = 32;
+    /// exp(−C) is the smallest relative weight kept (thesis: C = 64 stays above float32 underflow).
+    double C = 64.0;
+    /// "auto" | "gpu" | "cpu" | a device index or name substring; empty: $GSD_DEVICE, else auto.
+    std::string device;
+    /// Queries per GPU chunk (0: chosen from device limits). Results do not depend on it.
+    std::size_t chunk_size = 0;
+};
+
+/// Result of an evaluation.
+struct FieldValues {
+    std::vector<float> phi;       ///< one value per query
+    std::vector<float> gradient;  ///< 3 per query (x, y, z), if asked for
+    std::string device;           ///< the device that computed them ("cpu" or the Vulkan device name)
+};
+
+/// The PAT signed distance field of a set of fitted tori.
+class TorusField {
+public:
+    explicit TorusField(FittedTori tori, BlendOptions options = {});
+    ~TorusField();
+    TorusField(TorusField&&) noexcept;
+    TorusField& operator=(TorusField&&) noexcept;
+
+    /// φ (and ∇φ if `with_gradient`) at every query point.
+    FieldValues evaluate(const Points& queries, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const;
+    /// φ on every node of a grid, in GridSpec storage order.
+    FieldValues evaluate(const GridSpec& grid, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const;
+
+    const FittedTori& tori() const;
+    const BlendOptions& options() const;
+    /// The radius of the accelerated sum actually used.
+    double r_eval() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace gsd

@@ -1,0 +1,256 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// The blend engine on the GPU (mirrors src/blend/blend_cpu.cpp): for each query, choose the
+// summed set (all points, the ball of radius r_eval, or the k nearest), then blend the
+// per-point terms of PAT (tori), SSPD (tangent planes) or signed Hopf–Cole (screened dipoles).
+// Neighbor search walks a complete kd-tree built once per cloud on the host.
+#include "torus.glsl"
+
+layout(local_size_x_id = 0) in;
+layout(constant_id = 1) const int KIND = 0;      // 0 PAT, 1 SSPD, 2 SHC
+layout(constant_id = 2) const int EXACT = 0;     // 1: sum over every point
+layout(constant_id = 3) const int GRADIENT = 0;  // 1: write (φ, ∇φ) per query
+
+const int K_MAX = 32;     // largest fallback_k the kernel supports
+const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
+const int TILE = 256;     // shared-memory tile for the exact sum (≥ workgroup size)
+const float PI = 3.14159265358979;
+
+struct Node { vec3 lo; uint begin; vec3 hi; uint end; };
+
+layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };    // tree order
+layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };   // PAT: 3 per point; else (n, area)
+layout(std430, binding = 2) readonly buffer Nodes { Node nodes[]; };
+layout(std430, binding = 3) readonly buffer Queries { vec4 qs[]; };
+layout(std430, binding = 4) writeonly buffer Out { float outv[]; };
+
+layout(push_constant) uniform Push {
+    uint query_count;
+    uint point_count;
+    uint first_leaf;  // nodes at or past this index are leaves
+    uint k_fallback;
+    float r_eval;
+    float C;
+    float dmin;       // smallest distance used by the SHC kernel (1e-6 h)
+} pc;
+
+struct Acc { float W, G, D, GD, shc; vec3 Gg, U, GU; };
+
+Acc acc_zero() { return Acc(0.0, 0.0, 0.0, 0.0, 0.0, vec3(0.0), vec3(0.0), vec3(0.0)); }
+
+void add_term(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma) {
+    vec3 p = pts[j].xyz;
+    if (KIND == 2) {
+        float dd = max(d, pc.dmin);
+        vec4 nA = terms[j];
+        a.shc += nA.w * (lambda * dd + 1.0) * dot(x - p, nA.xyz) / (2.0 * PI * dd * dd * dd) *
+                 exp(-lambda * (dd - sigma));
+        return;
+    }
+    float g, scale;
+    vec3 gg;
+    if (KIND == 0) {
+        g = torus_sdf(terms[3 * j], terms[3 * j + 1], terms[3 * j + 2], x, gg);
+        scale = 1.0;
+    } else {
+        vec4 nA = terms[j];
+        g = dot(x - p, nA.xyz);
+        gg = nA.xyz;
+        scale = nA.w;
+    }
+    float w = scale * exp(-lambda * (d - sigma));
+    a.W += w;
+    a.G += w * g;
+    if (GRADIENT == 1) {
+        vec3 u = d > 0.0 ? (x - p) / d : vec3(0.0);
+        a.Gg += w * gg;
+        a.U += w * u;
+        a.GU += w * g * u;
+        a.D += w * d;
+        a.GD += w * g * d;
+    }
+}
+
+float box_distance2(vec3 x, uint i) {
+    vec3 e = max(max(nodes[i].lo - x, x - nodes[i].hi), vec3(0.0));
+    return dot(e, e);
+}
+
+// Ball query with the constant λ = 2C / r_eval; returns how many points it summed.
+uint sum_ball(vec3 x, inout Acc a) {
+    float r2 = pc.r_eval * pc.r_eval;
+    float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
+    uint found = 0;
+    uint stack[STACK];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        uint i = stack[--top];
+        if (box_distance2(x, i) > r2) continue;
+        if (i >= pc.first_leaf) {
+            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+                vec3 dv = x - pts[j].xyz;
+                float d2 = dot(dv, dv);
+                if (d2 <= r2) {
+                    add_term(a, x, j, sqrt(d2), lambda, sigma);
+                    ++found;
+                }
+            }
+        } else {
+            stack[top++] = 2 * i + 1;
+            stack[top++] = 2 * i + 2;
+        }
+    }
+    return found;
+}
+
+// The k nearest points, nearest first, by a best-first-ish kd-tree walk.
+void knn(vec3 x, uint k, inout float kd[K_MAX], inout uint ki[K_MAX]) {
+    for (int m = 0; m < K_MAX; ++m) { kd[m] = 3.0e38; ki[m] = 0; }
+    uint stack[STACK];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        uint i = stack[--top];
+        float worst = kd[k - 1];
+        if (box_distance2(x, i) > worst * worst) continue;
+        if (i >= pc.first_leaf) {
+            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+                float d = distance(x, pts[j].xyz);
+                if (d >= kd[k - 1]) continue;
+                int m = int(k) - 1;
+                while (m > 0 && kd[m - 1] > d) { kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
+                kd[m] = d;
+                ki[m] = j;
+            }
+        } else {
+            uint l = 2 * i + 1, r = 2 * i + 2;
+            bool left_first = box_distance2(x, l) <= box_distance2(x, r);
+            stack[top++] = left_first ? r : l;  // the nearer child is popped first
+            stack[top++] = left_first ? l : r;
+        }
+    }
+}
+
+shared vec4 tile_p[TILE];
+shared vec4 tile_t[3 * TILE];
+
+// Loads points [base, base + TILE) into shared memory (every invocation must call it).
+uint load_tile(uint base) {
+    uint n = min(uint(TILE), pc.point_count - base);
+    for (uint m = gl_LocalInvocationID.x; m < n; m += gl_WorkGroupSize.x) {
+        tile_p[m] = pts[base + m];
+        if (KIND == 0) {
+            tile_t[3 * m] = terms[3 * (base + m)];
+            tile_t[3 * m + 1] = terms[3 * (base + m) + 1];
+            tile_t[3 * m + 2] = terms[3 * (base + m) + 2];
+        } else {
+            tile_t[m] = terms[base + m];
+        }
+    }
+    barrier();
+    return n;
+}
+
+void add_tile_term(inout Acc a, vec3 x, uint m, float d, float lambda, float sigma) {
+    vec3 p = tile_p[m].xyz;
+    if (KIND == 2) {
+        float dd = max(d, pc.dmin);
+        vec4 nA = tile_t[m];
+        a.shc += nA.w * (lambda * dd + 1.0) * dot(x - p, nA.xyz) / (2.0 * PI * dd * dd * dd) *
+                 exp(-lambda * (dd - sigma));
+        return;
+    }
+    float g, scale;
+    vec3 gg;
+    if (KIND == 0) {
+        g = torus_sdf(tile_t[3 * m], tile_t[3 * m + 1], tile_t[3 * m + 2], x, gg);
+        scale = 1.0;
+    } else {
+        g = dot(x - p, tile_t[m].xyz);
+        gg = tile_t[m].xyz;
+        scale = tile_t[m].w;
+    }
+    float w = scale * exp(-lambda * (d - sigma));
+    a.W += w;
+    a.G += w * g;
+    if (GRADIENT == 1) {
+        vec3 u = d > 0.0 ? (x - p) / d : vec3(0.0);
+        a.Gg += w * gg;
+        a.U += w * u;
+        a.GU += w * g * u;
+        a.D += w * d;
+        a.GD += w * g * d;
+    }
+}
+
+void main() {
+    uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    bool valid = i < pc.query_count;
+    vec3 x = valid ? qs[i].xyz : vec3(0.0);
+    Acc a = acc_zero();
+    float lambda, sigma;
+    bool lambda_varies = true;
+    vec3 far_p = vec3(0.0);
+
+    if (EXACT == 1) {
+        // Pass 1: the farthest point sets σ_x; pass 2 sums. Tiles are shared by the workgroup.
+        float dmax = 0.0;
+        for (uint base = 0; base < pc.point_count; base += TILE) {
+            uint n = load_tile(base);
+            for (uint m = 0; m < n; ++m) {
+                float d = distance(x, tile_p[m].xyz);
+                if (d > dmax) { dmax = d; far_p = tile_p[m].xyz; }
+            }
+            barrier();
+        }
+        sigma = max(0.5 * dmax, 1e-30);
+        lambda = pc.C / sigma;
+        for (uint base = 0; base < pc.point_count; base += TILE) {
+            uint n = load_tile(base);
+            for (uint m = 0; m < n; ++m) add_tile_term(a, x, m, distance(x, tile_p[m].xyz), lambda, sigma);
+            barrier();
+        }
+    } else {
+        if (!valid) return;
+        if (sum_ball(x, a) > 0) {
+            sigma = 0.5 * pc.r_eval;
+            lambda = pc.C / sigma;
+            lambda_varies = false;
+        } else {
+            float kd[K_MAX];
+            uint ki[K_MAX];
+            knn(x, pc.k_fallback, kd, ki);
+            uint k = pc.k_fallback;
+            sigma = max(0.5 * kd[k - 1], 1e-30);
+            lambda = pc.C / sigma;
+            far_p = pts[ki[k - 1]].xyz;
+            for (uint m = 0; m < k; ++m) add_term(a, x, ki[m], kd[m], lambda, sigma);
+        }
+    }
+    if (!valid) return;
+
+    if (KIND == 2) {
+        float mag = max(abs(a.shc), 1e-37);
+        outv[i] = (a.shc < 0.0 ? -1.0 : 1.0) * (-log(mag) / lambda + sigma);
+        return;
+    }
+    float phi = a.G / a.W;
+    if (GRADIENT == 0) {
+        outv[i] = phi;
+        return;
+    }
+    vec3 g = (a.Gg - lambda * (a.GU - phi * a.U)) / a.W;
+    if (lambda_varies) {
+        vec3 xf = x - far_p;
+        float dfar = length(xf);
+        if (dfar > 0.0) {
+            float dphi_dlambda = -(a.GD - phi * a.D) / a.W;
+            g += dphi_dlambda * (-(lambda / dfar) * xf / dfar);
+        }
+    }
+    outv[4 * i] = phi;
+    outv[4 * i + 1] = g.x;
+    outv[4 * i + 2] = g.y;
+    outv[4 * i + 3] = g.z;
+}

@@ -1,0 +1,43 @@
+#version 450
+// Builds tori from per-point frames and jet coefficients (mirrors gsd::torus_from_jet).
+// In:  4 vec4 per point: (p, a00), (n, a10), (s, a01), (a11, a20, a02, 0)
+// Out: 3 vec4 per point: (q, k1), (e1, k2), (n*, 0)
+layout(local_size_x_id = 0) in;
+
+layout(std430, binding = 0) readonly buffer Jets { vec4 jets[]; };
+layout(std430, binding = 1) writeonly buffer Tori { vec4 tori[]; };
+layout(push_constant) uniform Push { uint count; } pc;
+
+void main() {
+    uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    if (i >= pc.count) return;
+    vec4 j0 = jets[4 * i], j1 = jets[4 * i + 1], j2 = jets[4 * i + 2], j3 = jets[4 * i + 3];
+    vec3 p = j0.xyz, n = j1.xyz, s = j2.xyz;
+    vec3 t = cross(n, s);
+    float a00 = j0.w, a10 = j1.w, a01 = j2.w, a11 = j3.x, a20 = j3.y, a02 = j3.z;
+
+    float A2 = 1.0 + a10 * a10 + a01 * a01;
+    float A = sqrt(A2);
+    float I11 = 1.0 + a10 * a10, I12 = a10 * a01, I22 = 1.0 + a01 * a01;
+    float B11 = 2.0 * a20 / A, B12 = a11 / A, B22 = 2.0 * a02 / A;
+    float H = (I22 * B11 - 2.0 * I12 * B12 + I11 * B22) / (2.0 * A2);
+    float K = (B11 * B22 - B12 * B12) / A2;
+    float root = sqrt(max(0.0, H * H - K));
+    float big = H >= 0.0 ? H + root : H - root;
+    float small = big != 0.0 ? K / big : 0.0;
+
+    float M11 = B11 - big * I11, M12 = B12 - big * I12, M22 = B22 - big * I22;
+    float v0, v1;
+    if (M11 * M11 + M12 * M12 >= M12 * M12 + M22 * M22) { v0 = -M12; v1 = M11; }
+    else { v0 = M22; v1 = -M12; }
+    if (v0 * v0 + v1 * v1 <= 1e-30) { v0 = 1.0; v1 = 0.0; }
+    vec3 el = normalize(vec3(v0, v1, v0 * a10 + v1 * a01));
+    vec3 nl = vec3(-a10, -a01, 1.0) / A;
+
+    vec3 q = p + a00 * n;
+    vec3 e1 = normalize(el.x * s + el.y * t + el.z * n);
+    vec3 nn = normalize(nl.x * s + nl.y * t + nl.z * n);
+    tori[3 * i] = vec4(q, big);
+    tori[3 * i + 1] = vec4(e1, small);
+    tori[3 * i + 2] = vec4(nn, 0.0);
+}

@@ -1,0 +1,103 @@
+// The blend engine shared by PAT and the convolutional baselines (SSPD, signed Hopf–Cole):
+// every one of them sums per-point terms with weights exp(−λ(‖x − p_i‖ − σ)) over the same
+// set of points, chosen by the same rule (BlendOptions). Private to the library.
+#pragma once
+
+#include <gsd/gpu.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/spatial.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gsd::blend {
+
+enum class Kind { Pat = 0, Sspd = 1, Shc = 2 };
+
+/// Per-point data of a blended field. Pat uses tori (built in double on the CPU, and on the
+/// device from `tangents` and `jets`); Sspd and Shc use normals and areas.
+struct Source {
+    Kind kind = Kind::Pat;
+    Points points;
+    Points normals;
+    Points tangents;
+    std::vector<Jet> jets;
+    std::vector<Torus> tori;
+    std::vector<double> areas;
+    double spacing = 0;  ///< mean nearest-neighbor spacing h
+};
+
+/// The resolved parameters of the set rule (see BlendOptions).
+struct Params {
+    bool exact = false;
+    double r_eval = 0;
+    int fallback_k = 32;
+    double C = 64;
+    bool gradient = false;
+};
+Params resolve(const BlendOptions& opt, const Source& src, bool gradient);
+
+/// Where queries come from: an explicit list or the nodes of a grid (generated on the fly so
+/// a 512³ grid never materializes as doubles).
+class Queries {
+public:
+    explicit Queries(const Points& p) : points_(&p) {}
+    explicit Queries(const GridSpec& g) : grid_(g) {}
+    std::size_t size() const { return points_ ? std::size_t(points_->rows()) : grid_.node_count(); }
+    Eigen::Vector3d at(std::size_t i) const;
+
+private:
+    const Points* points_ = nullptr;
+    GridSpec grid_;
+};
+
+/// Output arrays: phi has one float per query; gradient (may be null) three.
+struct Output {
+    float* phi;
+    float* gradient;
+};
+
+/// CPU reference (double precision, OpenMP). The tree indexes src.points.
+void evaluate_cpu(const Source& src, const KdTree& tree, const Params& params, const Queries& queries,
+                  Output out, const ProgressFn& progress);
+
+/// One query on the CPU; exposed for tests. Returns φ and writes ∇φ if `grad` is set.
+double evaluate_one(const Source& src, const KdTree& tree, const Params& params,
+                    const Eigen::Vector3d& x, Eigen::Vector3d* grad, std::vector<Neighbor>& scratch);
+
+class GpuField;  // device-side copy of a Source (blend_gpu.cpp)
+
+/// Builds a GpuField on a context, or returns null and a reason when the source does not fit
+/// the device (buffer range, memory) or the parameters exceed what the kernel supports.
+std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
+                                         const Params& params, std::string& why_not);
+std::string gpu_field_device(const GpuField& field);
+void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries, Output out,
+                  std::size_t chunk_size, const ProgressFn& progress);
+
+/// Tori built on the device by the torus_from_jet kernel (12 floats each: q, k1, e1, k2, n, 0),
+/// for conformance tests.
+std::vector<float> tori_on_device(gpu::Context& ctx, const Points& points, const Points& normals,
+                                  const Points& tangents, const std::vector<Jet>& jets);
+
+/// A Source plus its lazily built search structures on each path: the object a public field
+/// (TorusField, SspdField, ShcField) holds.
+class Engine {
+public:
+    Engine(Source src, BlendOptions opt);
+    ~Engine();
+    FieldValues evaluate(const Queries& q, bool gradient, const ProgressFn& progress) const;
+    const Source& source() const { return src_; }
+    const BlendOptions& options() const { return opt_; }
+    double r_eval() const { return resolve(opt_, src_, false).r_eval; }
+
+private:
+    const KdTree& tree() const;
+    Source src_;
+    BlendOptions opt_;
+    mutable std::unique_ptr<KdTree> tree_;
+    mutable std::shared_ptr<GpuField> gpu_;
+};
+
+}  // namespace gsd::blend

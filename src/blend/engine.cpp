@@ -1,0 +1,57 @@
+// Engine: picks the device for each evaluation and keeps the per-path search structures.
+#include "blend/blend.hpp"
+
+#include <gsd/gpu.hpp>
+
+namespace gsd::blend {
+
+#ifndef GSD_HAVE_VULKAN
+// Without Vulkan there is no device-side field; these are never reached (select() never
+// returns a context) but keep the engine's code path the same.
+class GpuField {};
+std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>&, const Source&, const Params&,
+                                         std::string& why_not) {
+    why_not = "built without Vulkan";
+    return nullptr;
+}
+void evaluate_gpu(GpuField&, const Params&, const Queries&, Output, std::size_t, const ProgressFn&) {}
+std::string gpu_field_device(const GpuField&) { return "cpu"; }
+#endif
+
+Engine::Engine(Source src, BlendOptions opt) : src_(std::move(src)), opt_(std::move(opt)) {
+    if (src_.points.rows() < 2) throw Error("a blended field needs at least 2 points");
+    resolve(opt_, src_, false);  // reject bad options now, not at the first query
+}
+
+Engine::~Engine() = default;
+
+const KdTree& Engine::tree() const {
+    if (!tree_) tree_ = std::make_unique<KdTree>(src_.points);
+    return *tree_;
+}
+
+FieldValues Engine::evaluate(const Queries& q, bool gradient, const ProgressFn& progress) const {
+    const Params params = resolve(opt_, src_, gradient);
+    FieldValues out;
+    out.phi.resize(q.size());
+    if (gradient) out.gradient.resize(3 * q.size());
+    const Output dst{out.phi.data(), gradient ? out.gradient.data() : nullptr};
+
+    const gpu::Selection sel = gpu::select(opt_.device);
+    if (!sel.note.empty()) log_once(sel.note);
+    if (sel.context) {
+        std::string why_not;
+        if (!gpu_) gpu_ = make_gpu_field(sel.context, src_, params, why_not);
+        if (gpu_) {
+            evaluate_gpu(*gpu_, params, q, dst, opt_.chunk_size, progress);
+            out.device = gpu_field_device(*gpu_);
+            return out;
+        }
+        log_once(why_not);
+    }
+    evaluate_cpu(src_, tree(), params, q, dst, progress);
+    out.device = "cpu";
+    return out;
+}
+
+}  // namespace gsd::blend
