@@ -34,31 +34,38 @@ layout(push_constant) uniform Push {
     float dmin;       // smallest distance used by the SHC kernel (1e-6 h)
 } pc;
 
-struct Acc { float W, G, D, GD, shc; vec3 Gg, U, GU; };
+// Running sums, as in src/blend/blend_cpu.cpp: w = e·T(d/ρ), q = e·T'(d/ρ), e = A·exp(−λ(d − σ)).
+struct Acc { float W, G, D, GD, QD, QGD, shc; vec3 Gg, U, GU, QU, QGU; };
 
-Acc acc_zero() { return Acc(0.0, 0.0, 0.0, 0.0, 0.0, vec3(0.0), vec3(0.0), vec3(0.0)); }
+Acc acc_zero() { return Acc(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)); }
 
-void add_term(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma) {
-    vec3 p = pts[j].xyz;
-    if (KIND == 2) {
+// The taper T(v) = (1 − v²)³ + 1e-9 and its derivative (blend_taper in blend.hpp).
+float taper(float v) { float a = 1.0 - min(v * v, 1.0); return a * a * a + 1e-9; }
+float taper_derivative(float v) { float a = 1.0 - min(v * v, 1.0); return -6.0 * v * a * a; }
+
+// Adds point p with term data t0..t2 (PAT: the torus; else t0 = (n, area)) at distance d.
+void add_term(inout Acc a, vec3 x, vec3 p, vec4 t0, vec4 t1, vec4 t2, float d, float lambda, float sigma,
+              float rho, bool tapered) {
+    float v = d / rho;
+    float t = tapered ? taper(v) : 1.0;
+    if (KIND == 2) {  // not tapered: SHC depends on the scale of its sum (blend_cpu.cpp)
         float dd = max(d, pc.dmin);
-        vec4 nA = terms[j];
-        a.shc += nA.w * (lambda * dd + 1.0) * dot(x - p, nA.xyz) / (2.0 * PI * dd * dd * dd) *
+        a.shc += t0.w * (lambda * dd + 1.0) * dot(x - p, t0.xyz) / (2.0 * PI * dd * dd * dd) *
                  exp(-lambda * (dd - sigma));
         return;
     }
     float g, scale;
     vec3 gg;
     if (KIND == 0) {
-        g = torus_sdf(terms[3 * j], terms[3 * j + 1], terms[3 * j + 2], x, gg);
+        g = torus_sdf(t0, t1, t2, x, gg);
         scale = 1.0;
     } else {
-        vec4 nA = terms[j];
-        g = dot(x - p, nA.xyz);
-        gg = nA.xyz;
-        scale = nA.w;
+        g = dot(x - p, t0.xyz);
+        gg = t0.xyz;
+        scale = t0.w;
     }
-    float w = scale * exp(-lambda * (d - sigma));
+    float e = scale * exp(-lambda * (d - sigma));
+    float w = e * t;
     a.W += w;
     a.G += w * g;
     if (GRADIENT == 1) {
@@ -68,7 +75,21 @@ void add_term(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma) {
         a.GU += w * g * u;
         a.D += w * d;
         a.GD += w * g * d;
+        if (tapered) {
+            float q = e * taper_derivative(v);
+            a.QU += q * u;
+            a.QGU += q * g * u;
+            a.QD += q * d;
+            a.QGD += q * g * d;
+        }
     }
+}
+
+void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, float rho, bool tapered) {
+    vec4 t0, t1 = vec4(0.0), t2 = vec4(0.0);
+    if (KIND == 0) { t0 = terms[3 * j]; t1 = terms[3 * j + 1]; t2 = terms[3 * j + 2]; }
+    else t0 = terms[j];
+    add_term(a, x, pts[j].xyz, t0, t1, t2, d, lambda, sigma, rho, tapered);
 }
 
 float box_distance2(vec3 x, uint i) {
@@ -76,7 +97,7 @@ float box_distance2(vec3 x, uint i) {
     return dot(e, e);
 }
 
-// Ball query with the constant λ = 2C / r_eval; returns how many points it summed.
+// Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
 uint sum_ball(vec3 x, inout Acc a) {
     float r2 = pc.r_eval * pc.r_eval;
     float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
@@ -92,7 +113,7 @@ uint sum_ball(vec3 x, inout Acc a) {
                 vec3 dv = x - pts[j].xyz;
                 float d2 = dot(dv, dv);
                 if (d2 <= r2) {
-                    add_term(a, x, j, sqrt(d2), lambda, sigma);
+                    add_point(a, x, j, sqrt(d2), lambda, sigma, pc.r_eval, true);
                     ++found;
                 }
             }
@@ -152,83 +173,57 @@ uint load_tile(uint base) {
     return n;
 }
 
-void add_tile_term(inout Acc a, vec3 x, uint m, float d, float lambda, float sigma) {
-    vec3 p = tile_p[m].xyz;
-    if (KIND == 2) {
-        float dd = max(d, pc.dmin);
-        vec4 nA = tile_t[m];
-        a.shc += nA.w * (lambda * dd + 1.0) * dot(x - p, nA.xyz) / (2.0 * PI * dd * dd * dd) *
-                 exp(-lambda * (dd - sigma));
-        return;
-    }
-    float g, scale;
-    vec3 gg;
-    if (KIND == 0) {
-        g = torus_sdf(tile_t[3 * m], tile_t[3 * m + 1], tile_t[3 * m + 2], x, gg);
-        scale = 1.0;
-    } else {
-        g = dot(x - p, tile_t[m].xyz);
-        gg = tile_t[m].xyz;
-        scale = tile_t[m].w;
-    }
-    float w = scale * exp(-lambda * (d - sigma));
-    a.W += w;
-    a.G += w * g;
-    if (GRADIENT == 1) {
-        vec3 u = d > 0.0 ? (x - p) / d : vec3(0.0);
-        a.Gg += w * gg;
-        a.U += w * u;
-        a.GU += w * g * u;
-        a.D += w * d;
-        a.GD += w * g * d;
-    }
-}
-
 void main() {
     uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
     bool valid = i < pc.query_count;
     vec3 x = valid ? qs[i].xyz : vec3(0.0);
     Acc a = acc_zero();
-    float lambda, sigma;
-    bool lambda_varies = true;
+    float rho = pc.r_eval;
+    bool rho_varies = false;
     vec3 far_p = vec3(0.0);
 
     if (EXACT == 1) {
-        // Pass 1: the farthest point sets σ_x; pass 2 sums. Tiles are shared by the workgroup.
-        float dmax = 0.0;
+        // Pass 1: the farthest point sets ρ; pass 2 sums. Tiles are shared by the workgroup.
+        rho = 0.0;
         for (uint base = 0; base < pc.point_count; base += TILE) {
             uint n = load_tile(base);
             for (uint m = 0; m < n; ++m) {
                 float d = distance(x, tile_p[m].xyz);
-                if (d > dmax) { dmax = d; far_p = tile_p[m].xyz; }
+                if (d > rho) { rho = d; far_p = tile_p[m].xyz; }
             }
             barrier();
         }
-        sigma = max(0.5 * dmax, 1e-30);
-        lambda = pc.C / sigma;
+        rho = max(rho, 1e-30);
+        rho_varies = true;
+        float sigma = 0.5 * rho, lambda = pc.C / sigma;
         for (uint base = 0; base < pc.point_count; base += TILE) {
             uint n = load_tile(base);
-            for (uint m = 0; m < n; ++m) add_tile_term(a, x, m, distance(x, tile_p[m].xyz), lambda, sigma);
+            for (uint m = 0; m < n; ++m) {
+                vec4 t0, t1 = vec4(0.0), t2 = vec4(0.0);
+                if (KIND == 0) { t0 = tile_t[3 * m]; t1 = tile_t[3 * m + 1]; t2 = tile_t[3 * m + 2]; }
+                else t0 = tile_t[m];
+                add_term(a, x, tile_p[m].xyz, t0, t1, t2, distance(x, tile_p[m].xyz), lambda, sigma, rho, false);
+            }
             barrier();
         }
     } else {
         if (!valid) return;
-        if (sum_ball(x, a) > 0) {
-            sigma = 0.5 * pc.r_eval;
-            lambda = pc.C / sigma;
-            lambda_varies = false;
-        } else {
+        if (sum_ball(x, a) < pc.k_fallback) {
+            // Fewer than k points within r_eval: the k nearest, ρ = d_k.
+            a = acc_zero();
             float kd[K_MAX];
             uint ki[K_MAX];
             knn(x, pc.k_fallback, kd, ki);
             uint k = pc.k_fallback;
-            sigma = max(0.5 * kd[k - 1], 1e-30);
-            lambda = pc.C / sigma;
+            rho = max(kd[k - 1], 1e-30);
+            rho_varies = true;
             far_p = pts[ki[k - 1]].xyz;
-            for (uint m = 0; m < k; ++m) add_term(a, x, ki[m], kd[m], lambda, sigma);
+            float sigma = 0.5 * rho, lambda = pc.C / sigma;
+            for (uint m = 0; m < k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true);
         }
     }
     if (!valid) return;
+    float sigma = 0.5 * rho, lambda = pc.C / sigma;
 
     if (KIND == 2) {
         float mag = max(abs(a.shc), 1e-37);
@@ -240,15 +235,14 @@ void main() {
         outv[i] = phi;
         return;
     }
-    vec3 g = (a.Gg - lambda * (a.GU - phi * a.U)) / a.W;
-    if (lambda_varies) {
+    vec3 g = a.Gg - lambda * (a.GU - phi * a.U) + (a.QGU - phi * a.QU) / rho;
+    if (rho_varies) {
         vec3 xf = x - far_p;
         float dfar = length(xf);
-        if (dfar > 0.0) {
-            float dphi_dlambda = -(a.GD - phi * a.D) / a.W;
-            g += dphi_dlambda * (-(lambda / dfar) * xf / dfar);
-        }
+        if (dfar > 0.0)
+            g += (xf / dfar) * ((lambda / rho) * (a.GD - phi * a.D) - (a.QGD - phi * a.QD) / (rho * rho));
     }
+    g /= a.W;
     outv[4 * i] = phi;
     outv[4 * i + 1] = g.x;
     outv[4 * i + 2] = g.y;

@@ -16,21 +16,24 @@ void main() {
     vec3 t = cross(n, s);
     float a00 = j0.w, a10 = j1.w, a01 = j2.w, a11 = j3.x, a20 = j3.y, a02 = j3.z;
 
-    float A2 = 1.0 + a10 * a10 + a01 * a01;
-    float A = sqrt(A2);
-    float I11 = 1.0 + a10 * a10, I12 = a10 * a01, I22 = 1.0 + a01 * a01;
+    float A = sqrt(1.0 + a10 * a10 + a01 * a01);
+    float I11 = 1.0 + a10 * a10, I12 = a10 * a01;
     float B11 = 2.0 * a20 / A, B12 = a11 / A, B22 = 2.0 * a02 / A;
-    float H = (I22 * B11 - 2.0 * I12 * B12 + I11 * B22) / (2.0 * A2);
-    float K = (B11 * B22 - B12 * B12) / A2;
-    float root = sqrt(max(0.0, H * H - K));
-    float big = H >= 0.0 ? H + root : H - root;
-    float small = big != 0.0 ? K / big : 0.0;
+    float l11 = sqrt(I11);
+    float la = 1.0 / l11, lb = -I12 / (l11 * A), ld = l11 / A;
+    float C11 = la * la * B11;
+    float C12 = la * (lb * B11 + ld * B12);
+    float C22 = lb * lb * B11 + 2.0 * lb * ld * B12 + ld * ld * B22;
+    float mean = 0.5 * (C11 + C22), half_diff = 0.5 * (C11 - C22);
+    float gap = sqrt(half_diff * half_diff + C12 * C12);
+    float big = mean >= 0.0 ? mean + gap : mean - gap;
+    float small = mean >= 0.0 ? mean - gap : mean + gap;
 
-    float M11 = B11 - big * I11, M12 = B12 - big * I12, M22 = B22 - big * I22;
-    float v0, v1;
-    if (M11 * M11 + M12 * M12 >= M12 * M12 + M22 * M22) { v0 = -M12; v1 = M11; }
-    else { v0 = M22; v1 = -M12; }
-    if (v0 * v0 + v1 * v1 <= 1e-30) { v0 = 1.0; v1 = 0.0; }
+    float w0 = C12, w1 = big - C11;
+    float u0 = big - C22, u1 = C12;
+    if (u0 * u0 + u1 * u1 > w0 * w0 + w1 * w1) { w0 = u0; w1 = u1; }
+    if (w0 * w0 + w1 * w1 <= 1e-30) { w0 = 1.0; w1 = 0.0; }
+    float v0 = la * w0 + lb * w1, v1 = ld * w1;
     vec3 el = normalize(vec3(v0, v1, v0 * a10 + v1 * a01));
     vec3 nl = vec3(-a10, -a01, 1.0) / A;
 

@@ -117,9 +117,12 @@ private:
 struct BlendOptions {
     /// Sum over all points (eq. 5.6 with σ_x from all of them) instead of the accelerated sum.
     bool exact = false;
-    /// Accelerated mode: points within r_eval of the query are summed with the constant
-    /// λ = 2C / r_eval (eq. 5.7 for a full ball); if none lies within r_eval, the
-    /// `fallback_k` nearest with σ_x, λ_x from eq. 5.7. 0: r_eval_spacings × mean spacing.
+    /// Accelerated mode: the points within ρ = max(r_eval, d_k) are summed, d_k being the
+    /// distance to the k = `fallback_k`-th nearest point, with σ = ρ/2, λ = C/σ (eq. 5.7 for
+    /// that set). Near the surface that is the ball of radius r_eval with a constant λ; farther
+    /// than r_eval from the cloud, the k nearest with λ_x of eq. 5.7 (the thesis' fallback).
+    /// Weights are tapered by (1 − (d/ρ)²)³ so φ is continuous where the set changes
+    /// (docs/pat.md). r_eval = 0: r_eval_spacings × the cloud's mean spacing.
     double r_eval = 0;
     double r_eval_spacings = 8.0;
     int fallback_k = 32;

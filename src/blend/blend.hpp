@@ -7,6 +7,7 @@
 #include <gsd/pat.hpp>
 #include <gsd/spatial.hpp>
 
+#include <algorithm>
 #include <memory>
 #include <string>
 #include <vector>
@@ -57,6 +58,18 @@ struct Output {
     float* phi;
     float* gradient;
 };
+
+/// The taper of the accelerated sum, T(v) = (1 − v²)³ + 1e-9 for v = d/ρ ∈ [0, 1]: it makes a
+/// point's weight vanish (to 1e-9) as it reaches the edge of the summed set, so φ stays
+/// continuous where the set changes. The 1e-9 floor keeps Σw > 0 when every point sits at ρ.
+inline double blend_taper(double v) {
+    const double a = 1 - std::min(v * v, 1.0);
+    return a * a * a + 1e-9;
+}
+inline double blend_taper_derivative(double v) {
+    const double a = 1 - std::min(v * v, 1.0);
+    return -6 * v * a * a;
+}
 
 /// CPU reference (double precision, OpenMP). The tree indexes src.points.
 void evaluate_cpu(const Source& src, const KdTree& tree, const Params& params, const Queries& queries,

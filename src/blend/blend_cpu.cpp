@@ -28,11 +28,55 @@ Eigen::Vector3d Queries::at(std::size_t i) const {
 
 namespace {
 
-// Running sums of one query. With W = Σw, φ = Σ w g / W, and
-// ∇φ = (Σ w ∇g − λ Σ w (g − φ) û + ∂φ/∂λ ∇λ) / W, where û = (x − p)/d.
+// The summed set of one query and its blend parameters (BlendOptions):
+//   exact:        every point; ρ = max distance; no taper
+//   accelerated:  ρ = max(r_eval, d_k) with d_k the distance to the k-th nearest point; the
+//                 points within ρ, weighted by the taper T(d/ρ) that vanishes at ρ
+// Then σ = ρ/2 and λ = C/σ (eq. 5.7 with the set's largest distance ρ).
+struct Set {
+    double rho = 0, sigma = 0, lambda = 0;
+    bool tapered = false;
+    bool rho_varies = false;  // ρ = d_far depends on x (exact sum, or fewer than k points in r_eval)
+    std::uint32_t far = 0;    // the point at distance ρ when rho_varies
+};
+
+Set choose_set(const KdTree& tree, const Params& p, const Eigen::Vector3d& x, std::vector<Neighbor>& nb) {
+    Set s;
+    if (p.exact) {
+        const Eigen::Index n = tree.points().rows();
+        nb.resize(std::size_t(n));
+        for (Eigen::Index i = 0; i < n; ++i)
+            nb[std::size_t(i)] = {std::uint32_t(i), (tree.points().row(i).transpose() - x).norm()};
+        s.rho_varies = true;
+    } else {
+        s.tapered = true;
+        tree.radius(x, p.r_eval, nb);
+        if (nb.size() >= std::size_t(p.fallback_k)) {
+            s.rho = p.r_eval;
+        } else {
+            tree.knn(x, std::size_t(p.fallback_k), nb);
+            s.rho_varies = true;
+        }
+    }
+    if (s.rho_varies) {
+        s.far = nb.front().index;
+        for (const Neighbor& n : nb)
+            if (n.distance > s.rho) { s.rho = n.distance; s.far = n.index; }
+    }
+    s.rho = std::max(s.rho, 1e-300);
+    s.sigma = 0.5 * s.rho;
+    s.lambda = p.C / s.sigma;
+    return s;
+}
+
+// Running sums of one query, with e = exp(−λ(d − σ))·A, w = e·T(d/ρ), q = e·T'(d/ρ), û = (x − p)/d:
+// W = Σw, G = Σwg, Gg = Σw∇g, U = Σwû, GU = Σwgû, D = Σwd, GD = Σwgd, QU = Σqû, QGU = Σqgû,
+// QD = Σqd, QGD = Σqgd. Then φ = G/W and
+// ∇φ = (Gg − λ(GU − φU) + (QGU − φQU)/ρ + ∇ρ[(λ/ρ)(GD − φD) − (QGD − φQD)/ρ²]) / W.
 struct Accumulator {
-    double W = 0, G = 0, GD = 0, D = 0;
-    Eigen::Vector3d Gg = Eigen::Vector3d::Zero(), U = Eigen::Vector3d::Zero(), GU = Eigen::Vector3d::Zero();
+    double W = 0, G = 0, D = 0, GD = 0, QD = 0, QGD = 0;
+    Eigen::Vector3d Gg = Eigen::Vector3d::Zero(), U = Eigen::Vector3d::Zero(), GU = Eigen::Vector3d::Zero(),
+                    QU = Eigen::Vector3d::Zero(), QGU = Eigen::Vector3d::Zero();
 };
 
 struct PointTerm {
@@ -55,87 +99,68 @@ PointTerm point_term(const Source& src, std::uint32_t i, const Eigen::Vector3d& 
     return t;
 }
 
-// Signed Hopf–Cole (eq. 5.8): φ = sign(w)(−log|w|/λ + σ) with the screened dipole sum w.
-double shc_value(const Source& src, const std::vector<Neighbor>& set, const Eigen::Vector3d& x,
-                 double lambda, double sigma) {
+// Signed Hopf–Cole (eq. 5.8): φ = sign(w)(−log|w|/λ + σ) with the screened dipole sum w. Its
+// value depends on the scale of w, not only on relative weights, so it is not tapered: the
+// taper would shrink w for far queries and bias φ by log(T)/λ.
+double shc_value(const Source& src, const std::vector<Neighbor>& nb, const Eigen::Vector3d& x, const Set& s) {
     const double dmin = 1e-6 * src.spacing;
     double w = 0;
-    for (const Neighbor& nb : set) {
-        const double d = std::max(nb.distance, dmin);
-        const Eigen::Vector3d n = src.normals.row(nb.index).transpose();
-        const double dot = (x - src.points.row(nb.index).transpose()).dot(n);
-        w += src.areas[nb.index] * (lambda * d + 1) * dot / (2 * M_PI * d * d * d) *
-             std::exp(-lambda * (d - sigma));
+    for (const Neighbor& n : nb) {
+        const double d = std::max(n.distance, dmin);
+        const Eigen::Vector3d nrm = src.normals.row(n.index).transpose();
+        const double dot = (x - src.points.row(n.index).transpose()).dot(nrm);
+        w += src.areas[n.index] * (s.lambda * d + 1) * dot / (2 * M_PI * d * d * d) *
+             std::exp(-s.lambda * (d - s.sigma));
     }
     const double mag = std::max(std::abs(w), 1e-300);
-    return (w < 0 ? -1.0 : 1.0) * (-std::log(mag) / lambda + sigma);
-}
-
-// Picks the summed set and its λ, σ (BlendOptions): returns whether λ varies with x.
-bool choose_set(const KdTree& tree, const Params& p, const Eigen::Vector3d& x,
-                std::vector<Neighbor>& set, double& lambda, double& sigma, std::uint32_t& far) {
-    const Eigen::Index n = tree.points().rows();
-    if (p.exact) {
-        set.resize(std::size_t(n));
-        for (Eigen::Index i = 0; i < n; ++i)
-            set[std::size_t(i)] = {std::uint32_t(i), (tree.points().row(i).transpose() - x).norm()};
-    } else {
-        tree.radius(x, p.r_eval, set);
-        if (!set.empty()) {
-            sigma = 0.5 * p.r_eval;
-            lambda = p.C / sigma;
-            return false;
-        }
-        tree.knn(x, std::size_t(p.fallback_k), set);
-    }
-    double dmax = 0;
-    far = set.front().index;
-    for (const Neighbor& nb : set)
-        if (nb.distance > dmax) { dmax = nb.distance; far = nb.index; }
-    sigma = std::max(0.5 * dmax, 1e-300);
-    lambda = p.C / sigma;
-    return true;
+    return (w < 0 ? -1.0 : 1.0) * (-std::log(mag) / s.lambda + s.sigma);
 }
 
 }  // namespace
 
 double evaluate_one(const Source& src, const KdTree& tree, const Params& p, const Eigen::Vector3d& x,
-                    Eigen::Vector3d* grad, std::vector<Neighbor>& set) {
-    double lambda = 0, sigma = 0;
-    std::uint32_t far = 0;
-    const bool lambda_varies = choose_set(tree, p, x, set, lambda, sigma, far);
+                    Eigen::Vector3d* grad, std::vector<Neighbor>& nb) {
+    const Set s = choose_set(tree, p, x, nb);
     if (src.kind == Kind::Shc) {
         if (grad) grad->setZero();
-        return shc_value(src, set, x, lambda, sigma);
+        return shc_value(src, nb, x, s);
     }
     Accumulator a;
-    for (const Neighbor& nb : set) {
-        const PointTerm t = point_term(src, nb.index, x, grad != nullptr);
-        const double w = t.weight_scale * std::exp(-lambda * (nb.distance - sigma));
+    for (const Neighbor& n : nb) {
+        const PointTerm t = point_term(src, n.index, x, grad != nullptr);
+        const double e = t.weight_scale * std::exp(-s.lambda * (n.distance - s.sigma));
+        const double v = n.distance / s.rho;
+        const double w = s.tapered ? e * blend_taper(v) : e;
         a.W += w;
         a.G += w * t.g;
         if (!grad) continue;
-        const Eigen::Vector3d u = nb.distance > 0 ? Eigen::Vector3d((x - src.points.row(nb.index).transpose()) / nb.distance)
-                                                  : Eigen::Vector3d::Zero();
+        const Eigen::Vector3d u = n.distance > 0 ? Eigen::Vector3d((x - src.points.row(n.index).transpose()) / n.distance)
+                                                 : Eigen::Vector3d::Zero();
         a.Gg += w * t.grad_g;
         a.U += w * u;
         a.GU += w * t.g * u;
-        a.D += w * nb.distance;
-        a.GD += w * t.g * nb.distance;
+        a.D += w * n.distance;
+        a.GD += w * t.g * n.distance;
+        if (s.tapered) {
+            const double q = e * blend_taper_derivative(v);
+            a.QU += q * u;
+            a.QGU += q * t.g * u;
+            a.QD += q * n.distance;
+            a.QGD += q * t.g * n.distance;
+        }
     }
     const double phi = a.G / a.W;
     if (grad) {
-        Eigen::Vector3d g = (a.Gg - lambda * (a.GU - phi * a.U)) / a.W;
-        if (lambda_varies) {
-            // λ = 2C / d_far: ∇λ = −(λ / d_far) û_far; ∂φ/∂λ = −Σ w (g − φ) d / W.
-            const Eigen::Vector3d xf = x - src.points.row(far).transpose();
+        Eigen::Vector3d g = a.Gg - s.lambda * (a.GU - phi * a.U) + (a.QGU - phi * a.QU) / s.rho;
+        if (s.rho_varies) {
+            const Eigen::Vector3d xf = x - src.points.row(s.far).transpose();
             const double dfar = xf.norm();
             if (dfar > 0) {
-                const double dphi_dlambda = -(a.GD - phi * a.D) / a.W;
-                g += dphi_dlambda * (-(lambda / dfar) * xf / dfar);
+                const Eigen::Vector3d grad_rho = xf / dfar;
+                g += grad_rho * ((s.lambda / s.rho) * (a.GD - phi * a.D) - (a.QGD - phi * a.QD) / (s.rho * s.rho));
             }
         }
-        *grad = g;
+        *grad = g / a.W;
     }
     return phi;
 }

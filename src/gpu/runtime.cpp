@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <dlfcn.h>
 #include <sstream>
 #include <utility>
 
@@ -134,10 +135,7 @@ public:
 
 private:
     Runtime() {
-        if (volkInitialize() != VK_SUCCESS) {
-            inventory_.problem = "no Vulkan loader (libvulkan.so.1) found";
-            return;
-        }
+        if (!load_loader()) return;
         inventory_.loader_found = true;
         try {
             create_instance();
@@ -151,6 +149,25 @@ private:
         vkEnumeratePhysicalDevices(instance_, &n, physical_.data());
         for (std::uint32_t i = 0; i < n; ++i) inventory_.devices.push_back(describe(physical_[i], i));
         if (n == 0) inventory_.problem = "the Vulkan loader reports no devices";
+    }
+
+    // $GSD_VULKAN_LOADER names the loader library to use (default: the system's
+    // libvulkan.so.1); pointing it at a missing file is how tests exercise "no loader".
+    bool load_loader() {
+        const char* custom = std::getenv("GSD_VULKAN_LOADER");
+        const std::string path = custom && *custom ? custom : "libvulkan.so.1";
+        loader_ = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+        if (!loader_) {
+            inventory_.problem = "no Vulkan loader (" + path + ") found";
+            return false;
+        }
+        auto gipa = reinterpret_cast<PFN_vkGetInstanceProcAddr>(dlsym(loader_, "vkGetInstanceProcAddr"));
+        if (!gipa) {
+            inventory_.problem = path + " is not a Vulkan loader";
+            return false;
+        }
+        volkInitializeCustom(gipa);
+        return true;
     }
 
     void create_instance() {
@@ -204,6 +221,7 @@ private:
     }
 
     std::mutex mutex_;
+    void* loader_ = nullptr;  // kept open for the life of the process
     Inventory inventory_;
     VkInstance instance_ = VK_NULL_HANDLE;
     VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;

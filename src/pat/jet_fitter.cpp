@@ -54,7 +54,7 @@ Jet fit_one(const PointCloud& cloud, Eigen::Index i, const Eigen::Vector3d& s,
     // A light ridge keeps degenerate neighborhoods (collinear, too few points) solvable and
     // pulls their unknown curvature toward flat rather than toward noise.
     const double ridge = 1e-6 * std::max(weight_sum, 1e-12);
-    for (int a = 0; a < 6; ++a) M(a, a) += a >= 3 ? 100 * ridge : ridge;
+    for (int a = 0; a < 6; ++a) M(a, a) += a >= 3 ? 10 * ridge : ridge;
     const Vec6 x = M.ldlt().solve(b);
 
     Jet jet;

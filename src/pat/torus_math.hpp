@@ -18,32 +18,36 @@ struct TorusFrame {
 
 /// Coefficients a = (a00, a10, a01, a11, a20, a02) of Q(s,t) → torus. The principal curvatures
 /// solve II v = κ I v with I = [[1+a10², a10·a01], [a10·a01, 1+a01²]] and
-/// II = [[2a20, a11], [a11, 2a02]] / A, A = √(1 + a10² + a01²).
+/// II = [[2a20, a11], [a11, 2a02]] / A, A = √(1 + a10² + a01²). With I = L Lᵀ (Cholesky) this is
+/// the symmetric problem C v' = κ v', C = L⁻¹ II L⁻ᵀ, v = L⁻ᵀ v', whose eigenvalue gap
+/// √(((C11 − C22)/2)² + C12²) is a sum of squares: no cancellation near umbilics in float32.
 template <class T>
 TorusFrame<T> torus_from_jet(const T (&a)[6]) {
     const T a10 = a[1], a01 = a[2], a11 = a[3], a20 = a[4], a02 = a[5];
-    const T A2 = T(1) + a10 * a10 + a01 * a01;
-    const T A = std::sqrt(A2);
-    const T I11 = T(1) + a10 * a10, I12 = a10 * a01, I22 = T(1) + a01 * a01;
+    const T A = std::sqrt(T(1) + a10 * a10 + a01 * a01);
+    const T I11 = T(1) + a10 * a10, I12 = a10 * a01;
     const T B11 = T(2) * a20 / A, B12 = a11 / A, B22 = T(2) * a02 / A;
-    // Mean and Gaussian curvature of the pencil; det I = A².
-    const T H = (I22 * B11 - T(2) * I12 * B12 + I11 * B22) / (T(2) * A2);
-    const T K = (B11 * B22 - B12 * B12) / A2;
-    const T root = std::sqrt(std::max(T(0), H * H - K));
-    // The larger-magnitude root without cancellation, the other from the product K.
-    const T big = H >= T(0) ? H + root : H - root;
-    const T small = big != T(0) ? K / big : T(0);
+    // L⁻¹ = [[la, 0], [lb, ld]] for I = L Lᵀ: l11 = √I11, l21 = I12/l11, l22 = A/l11.
+    const T l11 = std::sqrt(I11);
+    const T la = T(1) / l11, lb = -I12 / (l11 * A), ld = l11 / A;
+    const T C11 = la * la * B11;
+    const T C12 = la * (lb * B11 + ld * B12);
+    const T C22 = lb * lb * B11 + T(2) * lb * ld * B12 + ld * ld * B22;
+    const T mean = (C11 + C22) / T(2), half = (C11 - C22) / T(2);
+    const T gap = std::sqrt(half * half + C12 * C12);
+    const T big = mean >= T(0) ? mean + gap : mean - gap;
+    const T small = mean >= T(0) ? mean - gap : mean + gap;
 
     TorusFrame<T> f{};
     f.a00 = a[0];
     f.k1 = big;
     f.k2 = small;
-    // Null vector of M = II − k1·I: perpendicular to its larger row.
-    const T M11 = B11 - big * I11, M12 = B12 - big * I12, M22 = B22 - big * I22;
-    T v0, v1;
-    if (M11 * M11 + M12 * M12 >= M12 * M12 + M22 * M22) { v0 = -M12; v1 = M11; }
-    else { v0 = M22; v1 = -M12; }
-    if (v0 * v0 + v1 * v1 <= T(1e-30)) { v0 = T(1); v1 = T(0); }  // umbilic: any direction
+    // Eigenvector of C for `big`: the larger of two equivalent forms; any vector at an umbilic.
+    T w0 = C12, w1 = big - C11;
+    const T u0 = big - C22, u1 = C12;
+    if (u0 * u0 + u1 * u1 > w0 * w0 + w1 * w1) { w0 = u0; w1 = u1; }
+    if (w0 * w0 + w1 * w1 <= T(1e-30)) { w0 = T(1); w1 = T(0); }
+    const T v0 = la * w0 + lb * w1, v1 = ld * w1;  // v = L⁻ᵀ w
     // Tangent vector v0·X_s + v1·X_t with X_s = (1, 0, a10), X_t = (0, 1, a01).
     T e[3] = {v0, v1, v0 * a10 + v1 * a01};
     const T len = std::sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);

@@ -1,4 +1,327 @@
-// Temporary entry point while the CLI is assembled.
-#include <gsd/core.hpp>
+// gsd — generalized signed distance from imperfect geometry, on the command line.
+//
+// Exit status: 0 success, 1 a data error (message "gsd: error: <file>: <what>"), 2 a usage
+// error. Outputs are written only when everything succeeded (atomically), so a failed run
+// never leaves a partial file.
+#include "cli.hpp"
+
+#include <gsd/baselines.hpp>
+#include <gsd/gpu.hpp>
+#include <gsd/io.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/viz.hpp>
+
+#include <chrono>
 #include <cstdio>
-int main() { std::printf("gsd %s\n", std::string(gsd::version()).c_str()); return 0; }
+#include <filesystem>
+#include <optional>
+
+using namespace gsd;
+using namespace gsd::cli;
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string fmt(const char* f, double v) {
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), f, v);
+    return buf;
+}
+
+// ---- shared options ----------------------------------------------------------------------
+
+struct FitArgs {
+    std::string fitter = "jet";
+    int k = JetFitterOptions{}.k;
+    void add_to(CLI::App& app) {
+        app.add_option("--fitter", fitter, "Torus fitter")->check(CLI::IsMember({"jet"}))->capture_default_str();
+        app.add_option("--k", k, "Neighbors per fit (the point itself included)")->check(CLI::Range(6, 1024))->capture_default_str();
+    }
+    FittedTori fit(const PointCloud& cloud, const std::string& path) const {
+        JetFitterOptions o;
+        o.k = k;
+        Progress progress("fit " + std::filesystem::path(path).filename().string());
+        const auto t0 = std::chrono::steady_clock::now();
+        FittedTori t = JetFitter(o).fit(cloud, progress.fn());
+        progress.finish();
+        if (globals().verbose)
+            note("fitted " + std::to_string(t.size()) + " tori (" + fitter + ", k=" + std::to_string(k) + ") in " +
+                 fmt("%.2f s", seconds_since(t0)));
+        return t;
+    }
+};
+
+struct BlendArgs {
+    bool exact = false;
+    std::string device;
+    double r_eval = 0;
+    double r_eval_spacings = BlendOptions{}.r_eval_spacings;
+    void add_to(CLI::App& app) {
+        app.add_flag("--exact", exact, "Sum over every point (eq. 5.6 as written) instead of the accelerated sum");
+        app.add_option("--device", device, "auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE or auto)");
+        app.add_option("--r-eval", r_eval, "Radius of the accelerated sum (default: --r-eval-spacings × mean spacing)")
+            ->check(CLI::PositiveNumber);
+        app.add_option("--r-eval-spacings", r_eval_spacings, "Radius of the accelerated sum in mean spacings")
+            ->check(CLI::PositiveNumber)->capture_default_str();
+    }
+    BlendOptions options() const {
+        BlendOptions o;
+        o.exact = exact;
+        o.device = device;
+        o.r_eval = r_eval;
+        o.r_eval_spacings = r_eval_spacings;
+        return o;
+    }
+};
+
+bool is_tori_file(const std::string& path) { return io::extension(path) == ".tori"; }
+
+// Evaluates a field over a domain and writes the outputs; Field has evaluate(Points|GridSpec, ...).
+template <class EvalPoints, class EvalGrid>
+void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
+                        const std::string& gradient_out, EvalPoints eval_points, EvalGrid eval_grid,
+                        const std::string& what) {
+    GridSpec grid;
+    Points queries;
+    if (domain.is_grid()) grid = domain.grid_spec(input_box);
+    else queries = io::read_queries(domain.queries);
+    const std::size_t count = domain.is_grid() ? grid.node_count() : std::size_t(queries.rows());
+    Progress progress(what);
+    const auto t0 = std::chrono::steady_clock::now();
+    const FieldValues v = domain.is_grid() ? eval_grid(grid, progress.fn()) : eval_points(queries, progress.fn());
+    progress.finish();
+    const double dt = seconds_since(t0);
+    if (globals().verbose)
+        note("evaluated " + std::to_string(count) + " points on " + v.device + " in " + fmt("%.3f s", dt) + " (" +
+             fmt("%.3g", double(count) / std::max(dt, 1e-9)) + " points/s)");
+    write_values(out, domain, grid, count, v.phi, 1);
+    if (!gradient_out.empty()) {
+        try {
+            write_values(gradient_out, domain, grid, count, v.gradient, 3);
+        } catch (...) {
+            std::filesystem::remove(out);  // all outputs or none
+            throw;
+        }
+    }
+    note("wrote " + out + (gradient_out.empty() ? "" : " and " + gradient_out));
+}
+
+// ---- commands ----------------------------------------------------------------------------
+
+void add_pat(CLI::App& app) {
+    auto* pat = app.add_subcommand("pat", "Points as Tori (thesis ch. 5): signed distance from an oriented point cloud");
+    pat->require_subcommand(1);
+
+    {
+        auto* fit = pat->add_subcommand("fit", "Fit a torus at every point and save them (.tori) so a cloud is fitted once");
+        auto input = std::make_shared<std::string>();
+        auto output = std::make_shared<std::string>();
+        auto args = std::make_shared<FitArgs>();
+        fit->add_option("INPUT", *input, "Point cloud with normals (.ply .xyz .xyzn .txt .pc .obj .npy)")->required();
+        fit->add_option("-o,--output", *output, "Output .tori file")->required();
+        args->add_to(*fit);
+        fit->callback([=] {
+            const PointCloud cloud = io::read_point_cloud(*input);
+            const FittedTori t = args->fit(cloud, *input);
+            save_tori(*output, t);
+            note("wrote " + std::to_string(t.size()) + " tori to " + *output);
+        });
+    }
+    {
+        auto* eval = pat->add_subcommand("eval", "Evaluate the PAT signed distance on a grid or at query points");
+        auto input = std::make_shared<std::string>();
+        auto tori = std::make_shared<std::string>();
+        auto output = std::make_shared<std::string>();
+        auto gradient = std::make_shared<std::string>();
+        auto domain = std::make_shared<Domain>();
+        auto fit = std::make_shared<FitArgs>();
+        auto blend = std::make_shared<BlendArgs>();
+        auto* in = eval->add_option("INPUT", *input, "Point cloud with normals (or a .tori file)");
+        auto* tin = eval->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
+        in->excludes(tin);
+        eval->add_option("-o,--output", *output, "Output .npy: (N,N,N) for a grid, (M,) for queries")->required();
+        eval->add_option("--gradient", *gradient, "Also write ∇φ: (N,N,N,3) or (M,3) .npy");
+        domain->add_to(*eval, true);
+        fit->add_to(*eval);
+        blend->add_to(*eval);
+        eval->callback([=] {
+            if (input->empty() && tori->empty()) throw CLI::RequiredError("INPUT or --tori");
+            if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
+            std::string source = !tori->empty() ? *tori : *input;
+            FittedTori fitted = is_tori_file(source) ? load_tori(source) : fit->fit(io::read_point_cloud(source), source);
+            const std::optional<Box> box = bounding_box(fitted.points);
+            const TorusField field(std::move(fitted), blend->options());
+            const bool want_gradient = !gradient->empty();
+            evaluate_and_write(
+                *domain, box, *output, *gradient,
+                [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, want_gradient, p); },
+                [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, want_gradient, p); },
+                "pat eval");
+        });
+    }
+}
+
+void add_baseline(CLI::App& app) {
+    auto* base = app.add_subcommand("baseline", "Classic convolutional signed distances: sspd (eq. 5.9), shc (signed Hopf–Cole, eq. 5.8)");
+    auto kind = std::make_shared<std::string>();
+    auto input = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto domain = std::make_shared<Domain>();
+    auto blend = std::make_shared<BlendArgs>();
+    base->add_option("METHOD", *kind, "sspd | shc")->required()->check(CLI::IsMember({"sspd", "shc"}));
+    base->add_option("INPUT", *input, "Point cloud with normals")->required();
+    base->add_option("-o,--output", *output, "Output .npy")->required();
+    domain->add_to(*base, true);
+    blend->add_to(*base);
+    base->callback([=] {
+        if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
+        const PointCloud cloud = io::read_point_cloud(*input);
+        const BaselineField field(baseline_from_name(*kind), cloud, blend->options());
+        evaluate_and_write(
+            *domain, bounding_box(cloud.points), *output, "",
+            [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, p); },
+            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, p); }, "baseline " + *kind);
+    });
+}
+
+// Reads an (nx, ny, nz) grid and pairs it with --bounds.
+GridSpec grid_of(const io::NpyArray& a, const std::vector<double>& bounds) {
+    GridSpec g{int(a.shape[0]), int(a.shape[1]), int(a.shape[2]), bounds_from(bounds, "--bounds")};
+    g.validate();
+    return g;
+}
+
+std::vector<float> as_float(const io::NpyArray& a) { return std::vector<float>(a.data.begin(), a.data.end()); }
+
+void add_contour(CLI::App& app) {
+    auto* c = app.add_subcommand("contour", "Extract a level set of a grid as a closed, oriented triangle mesh");
+    auto input = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto bounds = std::make_shared<std::vector<double>>();
+    auto iso = std::make_shared<double>(0.0);
+    c->add_option("GRID", *input, "(N,N,N) float .npy grid")->required();
+    c->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1")->required()->expected(6);
+    c->add_option("--iso", *iso, "Level to extract")->capture_default_str();
+    c->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required();
+    c->callback([=] {
+        const io::NpyArray a = io::read_grid(*input);
+        const GridSpec g = grid_of(a, *bounds);
+        const PolygonMesh mesh = contour(g, as_float(a), *iso);
+        if (mesh.face_count() == 0) throw Error(*input, "the level " + fmt("%g", *iso) + " does not cross the grid");
+        io::write_mesh(*output, mesh);
+        note("wrote " + std::to_string(mesh.face_count()) + " triangles to " + *output);
+    });
+}
+
+void add_slice(CLI::App& app) {
+    auto* s = app.add_subcommand("slice", "Render a planar slice of a grid as a PNG (diverging colors, isolines, zero contour)");
+    auto input = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto bounds = std::make_shared<std::vector<double>>();
+    auto axis = std::make_shared<std::string>("z");
+    auto opt = std::make_shared<SliceOptions>();
+    s->add_option("GRID", *input, "(N,N,N) float .npy grid")->required();
+    s->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1")->required()->expected(6);
+    s->add_option("--axis", *axis, "Slice perpendicular to x, y or z")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
+    s->add_option("--at", opt->at, "World coordinate of the slice plane")->required();
+    s->add_option("--width", opt->width, "Image width in pixels (default 512, or the grid size if larger)")->check(CLI::Range(0, 16384));
+    s->add_option("--range", opt->range, "Colors saturate at ±range (default: max |value| on the slice)")->check(CLI::NonNegativeNumber);
+    s->add_option("--isolines", opt->isolines, "Isolines on each side of zero")->check(CLI::Range(0, 1000))->capture_default_str();
+    s->add_option("-o,--output", *output, "Output .png")->required();
+    s->callback([=] {
+        const io::NpyArray a = io::read_grid(*input);
+        const GridSpec g = grid_of(a, *bounds);
+        SliceOptions o = *opt;
+        o.axis = *axis == "x" ? Axis::X : (*axis == "y" ? Axis::Y : Axis::Z);
+        write_png(*output, render_slice(g, as_float(a), o));
+        note("wrote " + *output);
+    });
+}
+
+void add_sample(CLI::App& app) {
+    auto* s = app.add_subcommand("sample", "Sample an analytic shape into an oriented point cloud (demo and test data)");
+    auto shape = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto n = std::make_shared<std::size_t>(2048);
+    auto seed = std::make_shared<std::uint64_t>(1);
+    auto c = std::make_shared<shapes::Corruption>();
+    s->add_option("SHAPE", *shape, "sphere | torus | capsule | rounded-box")
+        ->required()->check(CLI::IsMember({"sphere", "torus", "capsule", "rounded-box"}));
+    s->add_option("-n,--points", *n, "Number of points")->check(CLI::Range(std::size_t(2), std::size_t(100000000)))->capture_default_str();
+    s->add_option("--seed", *seed, "Random seed")->capture_default_str();
+    s->add_option("--noise", c->position_noise, "Gaussian noise on positions (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0));
+    s->add_option("--normal-noise", c->normal_noise, "Gaussian noise on normals")->check(CLI::Range(0.0, 10.0));
+    s->add_option("--flip", c->flip_fraction, "Fraction of normals flipped")->check(CLI::Range(0.0, 1.0));
+    s->add_option("--outliers", c->outlier_fraction, "Fraction of points replaced by outliers")->check(CLI::Range(0.0, 1.0));
+    s->add_option("--holes", c->holes, "Number of holes cut out")->check(CLI::Range(0, 1000));
+    s->add_option("--hole-radius", c->hole_radius, "Hole radius (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+    s->add_option("-o,--output", *output, "Output point cloud (.ply .xyz .pc .obj .npy)")->required();
+    s->callback([=] {
+        const PointCloud clean = shapes::by_name(*shape)->sample(*n, *seed);
+        const PointCloud cloud = shapes::corrupt(clean, *c, *seed + 1);
+        io::write_point_cloud(*output, cloud);
+        note("wrote " + std::to_string(cloud.size()) + " points of a " + *shape + " to " + *output);
+    });
+}
+
+void add_info(CLI::App& app) {
+    auto* info = app.add_subcommand("info", "Version, the Vulkan devices seen, and what --device auto picks");
+    info->callback([] {
+        std::printf("gsd %s\n", std::string(version()).c_str());
+        const gpu::Inventory inv = gpu::list_devices();
+        if (inv.devices.empty()) std::printf("Vulkan: %s\n", inv.problem.empty() ? "no devices" : inv.problem.c_str());
+        for (const auto& d : inv.devices)
+            std::printf("  device %u: %s (%s, Vulkan %s, %.1f GiB, subgroup %u)%s\n", d.index, d.name.c_str(), d.type.c_str(),
+                        d.api_version.c_str(), double(d.device_local_bytes) / (1u << 30), d.subgroup_size,
+                        d.usable ? "" : (" — unusable: " + d.why_not).c_str());
+        const gpu::Selection sel = gpu::select("auto");
+        std::printf("--device auto: %s%s\n", sel.device_name.c_str(), sel.context ? "" : " (the CPU path)");
+        const gpu::Selection any = gpu::select("gpu");
+        std::printf("--device gpu:  %s%s\n", any.device_name.c_str(), any.context ? "" : " (the CPU path)");
+        if (gpu::validation_active()) std::printf("Vulkan validation layer: on\n");
+    });
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    CLI::App app{"gsd — generalized signed distance and winding numbers from imperfect geometry"};
+    app.set_version_flag("--version", std::string(version()));
+    app.require_subcommand(1);
+    app.fallthrough();
+    app.add_flag("-q,--quiet", globals().quiet, "No progress or notes on stderr");
+    app.add_flag("-v,--verbose", globals().verbose, "Timings and devices on stderr");
+    add_pat(app);
+    add_baseline(app);
+    add_contour(app);
+    add_slice(app);
+    add_sample(app);
+    add_info(app);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        app.exit(e);
+        return kUsage;
+    } catch (const Error& e) {
+        if (e.where().empty()) std::fprintf(stderr, "gsd: error: %s\n", e.what());
+        else std::fprintf(stderr, "gsd: error: %s: %s\n", e.where().c_str(), e.what());
+        return kDataError;
+    } catch (const std::bad_alloc&) {
+        std::fprintf(stderr, "gsd: error: out of memory\n");
+        return kDataError;
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "gsd: error: %s\n", e.what());
+        return kDataError;
+    }
+    return kOk;
+}

@@ -1,0 +1,202 @@
+// The gsd CLI as a user meets it: exit codes, error messages, no partial outputs, device
+// fallback, and the end-to-end acceptance checks.
+#include <doctest/doctest.h>
+
+#include <gsd/io.hpp>
+#include <gsd/shapes.hpp>
+
+#include "support.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <array>
+#include <filesystem>
+#include <map>
+#include <random>
+
+using namespace gsd;
+using test::run_cli;
+using test::ScratchDir;
+
+namespace {
+
+const char* kBounds = "--bounds -1 -1 -1 1 1 1";
+
+double mean_abs_error(const io::NpyArray& a, const shapes::Shape& s, int n) {
+    const GridSpec g = GridSpec::cube(n, Box{{-1, -1, -1}, {1, 1, 1}});
+    const Points nodes = g.nodes();
+    double sum = 0;
+    for (Eigen::Index i = 0; i < nodes.rows(); ++i) sum += std::abs(a.data[std::size_t(i)] - s.sdf(nodes.row(i).transpose()));
+    return sum / double(nodes.rows());
+}
+
+double max_abs_diff(const io::NpyArray& a, const io::NpyArray& b) {
+    REQUIRE(a.data.size() == b.data.size());
+    double m = 0;
+    for (std::size_t i = 0; i < a.data.size(); ++i) m = std::max(m, std::abs(a.data[i] - b.data[i]));
+    return m;
+}
+
+std::string binary_ply(const std::vector<std::array<float, 6>>& rows, std::size_t claimed) {
+    std::string s = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(claimed) +
+                    "\nproperty float x\nproperty float y\nproperty float z\n"
+                    "property float nx\nproperty float ny\nproperty float nz\nend_header\n";
+    for (const auto& r : rows) s.append(reinterpret_cast<const char*>(r.data()), 24);
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("usage errors exit 2, help exits 0") {
+    CHECK(run_cli("").exit_code == 2);
+    CHECK(run_cli("frobnicate").exit_code == 2);
+    CHECK(run_cli("pat eval in.ply --grid 8").exit_code == 2);           // no -o
+    CHECK(run_cli("pat eval in.ply --grid 1 -o x.npy").exit_code == 2);  // grid too small
+    CHECK(run_cli("slice g.npy --bounds 0 0 0 1 1 1 --axis w --at 0 -o s.png").exit_code == 2);
+    const auto help = run_cli("pat eval --help");
+    CHECK(help.exit_code == 0);
+    CHECK(help.output.find("--exact") != std::string::npos);
+    CHECK(run_cli("--version").exit_code == 0);
+}
+
+TEST_CASE("acceptance: 2048-point sphere, 64^3 grid, jet fitter — accuracy and GPU/CPU agreement") {
+    ScratchDir dir("cli-sphere");
+    const std::string cloud = dir.file("sphere.ply");
+    REQUIRE(run_cli("sample sphere -n 2048 -o " + cloud).exit_code == 0);
+    const auto cpu = run_cli("pat eval " + cloud + " --grid 64 " + kBounds + " --fitter jet --device cpu -o " + dir.file("cpu.npy"));
+    REQUIRE(cpu.exit_code == 0);
+    const auto gpu = run_cli("pat eval " + cloud + " --grid 64 " + kBounds + " --fitter jet --device gpu -o " + dir.file("gpu.npy"));
+    REQUIRE(gpu.exit_code == 0);
+    const io::NpyArray a = io::read_npy(dir.file("cpu.npy"));
+    const io::NpyArray b = io::read_npy(dir.file("gpu.npy"));
+    CHECK(a.shape == std::vector<std::size_t>{64, 64, 64});
+    const double err = mean_abs_error(a, *shapes::by_name("sphere"), 64);
+    const double diff = max_abs_diff(a, b);
+    MESSAGE("sphere: mean |φ − φ_true| = " << err << ", max |φ_gpu − φ_cpu| = " << diff);
+    CHECK(err <= 0.01);
+    CHECK(diff <= 1e-4);
+}
+
+TEST_CASE("fit once, evaluate later: --tori gives the same field as the cloud") {
+    ScratchDir dir("cli-tori");
+    const std::string cloud = dir.file("c.xyz");
+    REQUIRE(run_cli("sample capsule -n 1500 --noise 0.001 --seed 3 -o " + cloud).exit_code == 0);
+    REQUIRE(run_cli("pat fit " + cloud + " -o " + dir.file("c.tori")).exit_code == 0);
+    // Queries as (M,3) float64, gradient out as (M,3).
+    std::vector<float> q;
+    std::mt19937_64 rng(1);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int i = 0; i < 300; ++i) q.push_back(float(u(rng)));
+    io::write_npy(dir.file("q.npy"), {100, 3}, q);
+    REQUIRE(run_cli("pat eval --tori " + dir.file("c.tori") + " --queries " + dir.file("q.npy") + " -o " + dir.file("a.npy") +
+                    " --gradient " + dir.file("ga.npy") + " --device cpu")
+                .exit_code == 0);
+    REQUIRE(run_cli("pat eval " + cloud + " --queries " + dir.file("q.npy") + " -o " + dir.file("b.npy") + " --device cpu").exit_code == 0);
+    const io::NpyArray a = io::read_npy(dir.file("a.npy")), b = io::read_npy(dir.file("b.npy")), ga = io::read_npy(dir.file("ga.npy"));
+    CHECK(a.shape == std::vector<std::size_t>{100});
+    CHECK(ga.shape == std::vector<std::size_t>{100, 3});
+    CHECK(max_abs_diff(a, b) == 0);
+    // A .tori file given as INPUT works too.
+    CHECK(run_cli("pat eval " + dir.file("c.tori") + " --queries " + dir.file("q.npy") + " -o " + dir.file("c.npy")).exit_code == 0);
+}
+
+TEST_CASE("malformed inputs: exit 1, a message naming the file, and no output file") {
+    ScratchDir dir("cli-bad");
+    std::vector<std::array<float, 6>> rows;
+    for (int i = 0; i < 50; ++i) rows.push_back({float(i), float(i % 7), 0.5f * i, 0, 0, 1});
+    auto bad_nan = rows;
+    bad_nan[10][1] = NAN;
+    auto bad_normal = rows;
+    bad_normal[3] = {1, 2, 3, 0, 0, 0};
+    std::mt19937_64 rng(3);
+    std::string random_bytes(4096, '\0');
+    for (char& c : random_bytes) c = char(rng());
+    struct Case { const char* name; std::string file, bytes; };
+    const std::vector<Case> cases = {
+        {"empty file", "empty.ply", ""},
+        {"truncated binary PLY", "trunc.ply", binary_ply(rows, 50).substr(0, 400)},
+        {"header claims more vertices", "claims.ply", binary_ply(rows, 5000000)},
+        {"NaN coordinate", "nan.ply", binary_ply(bad_nan, 50)},
+        {"zero normal", "zero.ply", binary_ply(bad_normal, 50)},
+        {"one point", "one.xyz", "0 0 0 0 0 1\n"},
+        {"no normals", "nonormals.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n"},
+        {"random bytes", "random.ply", random_bytes},
+        {"text garbage", "garbage.xyz", "1 2 3 4 five 6\n"},
+    };
+    for (const Case& c : cases) {
+        CAPTURE(c.name);
+        const std::string in = dir.file(c.file), out = dir.file(std::string(c.file) + ".npy");
+        test::write_bytes(in, c.bytes);
+        const auto r = run_cli("pat eval " + in + " --grid 8 " + kBounds + " -o " + out);
+        CHECK(r.exit_code == 1);
+        CHECK(r.output.find("gsd: error: " + in) != std::string::npos);
+        CHECK_FALSE(test::file_exists(out));
+        const auto f = run_cli("pat fit " + in + " -o " + out + ".tori");
+        CHECK(f.exit_code == 1);
+        CHECK_FALSE(test::file_exists(out + ".tori"));
+    }
+    const auto missing = run_cli("pat eval " + dir.file("missing.ply") + " --grid 8 -o " + dir.file("m.npy"));
+    CHECK(missing.exit_code == 1);
+    CHECK(missing.output.find("missing.ply") != std::string::npos);
+    CHECK_FALSE(test::file_exists(dir.file("m.npy")));
+    // Bad query list and a write into a missing folder: exit 1, nothing written.
+    test::write_bytes(dir.file("ok.xyz"), "0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n1 1 0 0 0 1\n");
+    io::write_npy(dir.file("q2.npy"), {2, 2}, std::vector<float>{0, 0, 0, 0});
+    CHECK(run_cli("pat eval " + dir.file("ok.xyz") + " --queries " + dir.file("q2.npy") + " -o " + dir.file("o.npy")).exit_code == 1);
+    CHECK_FALSE(test::file_exists(dir.file("o.npy")));
+    CHECK(run_cli("pat eval " + dir.file("ok.xyz") + " --grid 8 -o " + dir.file("no/such/dir/o.npy")).exit_code == 1);
+    // Inverted bounds are a data error with a clear message.
+    const auto inv = run_cli("pat eval " + dir.file("ok.xyz") + " --grid 8 --bounds 1 0 0 0 1 1 -o " + dir.file("i.npy"));
+    CHECK(inv.exit_code == 1);
+    CHECK(inv.output.find("--bounds") != std::string::npos);
+}
+
+TEST_CASE("no Vulkan loader or driver: the CPU path with one line saying so") {
+    ScratchDir dir("cli-fallback");
+    const std::string cloud = dir.file("s.ply");
+    REQUIRE(run_cli("sample sphere -n 500 -o " + cloud).exit_code == 0);
+    for (const std::string env : {"GSD_VULKAN_LOADER=/nonexistent/libvulkan.so.1", "VK_ICD_FILENAMES=/nonexistent/icd.json"}) {
+        CAPTURE(env);
+        const auto r = test::run_shell(env + " " + GSD_CLI + " pat eval " + cloud + " --grid 8 --device gpu -o " + dir.file("f.npy"));
+        CHECK(r.exit_code == 0);
+        CHECK(test::file_exists(dir.file("f.npy")));
+        std::size_t lines = 0;
+        for (std::size_t p = r.output.find("CPU path"); p != std::string::npos; p = r.output.find("CPU path", p + 1)) ++lines;
+        CHECK(lines == 1);
+        std::filesystem::remove(dir.file("f.npy"));
+    }
+    const auto info = test::run_shell(std::string("GSD_VULKAN_LOADER=/nonexistent/libvulkan.so.1 ") + GSD_CLI + " info");
+    CHECK(info.exit_code == 0);
+    CHECK(info.output.find("no Vulkan loader") != std::string::npos);
+    // An explicit device that does not exist is a data error, not a silent fallback.
+    CHECK(run_cli("pat eval " + cloud + " --grid 8 --device no-such-gpu -o " + dir.file("g.npy")).exit_code == 1);
+}
+
+TEST_CASE("contour and slice: a closed mesh and a PNG from an evaluated grid; baselines run") {
+    ScratchDir dir("cli-viz");
+    const std::string cloud = dir.file("t.ply");
+    REQUIRE(run_cli("sample torus -n 3000 -o " + cloud).exit_code == 0);
+    REQUIRE(run_cli("pat eval " + cloud + " --grid 40 " + kBounds + " -o " + dir.file("g.npy")).exit_code == 0);
+    REQUIRE(run_cli("contour " + dir.file("g.npy") + " " + kBounds + " -o " + dir.file("m.ply")).exit_code == 0);
+    const PolygonMesh m = io::read_mesh(dir.file("m.ply"));
+    // Closed: every edge shared by exactly two triangles; a torus has Euler characteristic 0.
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> edges;
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        for (std::size_t k = 0; k < 3; ++k) {
+            std::uint32_t a = m.indices[3 * f + k], b = m.indices[3 * f + (k + 1) % 3];
+            edges[{std::min(a, b), std::max(a, b)}]++;
+        }
+    bool closed = true;
+    for (const auto& [e, n] : edges) closed = closed && n == 2;
+    CHECK(closed);
+    CHECK(long(m.vertices.rows()) - long(edges.size()) + long(m.face_count()) == 0);
+    REQUIRE(run_cli("slice " + dir.file("g.npy") + " " + kBounds + " --axis z --at 0 -o " + dir.file("s.png")).exit_code == 0);
+    CHECK(test::file_exists(dir.file("s.png")));
+    CHECK(run_cli("slice " + dir.file("g.npy") + " " + kBounds + " --axis z --at 5 -o " + dir.file("bad.png")).exit_code == 1);
+    CHECK_FALSE(test::file_exists(dir.file("bad.png")));
+    for (const char* b : {"sspd", "shc"}) {
+        CAPTURE(b);
+        CHECK(run_cli(std::string("baseline ") + b + " " + cloud + " --grid 16 -o " + dir.file(std::string(b) + ".npy")).exit_code == 0);
+        CHECK(io::read_npy(dir.file(std::string(b) + ".npy")).shape == std::vector<std::size_t>{16, 16, 16});
+    }
+}

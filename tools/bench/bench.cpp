@@ -1,0 +1,98 @@
+// gsd-bench: throughput of Points as Tori. For clouds of several sizes: torus fitting
+// (points/s) and evaluation (queries/s) on each device, measured side by side in one run, with
+// the GPU/CPU ratio. The first evaluation on a device (tree build, upload, pipeline compile) is
+// timed separately as "setup" and not counted in queries/s.
+#include <gsd/gpu.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/shapes.hpp>
+
+#include <chrono>
+#include <cstdio>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace gsd;
+
+namespace {
+
+double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+
+std::vector<std::string> split(const std::string& s) {
+    std::vector<std::string> out;
+    std::stringstream ss(s);
+    for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
+    return out;
+}
+
+// Half the queries near the surface (the expensive case for the accelerated sum), half uniform.
+Points make_queries(const shapes::Shape& shape, std::size_t m, std::uint64_t seed) {
+    const PointCloud near = shape.sample(m / 2, seed);
+    std::mt19937_64 rng(seed + 1);
+    std::normal_distribution<double> noise(0, 0.02);
+    std::uniform_real_distribution<double> u(-1, 1);
+    Points q(Eigen::Index(m), 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) q(i, a) = i < near.size() ? near.points(i, a) + noise(rng) : u(rng);
+    return q;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    std::vector<std::string> sizes{"10000", "100000", "1000000"}, devices{"cpu", "gpu"};
+    std::size_t queries = 1000000;
+    bool exact = false;
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--sizes" && i + 1 < argc) sizes = split(argv[++i]);
+        else if (a == "--devices" && i + 1 < argc) devices = split(argv[++i]);
+        else if (a == "--queries" && i + 1 < argc) queries = std::stoul(argv[++i]);
+        else if (a == "--exact") exact = true;
+        else {
+            std::fprintf(stderr, "usage: gsd-bench [--sizes N,N,...] [--queries M] [--devices cpu,gpu,...] [--exact]\n");
+            return 2;
+        }
+    }
+    set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
+    auto shape = shapes::by_name("torus");
+    const Points q = make_queries(*shape, queries, 99);
+    std::printf("PAT throughput: torus shape, %zu queries (half near the surface), %s sum\n", queries, exact ? "exact" : "accelerated");
+    for (const auto& d : devices) {
+        const gpu::Selection s = gpu::select(d);
+        std::printf("  device '%s' = %s\n", d.c_str(), s.device_name.c_str());
+    }
+    std::printf("\n%10s %12s", "points", "fit pts/s");
+    for (const auto& d : devices) std::printf(" %12s %9s", (d + " q/s").c_str(), (d + " setup").c_str());
+    if (devices.size() == 2) std::printf(" %10s", "ratio");
+    std::printf("\n");
+    for (const auto& s : sizes) {
+        const std::size_t n = std::stoul(s);
+        const PointCloud cloud = shape->sample(n, 1);
+        double t0 = now();
+        const FittedTori tori = JetFitter().fit(cloud);
+        const double fit_rate = double(n) / (now() - t0);
+        std::printf("%10zu %12.3g", n, fit_rate);
+        std::fflush(stdout);
+        std::vector<double> rates;
+        for (const auto& d : devices) {
+            BlendOptions opt;
+            opt.device = d;
+            opt.exact = exact;
+            const TorusField field(tori, opt);
+            t0 = now();
+            field.evaluate(q.topRows(std::min<Eigen::Index>(256, q.rows())));  // setup: tree, upload, pipeline
+            const double setup = now() - t0;
+            t0 = now();
+            const FieldValues v = field.evaluate(q);
+            const double rate = double(queries) / (now() - t0);
+            rates.push_back(rate);
+            std::printf(" %12.3g %8.2fs", rate, setup);
+            std::fflush(stdout);
+        }
+        if (rates.size() == 2) std::printf(" %9.2fx", rates[1] / rates[0]);
+        std::printf("\n");
+    }
+    return 0;
+}

@@ -1,0 +1,102 @@
+#include "cli.hpp"
+
+#include <gsd/io.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <unistd.h>
+
+namespace gsd::cli {
+
+Globals& globals() {
+    static Globals g;
+    return g;
+}
+
+void note(const std::string& message) {
+    if (!globals().quiet) std::fprintf(stderr, "gsd: %s\n", message.c_str());
+}
+
+Progress::Progress(std::string task)
+    : task_(std::move(task)), start_(std::chrono::steady_clock::now()), tty_(isatty(STDERR_FILENO) != 0) {}
+
+Progress::~Progress() { finish(); }
+
+ProgressFn Progress::fn() {
+    return [this](std::string_view stage, double fraction) { update(stage, fraction); };
+}
+
+void Progress::update(std::string_view stage, double fraction) {
+    if (globals().quiet) return;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    if (elapsed < 1.0 && !shown_) return;
+    shown_ = true;
+    const int pct = int(std::lround(100 * std::clamp(fraction, 0.0, 1.0)));
+    if (tty_) {
+        const int width = 30, filled = pct * width / 100;
+        std::fprintf(stderr, "\r%s %-10.*s [%s%s] %3d%% %6.1fs", task_.c_str(), int(stage.size()), stage.data(),
+                     std::string(std::size_t(filled), '#').c_str(), std::string(std::size_t(width - filled), '.').c_str(),
+                     pct, elapsed);
+        std::fflush(stderr);
+    } else {
+        const int decile = pct / 10;
+        if (decile == last_decile_ && stage == last_stage_) return;
+        last_decile_ = decile;
+        last_stage_ = std::string(stage);
+        std::fprintf(stderr, "gsd: %s: %.*s %d%% (%.1fs)\n", task_.c_str(), int(stage.size()), stage.data(), pct, elapsed);
+    }
+}
+
+void Progress::finish() {
+    if (shown_ && tty_) std::fprintf(stderr, "\n");
+    shown_ = false;
+}
+
+void Domain::add_to(CLI::App& app, bool bounds_optional) {
+    auto* g = app.add_option("--grid", grid, "Evaluate on an N×N×N grid of nodes")->check(CLI::Range(2, 4096));
+    auto* b = app.add_option("--bounds", bounds,
+                             bounds_optional ? "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)"
+                                             : "Grid box x0 y0 z0 x1 y1 z1")
+                  ->expected(6);
+    auto* q = app.add_option("--queries", queries, "Evaluate at the points of an (M,3) .npy file");
+    b->needs(g);
+    g->excludes(q);
+    if (!bounds_optional) g->needs(b);
+}
+
+Box bounds_from(const std::vector<double>& v, const std::string& option) {
+    if (v.size() != 6) throw Error(option, "expects 6 numbers: x0 y0 z0 x1 y1 z1");
+    Box b{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
+    for (int a = 0; a < 3; ++a) {
+        if (!std::isfinite(b.lo[a]) || !std::isfinite(b.hi[a])) throw Error(option, "bounds must be finite");
+        if (!(b.hi[a] > b.lo[a])) throw Error(option, "bounds must satisfy x0 < x1, y0 < y1, z0 < z1");
+    }
+    return b;
+}
+
+Box default_bounds(const Box& b) {
+    const Eigen::Vector3d c = 0.5 * (b.lo + b.hi);
+    const double half = 0.5 * 1.1 * std::max(b.extent().maxCoeff(), 1e-12);
+    return Box{c.array() - half, c.array() + half};
+}
+
+GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
+    Box box;
+    if (!bounds.empty()) box = bounds_from(bounds, "--bounds");
+    else if (fallback) box = default_bounds(*fallback);
+    else throw Error("--bounds", "a grid needs --bounds");
+    GridSpec g = GridSpec::cube(grid, box);
+    g.validate();
+    return g;
+}
+
+void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,
+                  const std::vector<float>& values, int components) {
+    std::vector<std::size_t> shape;
+    if (d.is_grid()) shape = {std::size_t(g.nx), std::size_t(g.ny), std::size_t(g.nz)};
+    else shape = {count};
+    if (components > 1) shape.push_back(std::size_t(components));
+    io::write_npy(path, shape, values);
+}
+
+}  // namespace gsd::cli

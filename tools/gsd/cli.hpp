@@ -1,0 +1,65 @@
+// Shared pieces of the gsd command-line tool: exit codes, progress, grid/bounds arguments.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace gsd::cli {
+
+enum Exit { kOk = 0, kDataError = 1, kUsage = 2 };
+
+/// Global flags every command understands.
+struct Globals {
+    bool quiet = false;
+    bool verbose = false;
+};
+Globals& globals();
+
+/// Reports progress of long work on stderr: a bar on a terminal, plain lines otherwise. Stays
+/// silent for the first second, so quick jobs print nothing.
+class Progress {
+public:
+    explicit Progress(std::string task);
+    ~Progress();
+    ProgressFn fn();
+    void update(std::string_view stage, double fraction);
+    void finish();
+
+private:
+    std::string task_;
+    std::chrono::steady_clock::time_point start_;
+    bool tty_;
+    bool shown_ = false;
+    int last_decile_ = -1;
+    std::string last_stage_;
+};
+
+/// --grid N [--bounds x0 y0 z0 x1 y1 z1] | --queries Q.npy
+struct Domain {
+    int grid = 0;
+    std::vector<double> bounds;
+    std::string queries;
+    void add_to(CLI::App& app, bool bounds_optional);
+    bool is_grid() const { return grid > 0; }
+    /// The grid on the given bounds, or on `fallback` (the input's bounding cube + 10%).
+    GridSpec grid_spec(const std::optional<Box>& fallback) const;
+};
+
+/// The input's bounding cube, centered on its box, enlarged by 10%.
+Box default_bounds(const Box& b);
+Box bounds_from(const std::vector<double>& v, const std::string& option);
+
+/// Writes a float32 result for a domain: (N,N,N[,3]) for a grid, (M[,3]) for queries.
+void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,
+                  const std::vector<float>& values, int components);
+
+/// Prints "gsd: <message>" unless --quiet.
+void note(const std::string& message);
+
+}  // namespace gsd::cli
