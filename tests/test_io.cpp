@@ -8,7 +8,6 @@
 #include "support.hpp"
 
 #include <bit>
-#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -412,6 +411,10 @@ TEST_CASE("malformed PLY files throw gsd::Error naming the problem") {
         "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
     write_bytes(dir.file("list.ply"), mesh_header + face_body);
     CHECK(contains(error_of([&] { io::read_mesh(dir.file("list.ply")); }), "truncated"));
+    write_bytes(dir.file("alist.ply"), "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+                                       "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+                                       "end_header\n0 0 0\n1 0 0\n0 1 0\n1e300 0 1 2\n");
+    CHECK(contains(error_of([&] { io::read_mesh(dir.file("alist.ply")); }), "line 13: PLY element 'face' row 0: list 'vertex_indices' announces"));
     // Out-of-range and too-short faces.
     std::string faces_oor = face_body.substr(0, 36) + char(3) + le(std::int32_t(0)) + le(std::int32_t(1)) +
                             le(std::int32_t(3));
@@ -446,6 +449,7 @@ TEST_CASE("npy: hand-written float32/float64, both byte orders, v1/v2/v3 headers
     const auto f32 = [](double v) { return float(v); };
     const auto f64 = [](double v) { return v; };
     const auto i32 = [](double v) { return std::int32_t(v * 4); };
+    const auto i64 = [](double v) { return std::int64_t(v * 1000); };
     auto expect = [&](auto cast) {
         std::vector<double> e;
         for (double v : values) e.push_back(double(cast(v)));
@@ -464,6 +468,7 @@ TEST_CASE("npy: hand-written float32/float64, both byte orders, v1/v2/v3 headers
         {"v2.npy", npy_file("<f8", "(2, 3)", data(f64, false), 2), values},
         {"v3.npy", npy_file("<f4", "(2,3)", data(f32, false), 3), expect(f32)},
         {"i4.npy", npy_file("<i4", "(2, 3)", data(i32, false), 1), expect(i32)},
+        {"i8be.npy", npy_file(">i8", "(2, 3)", data(i64, true), 1), expect(i64)},
     };
     CHECK(expect(f32)[3] != values[3]);  // the float32 cases really are float32
     for (const Case& c : cases) {
@@ -835,19 +840,20 @@ TEST_CASE("file_has_faces") {
     CHECK_FALSE(io::file_has_faces(dir.file("x.xyz")));
 }
 
-// ---- speed ------------------------------------------------------------------------------
+// ---- size ----------------------------------------------------------------------------
 
-TEST_CASE("a 1e6-point binary PLY loads quickly") {
-    ScratchDir dir("io-speed");
+// Load time is measured by gsd-bench, not asserted here (tests check results, not speed).
+TEST_CASE("a 1e6-point binary PLY round-trips") {
+    ScratchDir dir("io-big");
     const PointCloud big = sphere_cloud(1000000);
     const std::string p = dir.file("big.ply");
     io::write_point_cloud(p, big);
-    const auto t0 = std::chrono::steady_clock::now();
     const PointCloud back = io::read_point_cloud(p);
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    MESSAGE("read_point_cloud of a 1e6-point binary PLY (24 MB): " << seconds << " s");
-    CHECK(back.size() == 1000000);
-    CHECK(seconds < 3.0);  // loose: shared CI machines; measured ~0.1 s
+    REQUIRE(back.size() == 1000000);
+    for (Eigen::Index i : {Eigen::Index(0), Eigen::Index(123457), Eigen::Index(999999)}) {
+        CHECK((back.points.row(i) - big.points.row(i)).norm() < 1e-6);
+        CHECK((back.normals.row(i) - big.normals.row(i)).norm() < 1e-6);
+    }
 }
 
 // ---- real data --------------------------------------------------------------------------

@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -109,8 +110,11 @@ private:
     const KdTree& tree() const;
     Source src_;
     BlendOptions opt_;
+    // Built on first use; the mutex makes concurrent evaluate() calls safe.
+    mutable std::mutex init_mutex_;
     mutable std::unique_ptr<KdTree> tree_;
     mutable std::shared_ptr<GpuField> gpu_;
+    mutable bool gpu_tried_ = false;
 };
 
 }  // namespace gsd::blend

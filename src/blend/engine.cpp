@@ -26,6 +26,7 @@ Engine::Engine(Source src, BlendOptions opt) : src_(std::move(src)), opt_(std::m
 Engine::~Engine() = default;
 
 const KdTree& Engine::tree() const {
+    std::lock_guard<std::mutex> lock(init_mutex_);
     if (!tree_) tree_ = std::make_unique<KdTree>(src_.points);
     return *tree_;
 }
@@ -40,14 +41,22 @@ FieldValues Engine::evaluate(const Queries& q, bool gradient, const ProgressFn& 
     const gpu::Selection sel = gpu::select(opt_.device);
     if (!sel.note.empty()) log_once(sel.note);
     if (sel.context) {
-        std::string why_not;
-        if (!gpu_) gpu_ = make_gpu_field(sel.context, src_, params, why_not);
-        if (gpu_) {
-            evaluate_gpu(*gpu_, params, q, dst, opt_.chunk_size, progress);
-            out.device = gpu_field_device(*gpu_);
+        std::shared_ptr<GpuField> field;
+        {
+            std::lock_guard<std::mutex> lock(init_mutex_);
+            if (!gpu_tried_) {
+                gpu_tried_ = true;
+                std::string why_not;
+                gpu_ = make_gpu_field(sel.context, src_, params, why_not);
+                if (!gpu_) log_once(why_not);
+            }
+            field = gpu_;
+        }
+        if (field) {
+            evaluate_gpu(*field, params, q, dst, opt_.chunk_size, progress);
+            out.device = gpu_field_device(*field);
             return out;
         }
-        log_once(why_not);
     }
     evaluate_cpu(src_, tree(), params, q, dst, progress);
     out.device = "cpu";

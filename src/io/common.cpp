@@ -157,7 +157,7 @@ double finite_number(std::string_view token, const std::string& path, std::size_
     if (!parse_double(token, v))
         fail(path, at_line(line, std::string("expected ") + what + ", found " + quoted(token)));
     if (!std::isfinite(v))
-        fail(path, at_line(line, std::string("non-finite ") + what + " " + quoted(token)));
+        fail(path, at_line(line, "non-finite value " + quoted(token) + " (NaN and Inf are not allowed)"));
     return v;
 }
 

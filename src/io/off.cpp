@@ -3,8 +3,6 @@
 // (colors) and what follows x y z on a vertex line (COFF/NOFF extras) can be ignored.
 #include "io/io_internal.hpp"
 
-#include <algorithm>
-
 namespace gsd::io::detail {
 
 namespace {
@@ -58,12 +56,12 @@ PolygonMesh read_off_mesh(const std::string& path, std::string_view bytes) {
         fail(path, at_line(counts_line, "OFF counts line needs 'nv nf ne'"));
     const std::uint64_t nv = count_token(path, counts_line, snv, "vertex");
     const std::uint64_t nf = count_token(path, counts_line, snf, "face");
-    // Each vertex and face takes a line: counts beyond the file's lines are a lie, caught
-    // before anything is allocated.
-    const auto total_lines = std::uint64_t(std::count(bytes.begin(), bytes.end(), '\n')) + 1;
-    if (add_sat(nv, nf) > total_lines)
+    // The shortest vertex line is "0 0 0\n" (6 bytes), the shortest face "3 0 1 2\n" (8):
+    // counts the file cannot hold are a lie, caught before anything is allocated.
+    if (add_sat(mul_sat(nv, 6), mul_sat(nf, 8)) > std::uint64_t(bytes.size()) + 1)
         fail(path, "OFF header promises " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
-                       " faces, but the file has only " + std::to_string(total_lines) + " lines (truncated or corrupt)");
+                       " faces, but the file has only " + std::to_string(bytes.size()) +
+                       " bytes (truncated or corrupt)");
 
     PolygonMesh mesh;
     mesh.vertices.resize(Eigen::Index(nv), 3);

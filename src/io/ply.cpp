@@ -7,6 +7,7 @@
 // vertices is an error, not an allocation.
 #include "io/io_internal.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
@@ -248,11 +249,12 @@ public:
     std::uint64_t list_count(const PlyProperty& p) {
         const double v = scalar(p.count_type);
         if (!(v >= 0) || v != std::floor(v)) broken("list count " + std::to_string(v) + " is not a count");
-        const auto n = std::uint64_t(v);
-        const std::uint64_t item = encoding_ == PlyEncoding::ascii ? 2 : size_of(p.type);
-        if (mul_sat(n, item) > std::uint64_t(bytes_.size() - pos_) + 1)
-            broken("list '" + p.name + "' announces " + std::to_string(n) + " items; the file ends first (truncated)");
-        return n;
+        // Compared in double before the cast: an ascii count such as 1e300 must not overflow it.
+        const double item = encoding_ == PlyEncoding::ascii ? 2 : double(size_of(p.type));
+        if (v * item > double(bytes_.size() - pos_) + 1)
+            broken("list '" + p.name + "' announces " + std::to_string(std::llround(std::min(v, 1e18))) +
+                   " items; the file ends first (truncated)");
+        return std::uint64_t(v);
     }
 
     void skip_property(const PlyProperty& p) {

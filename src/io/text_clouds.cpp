@@ -7,9 +7,12 @@ namespace gsd::io::detail {
 
 namespace {
 
-/// A guess at the line count, to reserve once instead of regrowing a large vector.
-std::size_t approx_lines(std::string_view bytes) {
-    return std::size_t(std::count(bytes.begin(), bytes.end(), '\n')) + 1;
+/// An upper bound on the number of data lines, to reserve once instead of regrowing a large
+/// vector. Capped by the shortest possible data line, so a file of blank lines cannot make
+/// the reservation large.
+std::size_t max_data_lines(std::string_view bytes, std::size_t shortest_line) {
+    const auto lines = std::size_t(std::count(bytes.begin(), bytes.end(), '\n')) + 1;
+    return std::min(lines, bytes.size() / shortest_line + 1);
 }
 
 /// Parses exactly three finite numbers from `tokens` (the rest of a "v"/"vn" line).
@@ -26,7 +29,7 @@ void three_numbers(const std::string& path, std::size_t line, Tokens tokens, con
 
 PointCloud read_xyz_cloud(const std::string& path, std::string_view bytes) {
     std::vector<double> rows;
-    rows.reserve(approx_lines(bytes) * 6);
+    rows.reserve(max_data_lines(bytes, 12) * 6);  // "0 0 0 0 0 0\n"
     LineScanner lines(bytes);
     std::string_view line;
     while (lines.next(line)) {
@@ -48,7 +51,7 @@ PointCloud read_xyz_cloud(const std::string& path, std::string_view bytes) {
 
 PointCloud read_pc_cloud(const std::string& path, std::string_view bytes) {
     std::vector<double> points, normals;
-    const std::size_t reserve = approx_lines(bytes) / 2 * 3 + 3;
+    const std::size_t reserve = max_data_lines(bytes, 8) / 2 * 3 + 3;  // "v 0 0 0\n"
     points.reserve(reserve);
     normals.reserve(reserve);
     LineScanner lines(bytes);

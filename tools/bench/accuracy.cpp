@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
     int k = 24;
     double sigma = 1.0, nw = 1.0;
     bool exact = false;
+    shapes::Corruption bad;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&] { return std::string(argv[++i]); };
@@ -42,7 +43,11 @@ int main(int argc, char** argv) {
         else if (a == "--sigma") sigma = std::stod(next());
         else if (a == "--normal-weight") nw = std::stod(next());
         else if (a == "--exact") exact = true;
-        else { std::fprintf(stderr, "usage: gsd-accuracy [--points N] [--grid N] [--r-spacings S] [--k K] [--sigma F] [--normal-weight W] [--exact] [--device D]\n"); return 2; }
+        else if (a == "--noise") bad.position_noise = std::stod(next());
+        else if (a == "--normal-noise") bad.normal_noise = std::stod(next());
+        else if (a == "--flip") bad.flip_fraction = std::stod(next());
+        else if (a == "--holes") bad.holes = std::stoi(next());
+        else { std::fprintf(stderr, "usage: gsd-accuracy [--points N] [--grid N] [--r-spacings S] [--k K] [--sigma F] [--normal-weight W] [--exact] [--device D] [--noise S] [--normal-noise S] [--flip F] [--holes H]\n"); return 2; }
     }
     const GridSpec g = GridSpec::cube(grid_n, Box{{-1, -1, -1}, {1, 1, 1}});
     BlendOptions opt;
@@ -58,7 +63,7 @@ int main(int argc, char** argv) {
     std::printf("%-12s %10s %10s %10s\n", "shape", "PAT-jet", "SSPD", "SHC");
     for (const char* name : {"sphere", "torus", "capsule", "rounded-box"}) {
         auto s = shapes::by_name(name);
-        PointCloud c = s->sample(std::size_t(n_points), 1);
+        PointCloud c = shapes::corrupt(s->sample(std::size_t(n_points), 1), bad, 2);
         const TorusField pat(JetFitter(jo).fit(c), opt);
         const double e_pat = mean_error(*s, g, pat.evaluate(g).phi);
         const double e_sspd = mean_error(*s, g, BaselineField(Baseline::Sspd, c, opt).evaluate(g).phi);

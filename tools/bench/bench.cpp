@@ -3,6 +3,7 @@
 // the GPU/CPU ratio. The first evaluation on a device (tree build, upload, pipeline compile) is
 // timed separately as "setup" and not counted in queries/s.
 #include <gsd/gpu.hpp>
+#include <gsd/io.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 
@@ -67,9 +68,19 @@ int main(int argc, char** argv) {
     for (const auto& d : devices) std::printf(" %12s %9s", (d + " q/s").c_str(), (d + " setup").c_str());
     if (devices.size() == 2) std::printf(" %10s", "ratio");
     std::printf("\n");
+    std::vector<double> load_rates;
     for (const auto& s : sizes) {
         const std::size_t n = std::stoul(s);
-        const PointCloud cloud = shape->sample(n, 1);
+        const PointCloud cloud = [&] {
+            // Through a binary PLY, as a user's cloud arrives: also measures load speed.
+            const std::string path = "/tmp/gsd-bench-" + std::to_string(n) + ".ply";
+            io::write_point_cloud(path, shape->sample(n, 1));
+            const double t = now();
+            PointCloud c = io::read_point_cloud(path);
+            load_rates.push_back(double(n) / (now() - t));
+            std::remove(path.c_str());
+            return c;
+        }();
         double t0 = now();
         const FittedTori tori = JetFitter().fit(cloud);
         const double fit_rate = double(n) / (now() - t0);
@@ -94,5 +105,8 @@ int main(int argc, char** argv) {
         if (rates.size() == 2) std::printf(" %9.2fx", rates[1] / rates[0]);
         std::printf("\n");
     }
+    std::printf("\nbinary PLY load (read + validate), points/s:");
+    for (double r : load_rates) std::printf(" %.3g", r);
+    std::printf("\n");
     return 0;
 }
