@@ -4,6 +4,10 @@
 #include <gsd/shapes.hpp>
 #include <gsd/spatial.hpp>
 
+#include "spatial/box_tree.hpp"
+
+#include <random>
+
 #include <cmath>
 
 using namespace gsd;
@@ -94,4 +98,33 @@ TEST_CASE("kd-tree neighbors agree with brute force; spacing and areas are sane"
     double total = 0;
     for (double a : areas) total += a;
     CHECK(total == doctest::Approx(s->area()).epsilon(0.25));
+}
+
+TEST_CASE("BoxTree (the blend's search, shared with the GPU) finds what nanoflann finds") {
+    auto s = shapes::torus({0, 0, 0}, 0.5, 0.2);
+    const PointCloud c = s->sample(20000, 4);
+    const detail::BoxTree box(c.points);
+    KdTree kd(c.points);
+    std::mt19937_64 rng(2);
+    std::uniform_real_distribution<double> u(-1.2, 1.2);
+    std::vector<Neighbor> a, b;
+    for (int q = 0; q < 300; ++q) {
+        // Far queries, and queries on the surface.
+        const Eigen::Vector3d x = q % 2 ? Eigen::Vector3d(u(rng), u(rng), u(rng))
+                                        : Eigen::Vector3d(c.points.row(q * 31).transpose()) + Eigen::Vector3d::Constant(1e-3);
+        box.knn(x, 32, a);
+        kd.knn(x, 32, b);
+        REQUIRE(a.size() == 32);
+        for (int m = 0; m < 32; ++m) CHECK(a[std::size_t(m)].distance == doctest::Approx(b[std::size_t(m)].distance).epsilon(1e-12));
+        box.radius(x, 0.05, a);
+        kd.radius(x, 0.05, b);
+        CHECK(a.size() == b.size());
+    }
+    // Tiny sets: fewer points than k, a single point.
+    Points two(2, 3);
+    two << 0, 0, 0, 1, 0, 0;
+    const detail::BoxTree t2(two);
+    t2.knn({0.9, 0, 0}, 32, a);
+    REQUIRE(a.size() == 2);
+    CHECK(a[0].index == 1);
 }

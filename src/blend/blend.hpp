@@ -7,6 +7,8 @@
 #include <gsd/pat.hpp>
 #include <gsd/spatial.hpp>
 
+#include "spatial/box_tree.hpp"
+
 #include <algorithm>
 #include <memory>
 #include <mutex>
@@ -73,11 +75,11 @@ inline double blend_taper_derivative(double v) {
 }
 
 /// CPU reference (double precision, OpenMP). The tree indexes src.points.
-void evaluate_cpu(const Source& src, const KdTree& tree, const Params& params, const Queries& queries,
+void evaluate_cpu(const Source& src, const detail::BoxTree& tree, const Params& params, const Queries& queries,
                   Output out, const ProgressFn& progress);
 
 /// One query on the CPU; exposed for tests. Returns φ and writes ∇φ if `grad` is set.
-double evaluate_one(const Source& src, const KdTree& tree, const Params& params,
+double evaluate_one(const Source& src, const detail::BoxTree& tree, const Params& params,
                     const Eigen::Vector3d& x, Eigen::Vector3d* grad, std::vector<Neighbor>& scratch);
 
 class GpuField;  // device-side copy of a Source (blend_gpu.cpp)
@@ -85,7 +87,7 @@ class GpuField;  // device-side copy of a Source (blend_gpu.cpp)
 /// Builds a GpuField on a context, or returns null and a reason when the source does not fit
 /// the device (buffer range, memory) or the parameters exceed what the kernel supports.
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
-                                         const Params& params, std::string& why_not);
+                                         const detail::BoxTree& tree, const Params& params, std::string& why_not);
 std::string gpu_field_device(const GpuField& field);
 void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries, Output out,
                   std::size_t chunk_size, const ProgressFn& progress);
@@ -107,12 +109,12 @@ public:
     double r_eval() const { return resolve(opt_, src_, false).r_eval; }
 
 private:
-    const KdTree& tree() const;
+    const detail::BoxTree& tree() const;
     Source src_;
     BlendOptions opt_;
     // Built on first use; the mutex makes concurrent evaluate() calls safe.
     mutable std::mutex init_mutex_;
-    mutable std::unique_ptr<KdTree> tree_;
+    mutable std::unique_ptr<detail::BoxTree> tree_;
     mutable std::shared_ptr<GpuField> gpu_;
     mutable bool gpu_tried_ = false;
 };

@@ -40,13 +40,14 @@ struct Set {
     std::uint32_t far = 0;    // the point at distance ρ when rho_varies
 };
 
-Set choose_set(const KdTree& tree, const Params& p, const Eigen::Vector3d& x, std::vector<Neighbor>& nb) {
+Set choose_set(const Source& src, const detail::BoxTree& tree, const Params& p, const Eigen::Vector3d& x,
+               std::vector<Neighbor>& nb) {
     Set s;
     if (p.exact) {
-        const Eigen::Index n = tree.points().rows();
+        const Eigen::Index n = src.points.rows();
         nb.resize(std::size_t(n));
         for (Eigen::Index i = 0; i < n; ++i)
-            nb[std::size_t(i)] = {std::uint32_t(i), (tree.points().row(i).transpose() - x).norm()};
+            nb[std::size_t(i)] = {std::uint32_t(i), (src.points.row(i).transpose() - x).norm()};
         s.rho_varies = true;
     } else {
         s.tapered = true;
@@ -118,9 +119,9 @@ double shc_value(const Source& src, const std::vector<Neighbor>& nb, const Eigen
 
 }  // namespace
 
-double evaluate_one(const Source& src, const KdTree& tree, const Params& p, const Eigen::Vector3d& x,
+double evaluate_one(const Source& src, const detail::BoxTree& tree, const Params& p, const Eigen::Vector3d& x,
                     Eigen::Vector3d* grad, std::vector<Neighbor>& nb) {
-    const Set s = choose_set(tree, p, x, nb);
+    const Set s = choose_set(src, tree, p, x, nb);
     if (src.kind == Kind::Shc) {
         if (grad) grad->setZero();
         return shc_value(src, nb, x, s);
@@ -165,7 +166,7 @@ double evaluate_one(const Source& src, const KdTree& tree, const Params& p, cons
     return phi;
 }
 
-void evaluate_cpu(const Source& src, const KdTree& tree, const Params& p, const Queries& q, Output out,
+void evaluate_cpu(const Source& src, const detail::BoxTree& tree, const Params& p, const Queries& q, Output out,
                   const ProgressFn& progress) {
     const std::size_t n = q.size();
     const std::size_t block = p.exact ? 4096 : 65536;

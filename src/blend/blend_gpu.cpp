@@ -14,7 +14,6 @@ namespace gsd::blend {
 
 namespace {
 
-constexpr std::uint32_t kLeafSize = 16;
 constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 
 struct GpuNode {  // std430 layout of `Node` in blend_eval.comp
@@ -30,50 +29,20 @@ struct BlendPush {  // `Push` in blend_eval.comp
     float r_eval, C, dmin;
 };
 
-// A complete kd-tree over float32 points: node i has children 2i+1, 2i+2; all leaves sit at
-// the same depth and hold the contiguous range [begin, end) of the reordered points.
-struct FlatTree {
-    std::vector<std::uint32_t> order;  // tree position → original index
-    std::vector<GpuNode> nodes;
-    std::uint32_t first_leaf = 0;
-};
-
-FlatTree build_tree(const std::vector<std::array<float, 3>>& p) {
-    const auto n = std::uint32_t(p.size());
-    int depth = 0;
-    while ((std::uint64_t(n) >> depth) > kLeafSize) ++depth;
-    FlatTree t;
-    t.order.resize(n);
-    std::iota(t.order.begin(), t.order.end(), 0u);
-    t.nodes.resize((std::size_t(1) << (depth + 1)) - 1);
-    t.first_leaf = std::uint32_t((std::size_t(1) << depth) - 1);
-
-    struct Task { std::uint32_t node, begin, end; int level; };
-    std::vector<Task> todo{{0, 0, n, 0}};
-    while (!todo.empty()) {
-        const Task task = todo.back();
-        todo.pop_back();
-        GpuNode& node = t.nodes[task.node];
-        node.begin = task.begin;
-        node.end = task.end;
-        for (int a = 0; a < 3; ++a) { node.lo[a] = INFINITY; node.hi[a] = -INFINITY; }
-        for (std::uint32_t j = task.begin; j < task.end; ++j)
-            for (int a = 0; a < 3; ++a) {
-                node.lo[a] = std::min(node.lo[a], p[t.order[j]][std::size_t(a)]);
-                node.hi[a] = std::max(node.hi[a], p[t.order[j]][std::size_t(a)]);
-            }
-        if (task.level == depth) continue;
-        int axis = 0;
-        for (int a = 1; a < 3; ++a)
-            if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
-        const std::uint32_t mid = task.begin + (task.end - task.begin) / 2;
-        std::nth_element(t.order.begin() + task.begin, t.order.begin() + mid, t.order.begin() + task.end,
-                         [&](std::uint32_t a, std::uint32_t b) { return p[a][std::size_t(axis)] < p[b][std::size_t(axis)]; });
-        todo.push_back({2 * task.node + 1, task.begin, mid, task.level + 1});
-        todo.push_back({2 * task.node + 2, mid, task.end, task.level + 1});
+// The BoxTree's nodes in float32, boxes rounded outward so every float point stays inside.
+std::vector<GpuNode> float_nodes(const detail::BoxTree& tree) {
+    std::vector<GpuNode> out(tree.nodes().size());
+    for (std::size_t i = 0; i < out.size(); ++i) {
+        const detail::BoxTree::Node& n = tree.nodes()[i];
+        for (int a = 0; a < 3; ++a) {
+            const float lo = float(n.lo[a]), hi = float(n.hi[a]);
+            out[i].lo[a] = double(lo) > n.lo[a] ? std::nextafter(lo, -INFINITY) : lo;
+            out[i].hi[a] = double(hi) < n.hi[a] ? std::nextafter(hi, INFINITY) : hi;
+        }
+        out[i].begin = n.begin;
+        out[i].end = n.end;
     }
-    // The depth is the smallest with ≤ kLeafSize points per leaf, so every leaf holds > kLeafSize/2.
-    return t;
+    return out;
 }
 
 // Copies host data into a new device-local buffer through a temporary staging buffer.
@@ -117,26 +86,25 @@ void record_tori(gpu::Context& ctx, gpu::Recorder& rec, const gpu::Buffer& jets,
 
 class GpuField {
 public:
-    GpuField(std::shared_ptr<gpu::Context> ctx, const Source& src) : ctx_(std::move(ctx)), kind_(src.kind) {
+    GpuField(std::shared_ptr<gpu::Context> ctx, const Source& src, const detail::BoxTree& tree)
+        : ctx_(std::move(ctx)), kind_(src.kind) {
         gpu::Context& c = *ctx_;
         const auto n = std::size_t(src.points.rows());
-        std::vector<std::array<float, 3>> p(n);
-        for (std::size_t i = 0; i < n; ++i)
-            for (int a = 0; a < 3; ++a) p[i][std::size_t(a)] = float(src.points(Eigen::Index(i), a));
-        FlatTree tree = build_tree(p);
-        first_leaf_ = tree.first_leaf;
+        const std::vector<std::uint32_t>& order = tree.order();
+        first_leaf_ = tree.first_leaf();
         point_count_ = std::uint32_t(n);
         dmin_ = float(1e-6 * src.spacing);
 
         std::vector<float> pts(4 * n);
         for (std::size_t k = 0; k < n; ++k)
-            for (int a = 0; a < 3; ++a) pts[4 * k + std::size_t(a)] = p[tree.order[k]][std::size_t(a)];
+            for (int a = 0; a < 3; ++a) pts[4 * k + std::size_t(a)] = float(src.points(Eigen::Index(order[k]), a));
         points_ = upload(c, pts.data(), pts.size() * 4);
-        nodes_ = upload(c, tree.nodes.data(), tree.nodes.size() * sizeof(GpuNode));
+        const std::vector<GpuNode> nodes = float_nodes(tree);
+        nodes_ = upload(c, nodes.data(), nodes.size() * sizeof(GpuNode));
 
         if (kind_ == Kind::Pat) {
             // Tori are built on the device from the jets, the same pipeline TorusNet feeds.
-            const std::vector<float> jets = jet_records(src.points, src.normals, src.tangents, src.jets, tree.order);
+            const std::vector<float> jets = jet_records(src.points, src.normals, src.tangents, src.jets, order);
             gpu::Buffer jet_buffer = upload(c, jets.data(), jets.size() * 4);
             terms_ = gpu::Buffer(c, n * 12 * 4, gpu::Memory::Device);
             gpu::Recorder rec(c);
@@ -148,7 +116,7 @@ public:
         } else {
             std::vector<float> t(4 * n);
             for (std::size_t k = 0; k < n; ++k) {
-                const auto i = Eigen::Index(tree.order[k]);
+                const auto i = Eigen::Index(order[k]);
                 for (int a = 0; a < 3; ++a) t[4 * k + std::size_t(a)] = float(src.normals(i, a));
                 t[4 * k + 3] = float(src.areas[std::size_t(i)]);
             }
@@ -248,7 +216,7 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
 }
 
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
-                                         const Params& params, std::string& why_not) {
+                                         const detail::BoxTree& tree, const Params& params, std::string& why_not) {
     const std::uint64_t n = std::uint64_t(src.points.rows());
     const std::uint64_t term_bytes = n * (src.kind == Kind::Pat ? 48 : 16);
     const std::uint64_t jet_bytes = src.kind == Kind::Pat ? n * 64 : 0;
@@ -266,7 +234,7 @@ std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ct
         why_not = "the cloud does not fit in " + ctx->info().name + "'s memory; using the CPU path";
         return nullptr;
     }
-    return std::make_shared<GpuField>(ctx, src);
+    return std::make_shared<GpuField>(ctx, src, tree);
 }
 
 void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries, Output out,

@@ -9,8 +9,8 @@ namespace gsd::blend {
 // Without Vulkan there is no device-side field; these are never reached (select() never
 // returns a context) but keep the engine's code path the same.
 class GpuField {};
-std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>&, const Source&, const Params&,
-                                         std::string& why_not) {
+std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>&, const Source&,
+                                         const detail::BoxTree&, const Params&, std::string& why_not) {
     why_not = "built without Vulkan";
     return nullptr;
 }
@@ -25,9 +25,9 @@ Engine::Engine(Source src, BlendOptions opt) : src_(std::move(src)), opt_(std::m
 
 Engine::~Engine() = default;
 
-const KdTree& Engine::tree() const {
+const detail::BoxTree& Engine::tree() const {
     std::lock_guard<std::mutex> lock(init_mutex_);
-    if (!tree_) tree_ = std::make_unique<KdTree>(src_.points);
+    if (!tree_) tree_ = std::make_unique<detail::BoxTree>(src_.points);
     return *tree_;
 }
 
@@ -42,12 +42,13 @@ FieldValues Engine::evaluate(const Queries& q, bool gradient, const ProgressFn& 
     if (!sel.note.empty()) log_once(sel.note);
     if (sel.context) {
         std::shared_ptr<GpuField> field;
+        const detail::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
         {
             std::lock_guard<std::mutex> lock(init_mutex_);
             if (!gpu_tried_) {
                 gpu_tried_ = true;
                 std::string why_not;
-                gpu_ = make_gpu_field(sel.context, src_, params, why_not);
+                gpu_ = make_gpu_field(sel.context, src_, search_tree, params, why_not);
                 if (!gpu_) log_once(why_not);
             }
             field = gpu_;

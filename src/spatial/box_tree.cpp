@@ -1,0 +1,116 @@
+#include "spatial/box_tree.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace gsd::detail {
+
+BoxTree::BoxTree(const Points& p) {
+    const auto n = std::uint32_t(p.rows());
+    if (n == 0) throw Error("cannot build a spatial index over an empty point set");
+    // The smallest depth with ≤ kLeafSize points per leaf: every leaf then holds > kLeafSize/2.
+    int depth = 0;
+    while ((std::uint64_t(n) >> depth) > kLeafSize) ++depth;
+    order_.resize(n);
+    std::iota(order_.begin(), order_.end(), 0u);
+    nodes_.resize((std::size_t(1) << (depth + 1)) - 1);
+    first_leaf_ = std::uint32_t((std::size_t(1) << depth) - 1);
+
+    struct Task { std::uint32_t node, begin, end; int level; };
+    std::vector<Task> todo{{0, 0, n, 0}};
+    while (!todo.empty()) {
+        const Task t = todo.back();
+        todo.pop_back();
+        Node& node = nodes_[t.node];
+        node.begin = t.begin;
+        node.end = t.end;
+        for (int a = 0; a < 3; ++a) { node.lo[a] = INFINITY; node.hi[a] = -INFINITY; }
+        for (std::uint32_t j = t.begin; j < t.end; ++j)
+            for (int a = 0; a < 3; ++a) {
+                node.lo[a] = std::min(node.lo[a], p(order_[j], a));
+                node.hi[a] = std::max(node.hi[a], p(order_[j], a));
+            }
+        if (t.level == depth) continue;
+        int axis = 0;
+        for (int a = 1; a < 3; ++a)
+            if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
+        const std::uint32_t mid = t.begin + (t.end - t.begin) / 2;
+        std::nth_element(order_.begin() + t.begin, order_.begin() + mid, order_.begin() + t.end,
+                         [&](std::uint32_t a, std::uint32_t b) { return p(a, axis) < p(b, axis); });
+        todo.push_back({2 * t.node + 1, t.begin, mid, t.level + 1});
+        todo.push_back({2 * t.node + 2, mid, t.end, t.level + 1});
+    }
+    xyz_.resize(3 * std::size_t(n));
+    for (std::uint32_t j = 0; j < n; ++j)
+        for (int a = 0; a < 3; ++a) xyz_[3 * j + std::uint32_t(a)] = p(order_[j], a);
+}
+
+double BoxTree::box_distance2(const double* x, std::uint32_t i) const {
+    double s = 0;
+    for (int a = 0; a < 3; ++a) {
+        const double e = std::max({nodes_[i].lo[a] - x[a], x[a] - nodes_[i].hi[a], 0.0});
+        s += e * e;
+    }
+    return s;
+}
+
+void BoxTree::knn(const Eigen::Vector3d& q, std::size_t k, std::vector<Neighbor>& out) const {
+    k = std::min(k, size());
+    const double x[3] = {q.x(), q.y(), q.z()};
+    // Sorted squared distances and tree positions of the best k so far.
+    thread_local std::vector<double> kd;
+    thread_local std::vector<std::uint32_t> ki;
+    kd.assign(k, INFINITY);
+    ki.assign(k, 0);
+    std::uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const std::uint32_t i = stack[--top];
+        if (box_distance2(x, i) >= kd[k - 1]) continue;
+        if (i >= first_leaf_) {
+            for (std::uint32_t j = nodes_[i].begin; j < nodes_[i].end; ++j) {
+                const double* p = &xyz_[3 * std::size_t(j)];
+                const double d = (x[0] - p[0]) * (x[0] - p[0]) + (x[1] - p[1]) * (x[1] - p[1]) + (x[2] - p[2]) * (x[2] - p[2]);
+                if (d >= kd[k - 1]) continue;
+                std::size_t m = k - 1;
+                while (m > 0 && kd[m - 1] > d) { kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
+                kd[m] = d;
+                ki[m] = j;
+            }
+        } else {
+            const std::uint32_t l = 2 * i + 1, r = 2 * i + 2;
+            const bool left_first = box_distance2(x, l) <= box_distance2(x, r);
+            stack[top++] = left_first ? r : l;  // the nearer child is visited first
+            stack[top++] = left_first ? l : r;
+        }
+    }
+    out.resize(k);
+    for (std::size_t m = 0; m < k; ++m) out[m] = {order_[ki[m]], std::sqrt(kd[m])};
+}
+
+void BoxTree::radius(const Eigen::Vector3d& q, double r, std::vector<Neighbor>& out) const {
+    out.clear();
+    const double x[3] = {q.x(), q.y(), q.z()};
+    const double r2 = r * r;
+    std::uint32_t stack[64];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const std::uint32_t i = stack[--top];
+        if (box_distance2(x, i) > r2) continue;
+        if (i >= first_leaf_) {
+            for (std::uint32_t j = nodes_[i].begin; j < nodes_[i].end; ++j) {
+                const double* p = &xyz_[3 * std::size_t(j)];
+                const double d = (x[0] - p[0]) * (x[0] - p[0]) + (x[1] - p[1]) * (x[1] - p[1]) + (x[2] - p[2]) * (x[2] - p[2]);
+                if (d <= r2) out.push_back({order_[j], std::sqrt(d)});
+            }
+        } else {
+            stack[top++] = 2 * i + 1;
+            stack[top++] = 2 * i + 2;
+        }
+    }
+}
+
+}  // namespace gsd::detail
