@@ -4,6 +4,7 @@
 // summed set (all points, the ball of radius r_eval, or the k nearest), then blend the
 // per-point terms of PAT (tori), SSPD (tangent planes) or signed Hopf–Cole (screened dipoles).
 // Neighbor search walks a complete kd-tree built once per cloud on the host.
+#include "box_tree.glsl"
 #include "torus.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -15,8 +16,6 @@ const int K_MAX = 32;     // largest fallback_k the kernel supports
 const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
 const int TILE = 256;     // shared-memory tile for the exact sum (≥ workgroup size)
 const float PI = 3.14159265358979;
-
-struct Node { vec3 lo; uint begin; vec3 hi; uint end; };
 
 layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };    // tree order
 layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };   // PAT: 3 per point; else (n, area)
@@ -92,10 +91,7 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
     add_term(a, x, pts[j].xyz, t0, t1, t2, d, lambda, sigma, rho, tapered);
 }
 
-float box_distance2(vec3 x, uint i) {
-    vec3 e = max(max(nodes[i].lo - x, x - nodes[i].hi), vec3(0.0));
-    return dot(e, e);
-}
+float box_distance2(vec3 x, uint i) { return box_distance2(x, nodes[i].lo, nodes[i].hi); }
 
 // Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
 uint sum_ball(vec3 x, inout Acc a) {

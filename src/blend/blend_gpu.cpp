@@ -2,7 +2,9 @@
 // per-point terms, tree nodes), then queries stream through in chunks with several chunks in
 // flight: while chunk i computes, chunk i+1 is uploaded and chunk i−1 read back.
 #include "blend/blend.hpp"
+#include "gpu/device_tree.hpp"
 #include "gpu/runtime.hpp"
+#include "gpu/stream.hpp"
 
 #include <algorithm>
 #include <array>
@@ -16,48 +18,10 @@ namespace {
 
 constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 
-struct GpuNode {  // std430 layout of `Node` in blend_eval.comp
-    float lo[3];
-    std::uint32_t begin;
-    float hi[3];
-    std::uint32_t end;
-};
-static_assert(sizeof(GpuNode) == 32);
-
 struct BlendPush {  // `Push` in blend_eval.comp
     std::uint32_t query_count, point_count, first_leaf, k_fallback;
     float r_eval, C, dmin;
 };
-
-// The BoxTree's nodes in float32, boxes rounded outward so every float point stays inside.
-std::vector<GpuNode> float_nodes(const detail::BoxTree& tree) {
-    std::vector<GpuNode> out(tree.nodes().size());
-    for (std::size_t i = 0; i < out.size(); ++i) {
-        const detail::BoxTree::Node& n = tree.nodes()[i];
-        for (int a = 0; a < 3; ++a) {
-            const float lo = float(n.lo[a]), hi = float(n.hi[a]);
-            out[i].lo[a] = double(lo) > n.lo[a] ? std::nextafter(lo, -INFINITY) : lo;
-            out[i].hi[a] = double(hi) < n.hi[a] ? std::nextafter(hi, INFINITY) : hi;
-        }
-        out[i].begin = n.begin;
-        out[i].end = n.end;
-    }
-    return out;
-}
-
-// Copies host data into a new device-local buffer through a temporary staging buffer.
-gpu::Buffer upload(gpu::Context& ctx, const void* data, std::size_t bytes) {
-    gpu::Buffer dst(ctx, bytes, gpu::Memory::Device);
-    gpu::Buffer staging(ctx, bytes, gpu::Memory::Upload);
-    std::memcpy(staging.mapped(), data, bytes);
-    gpu::Recorder rec(ctx);
-    rec.begin();
-    rec.copy(staging, 0, dst, 0, bytes);
-    rec.barrier();
-    rec.submit();
-    rec.wait();
-    return dst;
-}
 
 std::vector<float> jet_records(const Points& points, const Points& normals, const Points& tangents,
                                const std::vector<Jet>& jets, const std::vector<std::uint32_t>& order) {
@@ -98,14 +62,14 @@ public:
         std::vector<float> pts(4 * n);
         for (std::size_t k = 0; k < n; ++k)
             for (int a = 0; a < 3; ++a) pts[4 * k + std::size_t(a)] = float(src.points(Eigen::Index(order[k]), a));
-        points_ = upload(c, pts.data(), pts.size() * 4);
-        const std::vector<GpuNode> nodes = float_nodes(tree);
-        nodes_ = upload(c, nodes.data(), nodes.size() * sizeof(GpuNode));
+        points_ = gpu::upload(c, pts.data(), pts.size() * 4);
+        const std::vector<gpu::DeviceNode> nodes = gpu::device_nodes(tree);
+        nodes_ = gpu::upload(c, nodes.data(), nodes.size() * sizeof(gpu::DeviceNode));
 
         if (kind_ == Kind::Pat) {
             // Tori are built on the device from the jets, the same pipeline TorusNet feeds.
             const std::vector<float> jets = jet_records(src.points, src.normals, src.tangents, src.jets, order);
-            gpu::Buffer jet_buffer = upload(c, jets.data(), jets.size() * 4);
+            gpu::Buffer jet_buffer = gpu::upload(c, jets.data(), jets.size() * 4);
             terms_ = gpu::Buffer(c, n * 12 * 4, gpu::Memory::Device);
             gpu::Recorder rec(c);
             rec.begin();
@@ -120,7 +84,7 @@ public:
                 for (int a = 0; a < 3; ++a) t[4 * k + std::size_t(a)] = float(src.normals(i, a));
                 t[4 * k + 3] = float(src.areas[std::size_t(i)]);
             }
-            terms_ = upload(c, t.data(), t.size() * 4);
+            terms_ = gpu::upload(c, t.data(), t.size() * 4);
         }
     }
 
@@ -147,72 +111,39 @@ private:
 void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size_t chunk_size,
                         const ProgressFn& progress) {
     gpu::Context& c = *ctx_;
-    const std::size_t total = q.size();
-    if (total == 0) return;
-    std::size_t chunk = chunk_size ? chunk_size : default_chunk(p);
     const std::size_t out_floats = p.gradient ? 4 : 1;
-    chunk = std::min<std::size_t>(chunk, c.max_binding_bytes() / 16);
-    chunk = std::min(chunk, total);
     const gpu::Kernel& k = c.kernel("blend_eval", 5, sizeof(BlendPush),
                                     {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0});
-
-    // Three slots: one computing, one being filled, one being read back.
-    struct Slot {
-        gpu::Buffer up, queries, result, down;
-        std::unique_ptr<gpu::Recorder> rec;
-        std::size_t first = 0, count = 0;
-    };
-    constexpr int kSlots = 3;
-    std::array<Slot, kSlots> slots;
-    for (Slot& s : slots) {
-        s.up = gpu::Buffer(c, chunk * 16, gpu::Memory::Upload);
-        s.queries = gpu::Buffer(c, chunk * 16, gpu::Memory::Device);
-        s.result = gpu::Buffer(c, chunk * out_floats * 4, gpu::Memory::Device);
-        s.down = gpu::Buffer(c, chunk * out_floats * 4, gpu::Memory::Download);
-        s.rec = std::make_unique<gpu::Recorder>(c);
-    }
-    std::size_t done = 0;
-    auto drain = [&](Slot& s) {
-        if (!s.rec->pending()) return;
-        s.rec->wait();
-        const float* r = static_cast<const float*>(s.down.mapped());
-        for (std::size_t m = 0; m < s.count; ++m) {
-            out.phi[s.first + m] = r[out_floats * m];
-            if (out.gradient)
-                for (int a = 0; a < 3; ++a) out.gradient[3 * (s.first + m) + std::size_t(a)] = r[4 * m + 1 + std::size_t(a)];
-        }
-        done += s.count;
-        if (progress) progress("evaluate", double(done) / double(total));
-    };
-
-    std::size_t index = 0;
-    for (std::size_t first = 0; first < total; first += chunk, ++index) {
-        Slot& s = slots[index % kSlots];
-        drain(s);
-        s.first = first;
-        s.count = std::min(chunk, total - first);
-        float* up = static_cast<float*>(s.up.mapped());
-        for (std::size_t m = 0; m < s.count; ++m) {
+    gpu::StreamJob job;
+    job.count = q.size();
+    job.in_bytes = 16;
+    job.out_bytes = out_floats * 4;
+    job.chunk = chunk_size ? chunk_size : default_chunk(p);
+    job.fill = [&](std::size_t first, std::size_t n, void* dst) {
+        float* up = static_cast<float*>(dst);
+        for (std::size_t m = 0; m < n; ++m) {
             const Eigen::Vector3d x = q.at(first + m);
             up[4 * m] = float(x.x());
             up[4 * m + 1] = float(x.y());
             up[4 * m + 2] = float(x.z());
             up[4 * m + 3] = 0.0f;
         }
-        const BlendPush push{std::uint32_t(s.count), point_count_, first_leaf_, std::uint32_t(p.fallback_k),
+    };
+    job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& res, std::size_t n) {
+        const BlendPush push{std::uint32_t(n), point_count_, first_leaf_, std::uint32_t(p.fallback_k),
                              float(p.r_eval), float(p.C), dmin_};
-        const VkDeviceSize qbytes = s.count * 16, rbytes = s.count * out_floats * 4;
-        s.rec->begin();
-        s.rec->copy(s.up, 0, s.queries, 0, qbytes);
-        s.rec->barrier();
-        s.rec->dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&s.queries, 0, qbytes}, {&s.result, 0, rbytes}},
-                        &push, sizeof(push), std::uint32_t((s.count + k.workgroup - 1) / k.workgroup));
-        s.rec->barrier();
-        s.rec->copy(s.result, 0, s.down, 0, rbytes);
-        s.rec->barrier();
-        s.rec->submit();
-    }
-    for (std::size_t m = 0; m < kSlots; ++m) drain(slots[(index + m) % kSlots]);
+        rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&in, 0, n * 16}, {&res, 0, n * out_floats * 4}}, &push,
+                     sizeof(push), std::uint32_t((n + k.workgroup - 1) / k.workgroup));
+    };
+    job.drain = [&](std::size_t first, std::size_t n, const void* src) {
+        const float* r = static_cast<const float*>(src);
+        for (std::size_t m = 0; m < n; ++m) {
+            out.phi[first + m] = r[out_floats * m];
+            if (out.gradient)
+                for (int a = 0; a < 3; ++a) out.gradient[3 * (first + m) + std::size_t(a)] = r[4 * m + 1 + std::size_t(a)];
+        }
+    };
+    gpu::stream(c, job, progress);
 }
 
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
@@ -250,7 +181,7 @@ std::vector<float> tori_on_device(gpu::Context& ctx, const Points& points, const
     std::vector<std::uint32_t> order(n);
     std::iota(order.begin(), order.end(), 0u);
     const std::vector<float> rec = jet_records(points, normals, tangents, jets, order);
-    gpu::Buffer in = upload(ctx, rec.data(), rec.size() * 4);
+    gpu::Buffer in = gpu::upload(ctx, rec.data(), rec.size() * 4);
     gpu::Buffer tori(ctx, n * 48, gpu::Memory::Device);
     gpu::Buffer down(ctx, n * 48, gpu::Memory::Download);
     gpu::Recorder r(ctx);

@@ -317,6 +317,12 @@ Context::Context(VkInstance instance, VkPhysicalDevice physical, const DeviceInf
     ci.pQueueCreateInfos = &q;
     ci.enabledExtensionCount = 1;
     ci.ppEnabledExtensionNames = extensions;
+    // float64 in shaders where the device has it: the multigrid keeps its residual in double.
+    VkPhysicalDeviceFeatures supported{}, enabled{};
+    vkGetPhysicalDeviceFeatures(physical_, &supported);
+    enabled.shaderFloat64 = supported.shaderFloat64;
+    has_float64_ = supported.shaderFloat64 == VK_TRUE;
+    ci.pEnabledFeatures = &enabled;
     check(vkCreateDevice(physical_, &ci, nullptr, &device_), "vkCreateDevice");
     volkLoadDevice(device_);
     vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
@@ -523,6 +529,10 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
     vkCmdDispatch(cmd_, x, y, 1);
 }
 
+void Recorder::fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes) {
+    vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, 0);
+}
+
 void Recorder::barrier() {
     VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
     mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
@@ -548,6 +558,30 @@ void Recorder::wait() {
     pending_ = false;
     check(vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX), "vkWaitForFences");
     check(vkResetFences(ctx_.device(), 1, &fence_), "vkResetFences");
+}
+
+Buffer upload(Context& ctx, const void* data, std::size_t bytes) {
+    Buffer dst(ctx, bytes, Memory::Device);
+    Buffer staging(ctx, bytes, Memory::Upload);
+    std::memcpy(staging.mapped(), data, bytes);
+    Recorder rec(ctx);
+    rec.begin();
+    rec.copy(staging, 0, dst, 0, bytes);
+    rec.barrier();
+    rec.submit();
+    rec.wait();
+    return dst;
+}
+
+void download(Context& ctx, const Buffer& src, void* dst, std::size_t bytes) {
+    Buffer staging(ctx, bytes, Memory::Download);
+    Recorder rec(ctx);
+    rec.begin();
+    rec.copy(src, 0, staging, 0, bytes);
+    rec.barrier();
+    rec.submit();
+    rec.wait();
+    std::memcpy(dst, staging.mapped(), bytes);
 }
 
 }  // namespace gsd::gpu

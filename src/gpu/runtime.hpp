@@ -82,6 +82,8 @@ public:
     std::uint32_t workgroup_size() const { return workgroup_; }
     /// Largest range a storage buffer binding may cover.
     VkDeviceSize max_binding_bytes() const { return props_.limits.maxStorageBufferRange; }
+    /// Whether shaders may use float64 (enabled at device creation when supported).
+    bool has_float64() const { return has_float64_; }
     /// Bytes of device-local memory in the largest heap.
     VkDeviceSize device_memory_bytes() const { return info_.device_local_bytes; }
 
@@ -104,6 +106,7 @@ private:
     VkQueue queue_ = VK_NULL_HANDLE;
     std::uint32_t queue_family_ = 0;
     std::uint32_t workgroup_ = 64;
+    bool has_float64_ = false;
     VkPipelineCache cache_ = VK_NULL_HANDLE;
     std::mutex kernels_mutex_, queue_mutex_;
     std::map<std::string, std::unique_ptr<Kernel>> kernels_;
@@ -121,6 +124,8 @@ public:
     void begin();
     void copy(const Buffer& src, VkDeviceSize src_offset, const Buffer& dst, VkDeviceSize dst_offset,
               VkDeviceSize bytes);
+    /// Zeroes `bytes` (a multiple of 4) of a buffer from `offset`.
+    void fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes);
     /// Records a dispatch of `groups` workgroups (split over y when above the device limit;
     /// kernels compute their linear id as gl_WorkGroupID.y·gl_NumWorkGroups.x + x).
     void dispatch(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
@@ -140,6 +145,11 @@ private:
     VkFence fence_ = VK_NULL_HANDLE;
     bool pending_ = false;
 };
+
+/// Copies host data into a new device-local buffer (through a temporary staging buffer; waits).
+Buffer upload(Context& ctx, const void* data, std::size_t bytes);
+/// Copies a device buffer's first `bytes` back to the host (waits).
+void download(Context& ctx, const Buffer& src, void* dst, std::size_t bytes);
 
 /// Throws gsd::Error naming the call if a Vulkan result is an error.
 void check(VkResult r, const char* what);

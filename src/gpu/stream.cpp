@@ -1,0 +1,58 @@
+#include "gpu/stream.hpp"
+
+#include <algorithm>
+#include <array>
+#include <memory>
+
+namespace gsd::gpu {
+
+void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
+    if (job.count == 0) return;
+    const std::size_t widest = std::max(job.in_bytes, job.out_bytes);
+    std::size_t chunk = std::min(job.chunk, std::size_t(c.max_binding_bytes()) / widest);
+    chunk = std::max<std::size_t>(1, std::min(chunk, job.count));
+
+    struct Slot {
+        Buffer up, in, out, down;
+        std::unique_ptr<Recorder> rec;
+        std::size_t first = 0, count = 0;
+    };
+    constexpr std::size_t kSlots = 3;
+    std::array<Slot, kSlots> slots;
+    const std::size_t used = std::min(kSlots, (job.count + chunk - 1) / chunk);
+    for (std::size_t i = 0; i < used; ++i) {
+        Slot& s = slots[i];
+        s.up = Buffer(c, chunk * job.in_bytes, Memory::Upload);
+        s.in = Buffer(c, chunk * job.in_bytes, Memory::Device);
+        s.out = Buffer(c, chunk * job.out_bytes, Memory::Device);
+        s.down = Buffer(c, chunk * job.out_bytes, Memory::Download);
+        s.rec = std::make_unique<Recorder>(c);
+    }
+    std::size_t done = 0;
+    auto drain = [&](Slot& s) {
+        if (!s.rec || !s.rec->pending()) return;
+        s.rec->wait();
+        job.drain(s.first, s.count, s.down.mapped());
+        done += s.count;
+        if (progress) progress(job.stage, double(done) / double(job.count));
+    };
+    std::size_t index = 0;
+    for (std::size_t first = 0; first < job.count; first += chunk, ++index) {
+        Slot& s = slots[index % used];
+        drain(s);
+        s.first = first;
+        s.count = std::min(chunk, job.count - first);
+        job.fill(first, s.count, s.up.mapped());
+        s.rec->begin();
+        s.rec->copy(s.up, 0, s.in, 0, s.count * job.in_bytes);
+        s.rec->barrier();
+        job.record(*s.rec, s.in, s.out, s.count);
+        s.rec->barrier();
+        s.rec->copy(s.out, 0, s.down, 0, s.count * job.out_bytes);
+        s.rec->barrier();
+        s.rec->submit();
+    }
+    for (std::size_t m = 0; m < used; ++m) drain(slots[(index + m) % used]);
+}
+
+}  // namespace gsd::gpu

@@ -1,0 +1,29 @@
+// Streams a large batch of independent items through a kernel in chunks, with three chunks in
+// flight: while chunk i computes, chunk i+1 is written into its upload buffer and chunk i−1 is
+// read back. Each chunk is one submission (copy in → kernels → copy out). Results do not depend
+// on the chunk size as long as items are independent.
+#pragma once
+
+#include "gpu/runtime.hpp"
+
+#include <functional>
+
+namespace gsd::gpu {
+
+struct StreamJob {
+    std::size_t count = 0;       ///< items
+    std::size_t in_bytes = 0;    ///< per item, uploaded
+    std::size_t out_bytes = 0;   ///< per item, read back
+    std::size_t chunk = 65536;   ///< items per chunk (capped by the device's binding range)
+    /// Writes items [first, first + n) into dst (host memory of n·in_bytes).
+    std::function<void(std::size_t first, std::size_t n, void* dst)> fill;
+    /// Records the kernels that read `in` and write `out` for n items (ranges are bound whole).
+    std::function<void(Recorder& rec, const Buffer& in, const Buffer& out, std::size_t n)> record;
+    /// Reads items [first, first + n) from src.
+    std::function<void(std::size_t first, std::size_t n, const void* src)> drain;
+    const char* stage = "evaluate";  ///< progress label
+};
+
+void stream(Context& ctx, const StreamJob& job, const ProgressFn& progress);
+
+}  // namespace gsd::gpu

@@ -1,0 +1,157 @@
+#include "shm/diffuse.hpp"
+
+#include "spatial/box_tree.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gsd::shm_detail {
+
+namespace {
+
+class CpuEvaluator final : public DirectionEvaluator {
+public:
+    CpuEvaluator(const ShmSource& src, const KernelParams& k) : src_(src), k_(k), tree_(src.positions) {}
+
+    std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
+                         const ProgressFn& progress) override {
+        const auto n = std::size_t(x.rows());
+        y.assign(3 * n, 0.0f);
+        r_min.assign(n, 0.0);
+        std::size_t terms = 0;
+        const std::size_t block = 32768;
+        for (std::size_t first = 0; first < n; first += block) {
+            const std::size_t last = std::min(n, first + block);
+#pragma omp parallel reduction(+ : terms)
+            {
+                std::vector<Neighbor> nb;
+#pragma omp for schedule(dynamic, 64)
+                for (std::size_t i = first; i < last; ++i) terms += one(x.row(Eigen::Index(i)).transpose(), &y[3 * i], r_min[i], nb);
+            }
+            if (progress) progress("diffuse", double(last) / double(n));
+        }
+        return terms;
+    }
+    std::string device() const override { return "cpu"; }
+
+private:
+    std::size_t one(const Eigen::Vector3d& x, float* y, double& rmin, std::vector<Neighbor>& nb) const {
+        tree_.knn(x, 1, nb);
+        rmin = nb[0].distance;
+        // Everything with exp(−λ(r − r_min)) ≥ e^(−cutoff).
+        tree_.radius(x, rmin + k_.cutoff / k_.lambda, nb);
+        Eigen::Vector3d X = Eigen::Vector3d::Zero();
+        for (const Neighbor& s : nb) {
+            const double r = std::max(s.distance, k_.r_floor);
+            X += src_.vectors.row(s.index).transpose() * (std::exp(-k_.lambda * (s.distance - rmin)) / r);
+        }
+        const double len = X.norm();
+        if (len > 0)
+            for (int a = 0; a < 3; ++a) y[a] = float(X[a] / len);
+        return nb.size();
+    }
+
+    const ShmSource& src_;
+    KernelParams k_;
+    detail::BoxTree tree_;
+};
+
+// The grids of the hierarchy: the same box, about half the nodes per axis each level.
+std::vector<GridSpec> levels_for(const GridSpec& g, bool interpolate) {
+    std::vector<GridSpec> out{g};
+    if (!interpolate) return out;
+    while (std::max({out.back().nx, out.back().ny, out.back().nz}) > 9) {
+        GridSpec c = out.back();
+        c.nx = std::max(2, (c.nx - 1 + 1) / 2 + 1);
+        c.ny = std::max(2, (c.ny - 1 + 1) / 2 + 1);
+        c.nz = std::max(2, (c.nz - 1 + 1) / 2 + 1);
+        out.push_back(c);
+    }
+    return out;
+}
+
+struct LevelField {
+    std::vector<float> y;       // 3 per node
+    std::vector<double> r_low;  // a lower bound of the distance to the source (exact where evaluated)
+};
+
+}  // namespace
+
+std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k) {
+    return std::make_unique<CpuEvaluator>(src, k);
+}
+
+std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, double interpolation_cells,
+                           DiffuseStats& stats, const ProgressFn& progress) {
+    const std::vector<GridSpec> levels = levels_for(grid, interpolation_cells > 0);
+    LevelField coarse;
+    for (int l = int(levels.size()) - 1; l >= 0; --l) {
+        const GridSpec& g = levels[std::size_t(l)];
+        const std::size_t n = g.node_count();
+        LevelField cur{std::vector<float>(3 * n, 0.0f), std::vector<double>(n, 0.0)};
+        std::vector<char> exact(n, 1);
+        if (std::size_t(l) + 1 < levels.size()) {
+            // Interpolate where every corner of the enclosing coarse cell is far from the source.
+            const GridSpec& c = levels[std::size_t(l) + 1];
+            const Eigen::Vector3d step = c.box.extent().cwiseQuotient(Eigen::Vector3d(c.nx - 1, c.ny - 1, c.nz - 1));
+            const double far = interpolation_cells * step.maxCoeff();
+            const int cn[3] = {c.nx, c.ny, c.nz};
+#pragma omp parallel for schedule(static)
+            for (std::size_t p = 0; p < n; ++p) {
+                const int i = int(p / (std::size_t(g.ny) * std::size_t(g.nz))), j = int((p / std::size_t(g.nz)) % std::size_t(g.ny)),
+                          k = int(p % std::size_t(g.nz));
+                const Eigen::Vector3d x = g.node(i, j, k);
+                int base[3];
+                double t[3];
+                for (int a = 0; a < 3; ++a) {
+                    const double u = (x[a] - c.box.lo[a]) / step[a];
+                    base[a] = std::clamp(int(std::floor(u)), 0, cn[a] - 2);
+                    t[a] = std::clamp(u - base[a], 0.0, 1.0);
+                }
+                Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+                double low = INFINITY;
+                bool all_far = true;
+                for (int corner = 0; corner < 8 && all_far; ++corner) {
+                    const int o[3] = {corner & 1, (corner >> 1) & 1, (corner >> 2) & 1};
+                    const std::size_t q = c.nz * (std::size_t(base[0] + o[0]) * std::size_t(c.ny) + std::size_t(base[1] + o[1])) +
+                                          std::size_t(base[2] + o[2]);
+                    if (coarse.r_low[q] < far) all_far = false;
+                    const double w = (o[0] ? t[0] : 1 - t[0]) * (o[1] ? t[1] : 1 - t[1]) * (o[2] ? t[2] : 1 - t[2]);
+                    for (int a = 0; a < 3; ++a) sum[a] += w * coarse.y[3 * q + std::size_t(a)];
+                    // r_min is 1-Lipschitz: a bound at the corner bounds it here too.
+                    low = std::min(low, coarse.r_low[q] - (x - c.node(base[0] + o[0], base[1] + o[1], base[2] + o[2])).norm());
+                }
+                if (!all_far) continue;
+                exact[p] = 0;
+                const double len = sum.norm();
+                if (len > 1e-6)
+                    for (int a = 0; a < 3; ++a) cur.y[3 * p + std::size_t(a)] = float(sum[a] / len);
+                cur.r_low[p] = std::max(low, 0.0);
+            }
+        }
+        std::vector<std::size_t> todo;
+        for (std::size_t p = 0; p < n; ++p)
+            if (exact[p]) todo.push_back(p);
+        Points x(Eigen::Index(todo.size()), 3);
+        for (std::size_t m = 0; m < todo.size(); ++m) {
+            const std::size_t p = todo[m];
+            x.row(Eigen::Index(m)) = g.node(int(p / (std::size_t(g.ny) * std::size_t(g.nz))), int((p / std::size_t(g.nz)) % std::size_t(g.ny)),
+                                            int(p % std::size_t(g.nz)))
+                                         .transpose();
+        }
+        std::vector<float> y;
+        std::vector<double> rmin;
+        const ProgressFn level_progress = progress && l == 0 ? progress : ProgressFn{};
+        stats.kernel_terms += eval.evaluate(x, y, rmin, level_progress);
+        stats.exact_nodes += todo.size();
+        for (std::size_t m = 0; m < todo.size(); ++m) {
+            const std::size_t p = todo[m];
+            for (int a = 0; a < 3; ++a) cur.y[3 * p + std::size_t(a)] = y[3 * m + std::size_t(a)];
+            cur.r_low[p] = rmin[m];
+        }
+        coarse = std::move(cur);
+    }
+    return std::move(coarse.y);
+}
+
+}  // namespace gsd::shm_detail

@@ -1,0 +1,53 @@
+// Step 1–2 of the grid SHM: diffused, normalized source normals Y at grid nodes.
+//
+// The free-space solution of (id − tΔ)X = Σ_j A_j N_j δ_{y_j} is X(x) = Σ_j A_j N_j G(x, y_j)
+// with the screened kernel G = exp(−λr)/(4π t r), λ = 1/√t. Only Y = X/|X| is needed, so the
+// kernel is evaluated with exp(−λ r_min) factored out (r_min: the nearest source), which keeps
+// far-field directions defined in any precision, and sources with r > r_min + cutoff/λ —
+// weight below e^(−cutoff) of the nearest — are dropped. Far from the source Y varies on the
+// scale of the distance, so it is evaluated exactly only near the source on each level of a
+// coarse-to-fine hierarchy of grids and interpolated elsewhere (docs/shm.md).
+#pragma once
+
+#include <gsd/shm.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gsd::gpu { class Context; }
+
+namespace gsd::shm_detail {
+
+struct KernelParams {
+    double lambda = 0;  ///< 1/√t
+    double cutoff = 12; ///< drop sources with weight < e^(−cutoff) of the nearest
+    double r_floor = 0; ///< distances below this count as r_floor (1/r is singular at a source)
+};
+
+/// Exact Y and r_min at a batch of points.
+class DirectionEvaluator {
+public:
+    virtual ~DirectionEvaluator() = default;
+    /// y: 3 floats per point (unit, or 0 where X vanishes); r_min: distance to the nearest source.
+    /// Returns the number of source terms summed.
+    virtual std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
+                                 const ProgressFn& progress) = 0;
+    virtual std::string device() const = 0;
+};
+
+std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k);
+/// Null (and a reason) when the device cannot take the source.
+std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
+                                                       const KernelParams& k, std::string& why_not);
+
+struct DiffuseStats {
+    std::size_t exact_nodes = 0, kernel_terms = 0;
+};
+
+/// Y at every node of `grid` (3 floats per node, GridSpec order): exact within
+/// interpolation_cells cells of the source on each level, interpolated beyond.
+std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, double interpolation_cells,
+                           DiffuseStats& stats, const ProgressFn& progress);
+
+}  // namespace gsd::shm_detail

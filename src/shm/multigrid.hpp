@@ -1,0 +1,47 @@
+// The multigrid hierarchy of the grid Poisson problem, shared by the CPU reference and the GPU
+// kernels: cell-centered coarsening by 2 in every axis (any grid size: an odd last cell stays
+// alone), coarse operators rediscretized from the aggregated cell sizes, linear (cell-centered)
+// prolongation P and restriction R = Pᵀ, and a dense pseudo-inverse on the coarsest level.
+// Private to src/shm.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+namespace gsd::shm_detail {
+
+/// One axis of one level: per cell, its size in finest cells and its coupling to the next cell.
+struct AxisLevel {
+    int n = 0;
+    std::vector<double> size;       ///< finest cells per cell (1 at level 0)
+    std::vector<double> center;     ///< cell center in finest-cell units
+    // Prolongation to the next finer level along this axis: fine cell i takes
+    // w0[i]·coarse[c0[i]] + w1[i]·coarse[c1[i]].
+    std::vector<int> c0, c1;
+    std::vector<double> w0, w1;
+    // Restriction (Pᵀ) gather lists: coarse cell I receives Σ weight·fine[index] over
+    // gather[offsets[I] .. offsets[I+1]).
+    std::vector<int> offsets, gather_index;
+    std::vector<double> gather_weight;
+};
+
+struct Level {
+    std::array<AxisLevel, 3> axis;
+    std::size_t count() const { return std::size_t(axis[0].n) * std::size_t(axis[1].n) * std::size_t(axis[2].n); }
+    std::size_t index(int i, int j, int k) const { return (std::size_t(i) * std::size_t(axis[1].n) + std::size_t(j)) * std::size_t(axis[2].n) + std::size_t(k); }
+};
+
+struct Hierarchy {
+    std::vector<Level> levels;     ///< levels[0] is the grid
+    std::array<double, 3> inv_h2;  ///< 1/Δ_a² of the finest grid
+    std::vector<double> coarse_pinv;  ///< dense pseudo-inverse of the coarsest operator (row-major)
+
+    explicit Hierarchy(const GridSpec& grid);
+    /// Coupling between cell (i,j,k) and its +axis neighbor at level l.
+    double coupling(int l, int axis, int i, int j, int k) const;
+};
+
+}  // namespace gsd::shm_detail

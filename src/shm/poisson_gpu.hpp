@@ -1,0 +1,29 @@
+// The multigrid of GridPoissonSolver on a Vulkan device (poisson_gpu.cpp): the same hierarchy,
+// smoother and transfers as the CPU reference, in float32, with the residual and the solution
+// in float64 (mixed-precision iterative refinement) so it reaches a relative residual of 1e-6.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include "shm/multigrid.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gsd::gpu { class Context; }
+
+namespace gsd::shm_detail {
+
+class GpuMultigrid {
+public:
+    virtual ~GpuMultigrid() = default;
+    virtual std::vector<double> solve(const std::vector<double>& b, double tol, int max_cycles,
+                                      std::vector<double>* history, bool f_cycle, const ProgressFn& progress) = 0;
+};
+
+/// Null (and a reason) when the device cannot run it (no float64 in shaders, memory, limits).
+std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Context>& ctx, const Hierarchy& h,
+                                                 std::string& why_not);
+
+}  // namespace gsd::shm_detail

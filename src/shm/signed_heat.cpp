@@ -1,0 +1,196 @@
+// SignedHeatGrid: the three steps of the grid Signed Heat Method and the zero-set shift.
+#include <gsd/gpu.hpp>
+#include <gsd/shm.hpp>
+
+#include "shm/diffuse.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+namespace gsd {
+
+namespace {
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+// Trilinear interpolation weights of a point inside the grid: 8 (node, weight) pairs; false if
+// the point lies outside the box.
+bool trilinear(const GridSpec& g, const Eigen::Vector3d& x, std::size_t (&node)[8], double (&w)[8]) {
+    const int n[3] = {g.nx, g.ny, g.nz};
+    int base[3];
+    double t[3];
+    for (int a = 0; a < 3; ++a) {
+        const double u = (x[a] - g.box.lo[a]) / g.box.extent()[a] * (n[a] - 1);
+        if (!(u >= 0 && u <= n[a] - 1)) return false;
+        base[a] = std::min(int(u), n[a] - 2);
+        t[a] = u - base[a];
+    }
+    for (int c = 0; c < 8; ++c) {
+        const int o[3] = {c & 1, (c >> 1) & 1, (c >> 2) & 1};
+        node[c] = (std::size_t(base[0] + o[0]) * std::size_t(g.ny) + std::size_t(base[1] + o[1])) * std::size_t(g.nz) + std::size_t(base[2] + o[2]);
+        w[c] = (o[0] ? t[0] : 1 - t[0]) * (o[1] ? t[1] : 1 - t[1]) * (o[2] ? t[2] : 1 - t[2]);
+    }
+    return true;
+}
+
+}  // namespace
+
+struct SignedHeatGrid::Impl {
+    ShmSource source;
+    GridSpec grid;
+    ShmOptions opt;
+
+    shm_detail::KernelParams kernel() const {
+        shm_detail::KernelParams k;
+        const double t = opt.t_coef * source.spacing * source.spacing;
+        k.lambda = 1 / std::sqrt(t);
+        k.cutoff = opt.cutoff;
+        k.r_floor = 1e-3 * source.spacing;
+        return k;
+    }
+
+    std::vector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress) const {
+        std::unique_ptr<shm_detail::DirectionEvaluator> eval;
+        const gpu::Selection sel = gpu::select(opt.device);
+        if (!sel.note.empty()) log_once(sel.note);
+        if (sel.context) {
+            std::string why_not;
+            eval = shm_detail::make_gpu_evaluator(sel.context, source, kernel(), why_not);
+            if (!eval) log_once(why_not);
+        }
+        if (!eval) eval = shm_detail::make_cpu_evaluator(source, kernel());
+        device = eval->device();
+        return shm_detail::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
+    }
+
+    // Area-weighted mean of φ over the sources inside the box.
+    double mean_on_source(const std::vector<double>& phi) const {
+        double sum = 0, weight = 0;
+        for (Eigen::Index j = 0; j < source.positions.rows(); ++j) {
+            std::size_t node[8];
+            double w[8];
+            if (!trilinear(grid, source.positions.row(j).transpose(), node, w)) continue;
+            const double a = source.vectors.row(j).norm();
+            double v = 0;
+            for (int c = 0; c < 8; ++c) v += w[c] * phi[node[c]];
+            sum += a * v;
+            weight += a;
+        }
+        if (!(weight > 0)) throw Error("the source lies outside the grid's bounds");
+        return sum / weight;
+    }
+
+    // Soft zero set: (L + μ Pᵀ D P) φ = b with μ = w/(h V), solved by CG preconditioned with a
+    // multigrid cycle of L plus the constant mode (which L cannot see but the penalty pins).
+    std::vector<double> fit_zero_set(const GridPoissonSolver& poisson, const std::vector<double>& b,
+                                     std::vector<double>& history) const {
+        struct Sample { std::size_t node[8]; double w[8]; double area; };
+        std::vector<Sample> samples;
+        for (Eigen::Index j = 0; j < source.positions.rows(); ++j) {
+            Sample s;
+            if (!trilinear(grid, source.positions.row(j).transpose(), s.node, s.w)) continue;
+            s.area = source.vectors.row(j).norm();
+            samples.push_back(s);
+        }
+        if (samples.empty()) throw Error("the source lies outside the grid's bounds");
+        const Eigen::Vector3d step = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
+        const double mu = opt.fit_zero_set / (step.maxCoeff() * step.prod());
+        double total_area = 0;
+        for (const Sample& s : samples) total_area += s.area;
+        auto apply = [&](const std::vector<double>& x) {
+            std::vector<double> y = poisson.apply(x);
+            for (const Sample& s : samples) {
+                double v = 0;
+                for (int c = 0; c < 8; ++c) v += s.w[c] * x[s.node[c]];
+                for (int c = 0; c < 8; ++c) y[s.node[c]] += mu * s.area * s.w[c] * v;
+            }
+            return y;
+        };
+        const GridPoissonSolver mg(grid, PoissonSolver::Multigrid, "cpu");
+        const double n = double(b.size());
+        auto precondition = [&](const std::vector<double>& r) {
+            std::vector<double> z = mg.solve(r, 0.0, 1);  // one cycle, mean removed
+            const double mode = std::accumulate(r.begin(), r.end(), 0.0) / (mu * total_area) / n;
+            for (double& v : z) v += mode;
+            return z;
+        };
+        std::vector<double> x(b.size(), 0.0), r = b, z = precondition(r), p = z;
+        auto dot = [](const std::vector<double>& a, const std::vector<double>& c) {
+            return std::inner_product(a.begin(), a.end(), c.begin(), 0.0);
+        };
+        const double bnorm = std::sqrt(dot(b, b));
+        double rz = dot(r, z);
+        for (int it = 0; it < opt.max_iterations; ++it) {
+            const double rel = std::sqrt(dot(r, r)) / bnorm;
+            history.push_back(rel);
+            if (rel <= opt.tolerance) break;
+            const std::vector<double> Ap = apply(p);
+            const double alpha = rz / dot(p, Ap);
+            for (std::size_t i = 0; i < x.size(); ++i) { x[i] += alpha * p[i]; r[i] -= alpha * Ap[i]; }
+            z = precondition(r);
+            const double rz_new = dot(r, z);
+            for (std::size_t i = 0; i < x.size(); ++i) p[i] = z[i] + rz_new / rz * p[i];
+            rz = rz_new;
+        }
+        return x;
+    }
+};
+
+SignedHeatGrid::SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions options) {
+    grid.validate();
+    if (source.size() == 0) throw Error("the signed heat method needs a non-empty source");
+    if (!(source.spacing > 0) || !std::isfinite(source.spacing)) throw Error("the source has no spacing (all samples coincide?)");
+    if (!(options.t_coef > 0)) throw Error("--t-coef", "the diffusion time coefficient must be > 0");
+    if (!(options.cutoff > 0)) throw Error("cutoff", "the kernel cutoff must be > 0");
+    if (options.interpolation_cells < 0) throw Error("interpolation_cells", "must be ≥ 0");
+    if (options.fit_zero_set < 0) throw Error("--fit-zero-set", "the zero-set weight must be ≥ 0");
+    if (!source.positions.allFinite() || !source.vectors.allFinite()) throw Error("the source has non-finite values");
+    impl_ = std::make_unique<Impl>(Impl{std::move(source), grid, std::move(options)});
+}
+
+SignedHeatGrid::~SignedHeatGrid() = default;
+SignedHeatGrid::SignedHeatGrid(SignedHeatGrid&&) noexcept = default;
+SignedHeatGrid& SignedHeatGrid::operator=(SignedHeatGrid&&) noexcept = default;
+
+const GridSpec& SignedHeatGrid::grid() const { return impl_->grid; }
+const ShmSource& SignedHeatGrid::source() const { return impl_->source; }
+
+std::vector<float> SignedHeatGrid::diffused_directions(const ProgressFn& progress) const {
+    shm_detail::DiffuseStats stats;
+    std::string device;
+    return impl_->directions(stats, device, progress);
+}
+
+ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
+    const Impl& m = *impl_;
+    ShmResult out;
+    auto t0 = std::chrono::steady_clock::now();
+    shm_detail::DiffuseStats stats;
+    std::string diffuse_device;
+    const std::vector<float> Y = m.directions(stats, diffuse_device, progress);
+    out.exact_nodes = stats.exact_nodes;
+    out.kernel_terms = stats.kernel_terms;
+    out.seconds_diffuse = seconds_since(t0);
+
+    t0 = std::chrono::steady_clock::now();
+    const GridPoissonSolver poisson(m.grid, m.opt.solver, m.opt.device);
+    const std::vector<double> b = poisson.divergence(Y);
+    std::vector<double> phi;
+    if (m.opt.fit_zero_set > 0) {
+        phi = m.fit_zero_set(poisson, b, out.residual_history);
+    } else {
+        phi = poisson.solve(b, m.opt.tolerance, m.opt.max_iterations, &out.residual_history, m.opt.f_cycle, progress);
+        const double shift = m.mean_on_source(phi);
+        for (double& v : phi) v -= shift;
+    }
+    out.seconds_solve = seconds_since(t0);
+    const std::string solve_device = m.opt.fit_zero_set > 0 ? "cpu" : poisson.device();
+    out.device = diffuse_device == solve_device ? diffuse_device : diffuse_device + " (step 1), " + solve_device + " (step 3)";
+    out.phi.assign(phi.begin(), phi.end());
+    return out;
+}
+
+}  // namespace gsd
