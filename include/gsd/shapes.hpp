@@ -53,4 +53,21 @@ struct Corruption {
 /// Returns a corrupted copy (deterministic for a given seed). Never returns fewer than 2 points.
 PointCloud corrupt(const PointCloud& clean, const Corruption& c, std::uint64_t seed);
 
+/// A closed triangle mesh of a shape: the zero level set of its exact SDF, contoured on an
+/// n³ grid over the shape's bounding box (enlarged by 4 cells). Oriented outward.
+PolygonMesh mesh(const Shape& shape, int n);
+
+/// Damage to a mesh, as in thesis §4.4 / fig. 4.16: large holes, flipped faces, noise.
+struct MeshCorruption {
+    int holes = 0;              ///< number of holes, cut around random faces
+    double hole_area = 0.2;     ///< total fraction of the surface area the holes remove
+    double flip_fraction = 0;   ///< fraction of the remaining faces whose orientation is reversed
+    double vertex_noise = 0;    ///< Gaussian σ on vertex positions, × bounding-box diagonal
+};
+/// Returns a damaged copy (deterministic for a seed); unused vertices are kept.
+PolygonMesh corrupt(const PolygonMesh& mesh, const MeshCorruption& c, std::uint64_t seed);
+
+/// Total area of a mesh's faces (polygons fanned).
+double area(const PolygonMesh& mesh);
+
 }  // namespace gsd::shapes

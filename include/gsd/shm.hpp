@@ -52,21 +52,25 @@ PoissonSolver poisson_solver_from_name(const std::string& name);  // "mg" | "cg"
 struct ShmOptions {
     /// Diffusion time t = t_coef · h².
     double t_coef = 1.0;
-    /// Step 1 drops sources whose kernel weight is below exp(−cutoff) of the nearest source's.
-    double cutoff = 12.0;
+    /// Step 1 drops sources whose kernel weight is below exp(−cutoff) of the nearest source's
+    /// (for a smooth sheet the dropped share of the total weight is ≤ e^(−cutoff) = 3e-4).
+    double cutoff = 8.0;
     /// Step 1 evaluates the field exactly at nodes closer than this many cells (of a level)
     /// to the source and interpolates it from a coarser level farther out. 0: exact everywhere.
     double interpolation_cells = 6.0;
     PoissonSolver solver = PoissonSolver::Multigrid;
     /// Stop when ‖b − Lφ‖ ≤ tolerance·‖b‖.
     double tolerance = 1e-6;
-    int max_iterations = 200;   ///< cycles (multigrid) or iterations (CG)
+    /// Cycles (multigrid) or iterations (CG); 0: 50 cycles, 5000 CG iterations.
+    int max_iterations = 0;
     bool f_cycle = false;       ///< F-cycles instead of V-cycles
     /// 0: shift φ so the area-weighted mean of φ over the source is zero. w > 0: add penalty rows
     /// w·A_j·φ(y_j) = 0 (trilinear φ at each source) to the least-squares problem.
     double fit_zero_set = 0.0;
     /// "auto" | "gpu" | "cpu" | index | name (empty: $GSD_DEVICE, else auto).
     std::string device;
+    /// Points per GPU chunk in step 1 (0: automatic). Results do not depend on it.
+    std::size_t chunk_size = 0;
 };
 
 /// What a solve produced, with its diagnostics.

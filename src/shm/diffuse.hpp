@@ -39,7 +39,7 @@ public:
 std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k);
 /// Null (and a reason) when the device cannot take the source.
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
-                                                       const KernelParams& k, std::string& why_not);
+                                                       const KernelParams& k, std::size_t chunk_size, std::string& why_not);
 
 struct DiffuseStats {
     std::size_t exact_nodes = 0, kernel_terms = 0;

@@ -18,8 +18,8 @@ struct DiffusePush {
 
 class GpuEvaluator final : public DirectionEvaluator {
 public:
-    GpuEvaluator(std::shared_ptr<gpu::Context> ctx, const ShmSource& src, const KernelParams& k)
-        : ctx_(std::move(ctx)), k_(k) {
+    GpuEvaluator(std::shared_ptr<gpu::Context> ctx, const ShmSource& src, const KernelParams& k, std::size_t chunk)
+        : ctx_(std::move(ctx)), k_(k), chunk_(chunk) {
         const detail::BoxTree tree(src.positions);
         const auto n = src.size();
         std::vector<float> p(4 * n), v(4 * n);
@@ -49,6 +49,7 @@ public:
         job.in_bytes = 16;
         job.out_bytes = 32;
         job.stage = "diffuse";
+        if (chunk_) job.chunk = chunk_;
         job.fill = [&](std::size_t first, std::size_t m, void* dst) {
             float* up = static_cast<float*>(dst);
             for (std::size_t i = 0; i < m; ++i) {
@@ -78,6 +79,7 @@ public:
 private:
     std::shared_ptr<gpu::Context> ctx_;
     KernelParams k_;
+    std::size_t chunk_ = 0;
     gpu::Buffer points_, vectors_, nodes_;
     std::uint32_t first_leaf_ = 0;
 };
@@ -85,13 +87,13 @@ private:
 }  // namespace
 
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
-                                                       const KernelParams& k, std::string& why_not) {
+                                                       const KernelParams& k, std::size_t chunk_size, std::string& why_not) {
     if (src.size() * 16 > ctx->max_binding_bytes() || src.size() >= (1ull << 31)) {
         why_not = "the source (" + std::to_string(src.size()) + " elements) exceeds " + ctx->info().name +
                   "'s storage buffer range; step 1 runs on the CPU";
         return nullptr;
     }
-    return std::make_unique<GpuEvaluator>(ctx, src, k);
+    return std::make_unique<GpuEvaluator>(ctx, src, k, chunk_size);
 }
 
 }  // namespace gsd::shm_detail

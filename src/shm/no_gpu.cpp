@@ -5,7 +5,7 @@
 namespace gsd::shm_detail {
 
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>&, const ShmSource&,
-                                                       const KernelParams&, std::string& why_not) {
+                                                       const KernelParams&, std::size_t, std::string& why_not) {
     why_not = "built without Vulkan";
     return nullptr;
 }

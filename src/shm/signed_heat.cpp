@@ -43,6 +43,11 @@ struct SignedHeatGrid::Impl {
     GridSpec grid;
     ShmOptions opt;
 
+    int max_iterations() const {
+        if (opt.max_iterations > 0) return opt.max_iterations;
+        return opt.solver == PoissonSolver::CG || opt.fit_zero_set > 0 ? 5000 : 50;
+    }
+
     shm_detail::KernelParams kernel() const {
         shm_detail::KernelParams k;
         const double t = opt.t_coef * source.spacing * source.spacing;
@@ -58,7 +63,7 @@ struct SignedHeatGrid::Impl {
         if (!sel.note.empty()) log_once(sel.note);
         if (sel.context) {
             std::string why_not;
-            eval = shm_detail::make_gpu_evaluator(sel.context, source, kernel(), why_not);
+            eval = shm_detail::make_gpu_evaluator(sel.context, source, kernel(), opt.chunk_size, why_not);
             if (!eval) log_once(why_not);
         }
         if (!eval) eval = shm_detail::make_cpu_evaluator(source, kernel());
@@ -110,10 +115,15 @@ struct SignedHeatGrid::Impl {
             return y;
         };
         const GridPoissonSolver mg(grid, PoissonSolver::Multigrid, "cpu");
-        const double n = double(b.size());
+        // z = P0 M P0 r + (1ᵀr / 1ᵀA1)·1 with M one multigrid cycle and P0 the projection onto
+        // zero mean: symmetric positive definite, as CG needs.
         auto precondition = [&](const std::vector<double>& r) {
-            std::vector<double> z = mg.solve(r, 0.0, 1);  // one cycle, mean removed
-            const double mode = std::accumulate(r.begin(), r.end(), 0.0) / (mu * total_area) / n;
+            std::vector<double> r0 = r;
+            const double mean = std::accumulate(r.begin(), r.end(), 0.0) / double(r.size());
+            for (double& v : r0) v -= mean;
+            std::vector<double> z = mg.solve(r0, 0.0, 1);  // one cycle, mean removed
+            // The constant mode: 1ᵀA1 = μ Σ A_j (trilinear weights sum to one).
+            const double mode = std::accumulate(r.begin(), r.end(), 0.0) / (mu * total_area);
             for (double& v : z) v += mode;
             return z;
         };
@@ -123,7 +133,7 @@ struct SignedHeatGrid::Impl {
         };
         const double bnorm = std::sqrt(dot(b, b));
         double rz = dot(r, z);
-        for (int it = 0; it < opt.max_iterations; ++it) {
+        for (int it = 0; it < max_iterations(); ++it) {
             const double rel = std::sqrt(dot(r, r)) / bnorm;
             history.push_back(rel);
             if (rel <= opt.tolerance) break;
@@ -182,7 +192,7 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     if (m.opt.fit_zero_set > 0) {
         phi = m.fit_zero_set(poisson, b, out.residual_history);
     } else {
-        phi = poisson.solve(b, m.opt.tolerance, m.opt.max_iterations, &out.residual_history, m.opt.f_cycle, progress);
+        phi = poisson.solve(b, m.opt.tolerance, m.max_iterations(), &out.residual_history, m.opt.f_cycle, progress);
         const double shift = m.mean_on_source(phi);
         for (double& v : phi) v -= shift;
     }

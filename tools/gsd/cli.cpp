@@ -64,6 +64,12 @@ void Domain::add_to(CLI::App& app, bool bounds_optional) {
     if (!bounds_optional) g->needs(b);
 }
 
+std::string bounds_text(const Box& b) {
+    char buf[160];
+    std::snprintf(buf, sizeof(buf), "--bounds %.6g %.6g %.6g %.6g %.6g %.6g", b.lo.x(), b.lo.y(), b.lo.z(), b.hi.x(), b.hi.y(), b.hi.z());
+    return buf;
+}
+
 Box bounds_from(const std::vector<double>& v, const std::string& option) {
     if (v.size() != 6) throw Error(option, "expects 6 numbers: x0 y0 z0 x1 y1 z1");
     Box b{{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
@@ -83,7 +89,10 @@ Box default_bounds(const Box& b) {
 GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     Box box;
     if (!bounds.empty()) box = bounds_from(bounds, "--bounds");
-    else if (fallback) box = default_bounds(*fallback);
+    else if (fallback) {
+        box = default_bounds(*fallback);
+        note("grid bounds (pass them to contour/slice): " + bounds_text(box));
+    }
     else throw Error("--bounds", "a grid needs --bounds");
     GridSpec g = GridSpec::cube(grid, box);
     g.validate();

@@ -54,6 +54,8 @@ struct Domain {
 /// The input's bounding cube, centered on its box, enlarged by 10%.
 Box default_bounds(const Box& b);
 Box bounds_from(const std::vector<double>& v, const std::string& option);
+/// "--bounds x0 y0 z0 x1 y1 z1" for notes.
+std::string bounds_text(const Box& b);
 
 /// Writes a float32 result for a domain: (N,N,N[,3]) for a grid, (M[,3]) for queries.
 void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,

@@ -10,9 +10,12 @@
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
+#include <gsd/shm.hpp>
 #include <gsd/viz.hpp>
 
 #include <chrono>
+#include <cstdlib>
+#include <cstring>
 #include <cstdio>
 #include <filesystem>
 #include <optional>
@@ -268,6 +271,159 @@ void add_sample(CLI::App& app) {
     });
 }
 
+// Peak resident memory of this process (Linux), for --verbose reports.
+std::string peak_memory() {
+    std::FILE* f = std::fopen("/proc/self/status", "r");
+    if (!f) return "unknown";
+    char line[256];
+    std::string out = "unknown";
+    while (std::fgets(line, sizeof(line), f))
+        if (std::strncmp(line, "VmHWM:", 6) == 0) {
+            out = fmt("%.0f MiB", std::atof(line + 6) / 1024.0);
+            break;
+        }
+    std::fclose(f);
+    return out;
+}
+
+void add_shm(CLI::App& app) {
+    auto* shm = app.add_subcommand("shm", "Signed Heat Method (thesis ch. 4): signed distance from broken meshes and clouds");
+    shm->require_subcommand(1);
+    auto* grid = shm->add_subcommand("grid", "Solve on a regular grid: INPUT is a mesh (a file with faces) or a point cloud with normals");
+    auto inputs = std::make_shared<std::vector<std::string>>();
+    auto output = std::make_shared<std::string>();
+    auto contour_out = std::make_shared<std::string>();
+    auto n = std::make_shared<int>(0);
+    auto bounds = std::make_shared<std::vector<double>>();
+    auto solver = std::make_shared<std::string>("mg");
+    auto opt = std::make_shared<ShmOptions>();
+    grid->add_option("INPUT", *inputs, "Mesh(es) and/or point cloud(s); several are combined into one source")->required();
+    grid->add_option("--grid", *n, "Grid nodes per axis")->required()->check(CLI::Range(4, 2048));
+    grid->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)")->expected(6);
+    grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy")->required();
+    grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
+        ->check(CLI::PositiveNumber)->capture_default_str();
+    grid->add_option("--solver", *solver, "Poisson solver: mg (multigrid), cg, direct (CHOLMOD, small grids)")
+        ->check(CLI::IsMember({"mg", "cg", "direct"}))->capture_default_str();
+    grid->add_flag("--f-cycle", opt->f_cycle, "Multigrid F-cycles instead of V-cycles");
+    grid->add_option("--tolerance", opt->tolerance, "Relative residual to stop at")->check(CLI::PositiveNumber)->capture_default_str();
+    grid->add_option("--fit-zero-set", opt->fit_zero_set, "Fit φ = 0 on the source softly with this weight (0: shift by the mean)")
+        ->check(CLI::NonNegativeNumber)->capture_default_str();
+    grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
+    grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)");
+    grid->callback([=] {
+        // Sources: each input by its kind; meshes get quadrature at the grid spacing.
+        ShmSource src;
+        std::vector<std::pair<std::string, bool>> kinds;
+        for (const std::string& in : *inputs) kinds.push_back({in, io::file_has_faces(in)});
+        std::vector<PolygonMesh> meshes;
+        std::vector<PointCloud> clouds;
+        Box box0;
+        bool have_box = false;
+        auto grow = [&](const Points& p) {
+            const Box b = bounding_box(p);
+            box0 = have_box ? Box{box0.lo.cwiseMin(b.lo), box0.hi.cwiseMax(b.hi)} : b;
+            have_box = true;
+        };
+        for (const auto& [in, is_mesh] : kinds) {
+            if (is_mesh) {
+                meshes.push_back(io::read_mesh(in));
+                grow(meshes.back().vertices);
+            } else {
+                clouds.push_back(io::read_point_cloud(in));
+                grow(clouds.back().points);
+            }
+        }
+        const GridSpec g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
+        g.validate();
+        if (bounds->empty()) note("grid bounds (pass them to contour/slice): " + bounds_text(g.box));
+        const double cell = g.box.extent().maxCoeff() / (*n - 1);
+        bool first = true;
+        std::size_t which = 0;
+        for (const auto& m : meshes) {
+            ShmSource s;
+            try {
+                s = shm_source(m, cell);
+            } catch (const Error& e) {
+                // Name the file: sources don't know where their mesh came from.
+                std::size_t k = 0;
+                for (const auto& [in, is_mesh] : kinds)
+                    if (is_mesh && k++ == which) throw Error(in, e.what());
+                throw;
+            }
+            src = first ? s : combine(src, s);
+            first = false;
+            ++which;
+        }
+        for (const auto& c : clouds) {
+            const ShmSource s = shm_source(c);
+            src = first ? s : combine(src, s);
+            first = false;
+        }
+        opt->solver = poisson_solver_from_name(*solver);
+        Progress progress("shm grid");
+        const SignedHeatGrid shm(src, g, *opt);
+        const ShmResult r = shm.solve(progress.fn());
+        progress.finish();
+        if (globals().verbose) {
+            note("source: " + std::to_string(src.size()) + " elements, h = " + fmt("%.4g", src.spacing) + "; grid " +
+                 std::to_string(*n) + "^3 on " + r.device);
+            note("step 1 (diffuse): " + fmt("%.2f s", r.seconds_diffuse) + ", " + std::to_string(r.exact_nodes) + " of " +
+                 std::to_string(g.node_count()) + " nodes summed exactly, " + std::to_string(r.kernel_terms) + " kernel terms");
+            note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
+                 " iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()));
+            note("peak memory: " + peak_memory());
+        }
+        if (!r.residual_history.empty() && r.residual_history.back() > opt->tolerance)
+            note("warning: the solver stopped at relative residual " + fmt("%.2e", r.residual_history.back()) + " (tolerance " +
+                 fmt("%.1e", opt->tolerance) + ")");
+        // Build everything before writing anything: no partial outputs.
+        PolygonMesh zero;
+        if (!contour_out->empty()) {
+            zero = contour(g, r.phi, 0.0);
+            if (zero.face_count() == 0) throw Error(*contour_out, "the zero level set does not cross the grid");
+        }
+        io::write_npy(*output, {std::size_t(*n), std::size_t(*n), std::size_t(*n)}, r.phi);
+        if (!contour_out->empty()) {
+            try {
+                io::write_mesh(*contour_out, zero);
+            } catch (...) {
+                std::filesystem::remove(*output);
+                throw;
+            }
+        }
+        note("wrote " + *output + (contour_out->empty() ? "" : " and " + *contour_out));
+    });
+}
+
+void add_mesh(CLI::App& app) {
+    auto* m = app.add_subcommand("mesh", "Make a closed mesh of an analytic shape, or damage a mesh (holes, flipped faces, noise)");
+    auto shape = std::make_shared<std::string>();
+    auto from = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto resolution = std::make_shared<int>(48);
+    auto seed = std::make_shared<std::uint64_t>(1);
+    auto c = std::make_shared<shapes::MeshCorruption>();
+    auto* s = m->add_option("SHAPE", *shape, "sphere | torus | capsule | rounded-box")
+                  ->check(CLI::IsMember({"sphere", "torus", "capsule", "rounded-box"}));
+    auto* f = m->add_option("--from", *from, "Damage this mesh instead of making one");
+    s->excludes(f);
+    m->add_option("-r,--resolution", *resolution, "Contouring grid nodes per axis")->check(CLI::Range(8, 1024))->capture_default_str();
+    m->add_option("--holes", c->holes, "Number of holes")->check(CLI::Range(0, 1000));
+    m->add_option("--hole-area", c->hole_area, "Fraction of the area the holes remove")->check(CLI::Range(0.0, 0.95))->capture_default_str();
+    m->add_option("--flip", c->flip_fraction, "Fraction of faces flipped")->check(CLI::Range(0.0, 1.0));
+    m->add_option("--noise", c->vertex_noise, "Gaussian noise on vertices (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0));
+    m->add_option("--seed", *seed, "Random seed")->capture_default_str();
+    m->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required();
+    m->callback([=] {
+        if (shape->empty() && from->empty()) throw CLI::RequiredError("SHAPE or --from");
+        const PolygonMesh base = from->empty() ? shapes::mesh(*shapes::by_name(*shape), *resolution) : io::read_mesh(*from);
+        const PolygonMesh out = shapes::corrupt(base, *c, *seed);
+        io::write_mesh(*output, out);
+        note("wrote " + std::to_string(out.face_count()) + " faces to " + *output);
+    });
+}
+
 void add_info(CLI::App& app) {
     auto* info = app.add_subcommand("info", "Version, the Vulkan devices seen, and what --device auto picks");
     info->callback([] {
@@ -299,7 +455,9 @@ int main(int argc, char** argv) {
     add_baseline(app);
     add_contour(app);
     add_slice(app);
+    add_shm(app);
     add_sample(app);
+    add_mesh(app);
     add_info(app);
     try {
         app.parse(argc, argv);
