@@ -1,13 +1,69 @@
 #!/usr/bin/env bash
-# Benchmarks: PAT fit and evaluation throughput, CPU vs GPU side by side, and the accuracy
-# table on the analytic shapes. Extra arguments go to gsd-bench
-# (e.g. --sizes 10000,100000 --queries 100000 --devices cpu,gpu).
+# Benchmarks, printed as tables. Every comparison is measured side by side in this one run.
+#   scripts/bench.sh            everything
+#   scripts/bench.sh pat        PAT fit/evaluation throughput (CPU vs GPU) and the accuracy table
+#   scripts/bench.sh shm        SHM time and peak memory vs resolution and vs source size,
+#                               step 1 / step 3, CPU vs GPU, multigrid vs CG vs direct
+# Environment: GSD_BENCH_PAT_ARGS (extra gsd-bench arguments), GSD_BENCH_SHM_MAX (largest grid,
+# default 256; 512 needs a big GPU).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh
 bash scripts/build.sh >/dev/null
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
-echo "== machine: $(nproc) cores; $(build/bin/gsd info | grep -- '--device gpu')"
-build/bin/gsd-bench "$@"
-echo
-build/bin/gsd-accuracy --grid 64
+gsd=build/bin/gsd
+what=${1:-all}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+
+echo "== machine: $(nproc) cores; $($gsd info | grep -- '--device gpu')"
+
+if [ "$what" = all ] || [ "$what" = pat ]; then
+  echo
+  echo "== Points as Tori"
+  # shellcheck disable=SC2086
+  build/bin/gsd-bench ${GSD_BENCH_PAT_ARGS:-}
+  echo
+  build/bin/gsd-accuracy --grid 64
+fi
+
+# One SHM run through the CLI; prints a table row from its --verbose report.
+shm_row() {  # label, input, grid, device, solver
+  local log="$work/log"
+  if ! "$gsd" -v shm grid "$2" --grid "$3" --bounds -1 -1 -1 1 1 1 --device "$4" --solver "$5" \
+        -o "$work/out.npy" >"$log" 2>&1; then
+    printf "%-10s %6s %-6s %-7s  failed: %s\n" "$1" "$3" "$4" "$5" "$(grep 'error' "$log" | head -1)"
+    return
+  fi
+  local s1 s3 it res mem terms exact
+  s1=$(sed -n 's/.*step 1 (diffuse): \([0-9.]*\) s.*/\1/p' "$log")
+  exact=$(sed -n 's/.*s, \([0-9]*\) of [0-9]* nodes summed.*/\1/p' "$log")
+  terms=$(sed -n 's/.*exactly, \([0-9]*\) kernel terms.*/\1/p' "$log")
+  s3=$(sed -n 's/.*step 3 (solve): \([0-9.]*\) s.*/\1/p' "$log")
+  it=$(sed -n 's/.*, \([0-9]*\) iterations.*/\1/p' "$log")
+  res=$(sed -n 's/.*iterations, relative residual \([0-9.e+-]*\).*/\1/p' "$log")
+  mem=$(sed -n 's/.*peak memory: \(.*\)/\1/p' "$log")
+  printf "%-10s %6s %-6s %-7s %9s %9s %6s %9s %10s %12s %12s\n" "$1" "$3" "$4" "$5" "$s1" "$s3" "$it" "$res" "$mem" "$exact" "$terms"
+}
+
+if [ "$what" = all ] || [ "$what" = shm ]; then
+  max=${GSD_BENCH_SHM_MAX:-256}
+  echo
+  echo "== Signed Heat Method: 100k-point torus cloud, box [-1,1]^3 (times in seconds)"
+  "$gsd" -q sample torus -n 100000 -o "$work/t100k.ply"
+  printf "%-10s %6s %-6s %-7s %9s %9s %6s %9s %10s %12s %12s\n" source grid device solver step1 step3 iters residual "peak mem" "exact nodes" "kernel terms"
+  for n in 64 128 256 512; do
+    [ "$n" -le "$max" ] || continue
+    shm_row 100k "$work/t100k.ply" "$n" cpu mg
+    shm_row 100k "$work/t100k.ply" "$n" gpu mg
+    [ "$n" -le 128 ] && shm_row 100k "$work/t100k.ply" "$n" cpu cg
+    [ "$n" -le 64 ] && shm_row 100k "$work/t100k.ply" "$n" cpu direct
+  done
+  echo
+  echo "== SHM step 1 vs source size (128^3 grid, CPU): work per node stays bounded"
+  printf "%-10s %6s %-6s %-7s %9s %9s %6s %9s %10s %12s %12s\n" source grid device solver step1 step3 iters residual "peak mem" "exact nodes" "kernel terms"
+  for m in 10000 30000 100000 300000; do
+    "$gsd" -q sample torus -n "$m" -o "$work/t$m.ply"
+    shm_row "$m" "$work/t$m.ply" 128 cpu mg
+  done
+fi

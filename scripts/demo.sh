@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
-# The main job on gsd's own sample data: a holey, noisy sampling of a procedural torus
-# (data/demo/torus-holey.ply, made by `gsd sample`) → fitted tori → signed distance grid
-# and gradient → zero-level mesh → slice pictures, with the SSPD baseline beside it.
+# The main jobs on gsd's own sample data:
+#  1. Points as Tori on a holey, noisy sampling of a procedural torus (data/demo/torus-holey.ply,
+#     made by `gsd sample`) → fitted tori → SDF grid and gradient → zero-level mesh → slices,
+#     with the SSPD baseline beside it;
+#  2. the Signed Heat Method on a broken mesh of a rounded box — 20% of its area cut away in
+#     3 holes, 10% of its faces flipped (data/demo/box-broken.ply, made by `gsd mesh`) → SDF grid
+#     → a closed zero-level surface → a slice.
 # Usage: scripts/demo.sh [OUTPUT_DIR]   (default: out/demo)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,6 +21,10 @@ if [ ! -f "$cloud" ]; then  # the committed sample, regenerated if missing
   mkdir -p data/demo
   "$gsd" sample torus -n 4096 --noise 0.002 --normal-noise 0.05 --holes 3 --hole-radius 0.08 --seed 7 -o "$cloud"
 fi
+broken=data/demo/box-broken.ply
+if [ ! -f "$broken" ]; then
+  "$gsd" mesh rounded-box -r 28 --holes 3 --hole-area 0.2 --flip 0.1 --seed 3 -o "$broken"
+fi
 bounds="-1 -1 -1 1 1 1"
 
 "$gsd" info
@@ -28,6 +36,9 @@ bounds="-1 -1 -1 1 1 1"
 "$gsd" -v baseline sspd "$cloud" --grid 96 --bounds $bounds -o "$out/sspd.npy"
 "$gsd" slice "$out/sspd.npy" --bounds $bounds --axis y --at 0 -o "$out/sspd-slice-y.png"
 
+"$gsd" -v shm grid "$broken" --grid 96 --bounds $bounds -o "$out/shm.npy" --contour "$out/shm-surface.obj"
+"$gsd" slice "$out/shm.npy" --bounds $bounds --axis z --at 0 -o "$out/shm-slice-z.png"
+
 cat <<MSG
 
 demo outputs (input: $cloud, $(head -c 300 "$cloud" | grep -a 'element vertex' | cut -d' ' -f3) points):
@@ -37,4 +48,9 @@ demo outputs (input: $cloud, $(head -c 300 "$cloud" | grep -a 'element vertex' |
   zero-level mesh      $out/surface.obj
   slices               $out/slice-z.png  $out/slice-y.png
   SSPD baseline        $out/sspd.npy  $out/sspd-slice-y.png
+
+SHM on a broken mesh (input: $broken, 20% of the area in 3 holes, 10% of faces flipped):
+  SDF grid 96^3        $out/shm.npy
+  closed zero surface  $out/shm-surface.obj
+  slice                $out/shm-slice-z.png
 MSG

@@ -29,6 +29,7 @@ layout(push_constant) uniform Push {
     uint pad3;
 } pc;
 
+// Needs `layout(local_size_x_id = 0) in;` before this file is included.
 uint linear_id() { return gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x; }
 
 uvec3 cell_of(uint p, uvec3 d) { return uvec3(p / (d.y * d.z), (p / d.z) % d.y, p % d.z); }

@@ -2,8 +2,9 @@
 #extension GL_GOOGLE_include_directive : require
 // e_fine += P e_coarse (cell-centered linear interpolation, tensor product). This level is the
 // fine one; the other level (odims) is the coarse one.
-#include "mg_common.glsl"
+// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
 layout(local_size_x_id = 0) in;
+#include "mg_common.glsl"
 layout(std430, binding = 0) readonly buffer Axes { AxisEntry axes[]; };
 layout(std430, binding = 1) readonly buffer EC { float ec[]; };
 layout(std430, binding = 2) buffer EF { float ef[]; };

@@ -4,8 +4,9 @@
 // then r = b − L φ, written as float for the next cycle, with per-workgroup partial sums of r²
 // for the convergence test. This is mixed-precision iterative refinement: the cycles run in
 // float32, the residual and the solution stay in float64.
-#include "mg_common.glsl"
+// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
 layout(local_size_x_id = 0) in;
+#include "mg_common.glsl"
 layout(std430, binding = 0) buffer Phi { double phi[]; };
 layout(std430, binding = 1) readonly buffer B { double b[]; };
 layout(std430, binding = 2) readonly buffer E { float e[]; };
@@ -49,5 +50,7 @@ void main() {
         if (l < s) sums[l] += sums[l + s];
         barrier();
     }
-    if (l == 0) partial[gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x] = sums[0];
+    // Large grids split the dispatch over y; groups past the last cell must not write.
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    if (l == 0 && group * gl_WorkGroupSize.x < d.x * d.y * d.z) partial[group] = sums[0];
 }

@@ -3,8 +3,9 @@
 // r_coarse = Pᵀ t_fine: each coarse cell gathers its fine cells with the transposed
 // prolongation weights (tensor product of per-axis lists). This level is the coarse one;
 // the other level (odims) is the fine one.
-#include "mg_common.glsl"
+// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
 layout(local_size_x_id = 0) in;
+#include "mg_common.glsl"
 layout(std430, binding = 0) readonly buffer Axes { AxisEntry axes[]; };
 layout(std430, binding = 1) readonly buffer Gathers { Gather gathers[]; };
 layout(std430, binding = 2) readonly buffer T { float t[]; };

@@ -1,8 +1,9 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // One red-black Gauss–Seidel sweep of one color: e_p = (r_p + Σ c e_q) / Σ c.
-#include "mg_common.glsl"
+// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
 layout(local_size_x_id = 0) in;
+#include "mg_common.glsl"
 layout(std430, binding = 0) readonly buffer Axes { AxisEntry axes[]; };
 layout(std430, binding = 1) readonly buffer R { float r[]; };
 layout(std430, binding = 2) buffer E { float e[]; };

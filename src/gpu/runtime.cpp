@@ -332,6 +332,11 @@ Context::Context(VkInstance instance, VkPhysicalDevice physical, const DeviceInf
     // busy on small jobs. GPUs want enough warps per group to hide latency.
     workgroup_ = info_.is_software() ? 64u : 128u;
     workgroup_ = std::min<std::uint32_t>(workgroup_, props_.limits.maxComputeWorkGroupSize[0]);
+    // $GSD_MAX_GROUPS_X lowers the per-dimension group limit so tests can exercise the split of
+    // large dispatches over y on small problems.
+    max_groups_x_ = props_.limits.maxComputeWorkGroupCount[0];
+    if (const char* v = std::getenv("GSD_MAX_GROUPS_X"); v && std::atoi(v) > 0)
+        max_groups_x_ = std::min<std::uint32_t>(max_groups_x_, std::uint32_t(std::atoi(v)));
 }
 
 Context::~Context() {
@@ -523,7 +528,7 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
     }
     vkCmdPushDescriptorSetKHR(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, std::uint32_t(writes.size()), writes.data());
     if (push_bytes) vkCmdPushConstants(cmd_, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
-    const std::uint32_t max_x = ctx_.limits().maxComputeWorkGroupCount[0];
+    const std::uint32_t max_x = ctx_.max_groups_x();
     const std::uint32_t x = std::min(groups, max_x);
     const std::uint32_t y = (groups + x - 1) / x;
     vkCmdDispatch(cmd_, x, y, 1);

@@ -80,6 +80,8 @@ public:
     const VkPhysicalDeviceLimits& limits() const { return props_.limits; }
     /// Workgroup size used for 1-D kernels on this device (64 on CPUs, 256 on GPUs).
     std::uint32_t workgroup_size() const { return workgroup_; }
+    /// Most workgroups per dispatch along x (larger dispatches continue along y).
+    std::uint32_t max_groups_x() const { return max_groups_x_; }
     /// Largest range a storage buffer binding may cover.
     VkDeviceSize max_binding_bytes() const { return props_.limits.maxStorageBufferRange; }
     /// Whether shaders may use float64 (enabled at device creation when supported).
@@ -107,6 +109,7 @@ private:
     std::uint32_t queue_family_ = 0;
     std::uint32_t workgroup_ = 64;
     bool has_float64_ = false;
+    std::uint32_t max_groups_x_ = 65535;
     VkPipelineCache cache_ = VK_NULL_HANDLE;
     std::mutex kernels_mutex_, queue_mutex_;
     std::map<std::string, std::unique_ptr<Kernel>> kernels_;
