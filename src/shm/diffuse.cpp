@@ -129,12 +129,12 @@ std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, doubl
                 cur.r_low[p] = std::max(low, 0.0);
             }
         }
-        std::vector<std::size_t> todo;
+        std::vector<std::size_t> to_sum;
         for (std::size_t p = 0; p < n; ++p)
-            if (exact[p]) todo.push_back(p);
-        Points x(Eigen::Index(todo.size()), 3);
-        for (std::size_t m = 0; m < todo.size(); ++m) {
-            const std::size_t p = todo[m];
+            if (exact[p]) to_sum.push_back(p);
+        Points x(Eigen::Index(to_sum.size()), 3);
+        for (std::size_t m = 0; m < to_sum.size(); ++m) {
+            const std::size_t p = to_sum[m];
             x.row(Eigen::Index(m)) = g.node(int(p / (std::size_t(g.ny) * std::size_t(g.nz))), int((p / std::size_t(g.nz)) % std::size_t(g.ny)),
                                             int(p % std::size_t(g.nz)))
                                          .transpose();
@@ -143,9 +143,9 @@ std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, doubl
         std::vector<double> rmin;
         const ProgressFn level_progress = progress && l == 0 ? progress : ProgressFn{};
         stats.kernel_terms += eval.evaluate(x, y, rmin, level_progress);
-        stats.exact_nodes += todo.size();
-        for (std::size_t m = 0; m < todo.size(); ++m) {
-            const std::size_t p = todo[m];
+        stats.exact_nodes += to_sum.size();
+        for (std::size_t m = 0; m < to_sum.size(); ++m) {
+            const std::size_t p = to_sum[m];
             for (int a = 0; a < 3; ++a) cur.y[3 * p + std::size_t(a)] = y[3 * m + std::size_t(a)];
             cur.r_low[p] = rmin[m];
         }

@@ -18,10 +18,10 @@ BoxTree::BoxTree(const Points& p) {
     first_leaf_ = std::uint32_t((std::size_t(1) << depth) - 1);
 
     struct Task { std::uint32_t node, begin, end; int level; };
-    std::vector<Task> todo{{0, 0, n, 0}};
-    while (!todo.empty()) {
-        const Task t = todo.back();
-        todo.pop_back();
+    std::vector<Task> pending{{0, 0, n, 0}};
+    while (!pending.empty()) {
+        const Task t = pending.back();
+        pending.pop_back();
         Node& node = nodes_[t.node];
         node.begin = t.begin;
         node.end = t.end;
@@ -38,8 +38,8 @@ BoxTree::BoxTree(const Points& p) {
         const std::uint32_t mid = t.begin + (t.end - t.begin) / 2;
         std::nth_element(order_.begin() + t.begin, order_.begin() + mid, order_.begin() + t.end,
                          [&](std::uint32_t a, std::uint32_t b) { return p(a, axis) < p(b, axis); });
-        todo.push_back({2 * t.node + 1, t.begin, mid, t.level + 1});
-        todo.push_back({2 * t.node + 2, mid, t.end, t.level + 1});
+        pending.push_back({2 * t.node + 1, t.begin, mid, t.level + 1});
+        pending.push_back({2 * t.node + 2, mid, t.end, t.level + 1});
     }
     xyz_.resize(3 * std::size_t(n));
     for (std::uint32_t j = 0; j < n; ++j)
