@@ -281,7 +281,6 @@ struct GridPoissonSolver::Impl {
 
     std::vector<double> direct(const std::vector<double>& b) const {
         // Pin node 0 (the constant nullspace), factor the rest with CHOLMOD, then re-center.
-        const Level& lv = H.levels[0];
         const auto n = Eigen::Index(b.size());
         if (n > 64 * 64 * 64 * 2)
             throw Error("--solver", "the direct solver is for small grids (≤ 2·64³ nodes); use mg or cg");
@@ -290,22 +289,12 @@ struct GridPoissonSolver::Impl {
         auto add = [&](Eigen::Index p, Eigen::Index q, double v) {
             if (p > 0 && q > 0) t.emplace_back(p - 1, q - 1, v);
         };
-        for (int i = 0; i < lv.axis[0].n; ++i)
-            for (int j = 0; j < lv.axis[1].n; ++j)
-                for (int k = 0; k < lv.axis[2].n; ++k) {
-                    const int ijk[3] = {i, j, k};
-                    for (int a = 0; a < 3; ++a) {
-                        if (ijk[a] + 1 >= lv.axis[std::size_t(a)].n) continue;
-                        int nb[3] = {i, j, k};
-                        ++nb[a];
-                        const double w = H.coupling(0, a, i, j, k);
-                        const auto p = Eigen::Index(lv.index(i, j, k)), q = Eigen::Index(lv.index(nb[0], nb[1], nb[2]));
-                        add(p, p, w);
-                        add(q, q, w);
-                        add(p, q, -w);
-                        add(q, p, -w);
-                    }
-                }
+        H.for_each_edge(0, [&](std::size_t p, std::size_t q, double w) {
+            add(Eigen::Index(p), Eigen::Index(p), w);
+            add(Eigen::Index(q), Eigen::Index(q), w);
+            add(Eigen::Index(p), Eigen::Index(q), -w);
+            add(Eigen::Index(q), Eigen::Index(p), -w);
+        });
         Eigen::SparseMatrix<double> A(n - 1, n - 1);
         A.setFromTriplets(t.begin(), t.end());
         Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> chol(A);

@@ -91,25 +91,14 @@ Hierarchy::Hierarchy(const GridSpec& g) {
 
     // Dense operator of the coarsest level and its pseudo-inverse (the nullspace is the constants).
     const int l = int(levels.size()) - 1;
-    const Level& c = levels.back();
-    const auto m = Eigen::Index(c.count());
+    const auto m = Eigen::Index(levels.back().count());
     Eigen::MatrixXd A = Eigen::MatrixXd::Zero(m, m);
-    for (int i = 0; i < c.axis[0].n; ++i)
-        for (int j = 0; j < c.axis[1].n; ++j)
-            for (int k = 0; k < c.axis[2].n; ++k) {
-                const int ijk[3] = {i, j, k};
-                for (int a = 0; a < 3; ++a) {
-                    if (ijk[a] + 1 >= c.axis[std::size_t(a)].n) continue;
-                    int nb[3] = {i, j, k};
-                    ++nb[a];
-                    const double w = coupling(l, a, i, j, k);
-                    const auto p = Eigen::Index(c.index(i, j, k)), q = Eigen::Index(c.index(nb[0], nb[1], nb[2]));
-                    A(p, p) += w;
-                    A(q, q) += w;
-                    A(p, q) -= w;
-                    A(q, p) -= w;
-                }
-            }
+    for_each_edge(l, [&](std::size_t p, std::size_t q, double w) {
+        A(Eigen::Index(p), Eigen::Index(p)) += w;
+        A(Eigen::Index(q), Eigen::Index(q)) += w;
+        A(Eigen::Index(p), Eigen::Index(q)) -= w;
+        A(Eigen::Index(q), Eigen::Index(p)) -= w;
+    });
     Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(A);
     const double largest = eig.eigenvalues().cwiseAbs().maxCoeff();
     Eigen::VectorXd inv = eig.eigenvalues();

@@ -42,6 +42,23 @@ struct Hierarchy {
     explicit Hierarchy(const GridSpec& grid);
     /// Coupling between cell (i,j,k) and its +axis neighbor at level l.
     double coupling(int l, int axis, int i, int j, int k) const;
+
+    /// Calls f(p, q, w) once per edge of level l: cells p and q (storage indices) coupled by w.
+    template <class F>
+    void for_each_edge(int l, F&& f) const {
+        const Level& lv = levels[std::size_t(l)];
+        for (int i = 0; i < lv.axis[0].n; ++i)
+            for (int j = 0; j < lv.axis[1].n; ++j)
+                for (int k = 0; k < lv.axis[2].n; ++k) {
+                    const int ijk[3] = {i, j, k};
+                    for (int a = 0; a < 3; ++a) {
+                        if (ijk[a] + 1 >= lv.axis[std::size_t(a)].n) continue;
+                        int nb[3] = {i, j, k};
+                        ++nb[a];
+                        f(lv.index(i, j, k), lv.index(nb[0], nb[1], nb[2]), coupling(l, a, i, j, k));
+                    }
+                }
+    }
 };
 
 }  // namespace gsd::shm_detail
