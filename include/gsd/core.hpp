@@ -86,6 +86,10 @@ struct GridSpec {
 /// Bounding box of a set of points (throws on an empty set).
 Box bounding_box(const Points& p);
 
+/// The cube centered on a box whose side is the box's longest side enlarged by `margin`
+/// (0.1: 10%): the default grid bounds of every command.
+Box padded_cube(const Box& b, double margin = 0.1);
+
 /// Progress callback for long work: `stage` names the step, `fraction` runs from 0 to 1.
 /// Called from the calling thread only, at most a few hundred times per job.
 using ProgressFn = std::function<void(std::string_view stage, double fraction)>;

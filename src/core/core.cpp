@@ -1,5 +1,6 @@
 #include <gsd/core.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -51,6 +52,12 @@ Box bounding_box(const Points& p) {
     b.lo = p.colwise().minCoeff().transpose();
     b.hi = p.colwise().maxCoeff().transpose();
     return b;
+}
+
+Box padded_cube(const Box& b, double margin) {
+    const Eigen::Vector3d c = 0.5 * (b.lo + b.hi);
+    const double half = 0.5 * (1 + margin) * std::max(b.extent().maxCoeff(), 1e-12);
+    return Box{c.array() - half, c.array() + half};
 }
 
 namespace {

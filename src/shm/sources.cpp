@@ -99,12 +99,7 @@ ShmSource combine(const ShmSource& a, const ShmSource& b) {
     return s;
 }
 
-Box shm_default_bounds(const ShmSource& source) {
-    const Box b = bounding_box(source.positions);
-    const Eigen::Vector3d c = 0.5 * (b.lo + b.hi);
-    const double half = 0.5 * 1.1 * std::max(b.extent().maxCoeff(), 1e-12);
-    return Box{c.array() - half, c.array() + half};
-}
+Box shm_default_bounds(const ShmSource& source) { return padded_cube(bounding_box(source.positions)); }
 
 PoissonSolver poisson_solver_from_name(const std::string& name) {
     if (name == "mg") return PoissonSolver::Multigrid;

@@ -80,11 +80,7 @@ Box bounds_from(const std::vector<double>& v, const std::string& option) {
     return b;
 }
 
-Box default_bounds(const Box& b) {
-    const Eigen::Vector3d c = 0.5 * (b.lo + b.hi);
-    const double half = 0.5 * 1.1 * std::max(b.extent().maxCoeff(), 1e-12);
-    return Box{c.array() - half, c.array() + half};
-}
+Box default_bounds(const Box& b) { return padded_cube(b); }
 
 GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     Box box;
