@@ -56,7 +56,7 @@ Points mixed_queries(const PointCloud& c, std::uint64_t seed) {
 }
 
 // Scales a cloud into [−1, 1]³ (centered, longest side 1.8), the thesis' evaluation frame.
-PointCloud normalized(PointCloud c) {
+[[maybe_unused]] PointCloud normalized(PointCloud c) {  // used by the real-data tests
     const Box b = bounding_box(c.points);
     const Eigen::RowVector3d center = (0.5 * (b.lo + b.hi)).transpose();
     const double scale = 1.8 / b.extent().maxCoeff();
