@@ -4,8 +4,10 @@
 #   scripts/bench.sh pat        PAT fit/evaluation throughput (CPU vs GPU) and the accuracy table
 #   scripts/bench.sh shm        SHM time and peak memory vs resolution and vs source size,
 #                               step 1 / step 3, CPU vs GPU, multigrid vs CG vs direct
+#   scripts/bench.sh net        TorusNet fit throughput (points/s), CPU reference vs GPU kernels
 # Environment: GSD_BENCH_PAT_ARGS (extra gsd-bench arguments), GSD_BENCH_SHM_MAX (largest grid,
-# default 256; 512 needs a big GPU).
+# default 256; 512 needs a big GPU), GSD_BENCH_NET_SIZES (TorusNet cloud sizes, default
+# 10000,100000; 1000000 and up want a real GPU: lavapipe fits ~2·10³ points/s).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh
@@ -45,6 +47,12 @@ shm_row() {  # label, input, grid, device, solver
   mem=$(sed -n 's/.*peak memory: \(.*\)/\1/p' "$log")
   printf "%-10s %6s %-6s %-7s %9s %9s %6s %9s %10s %12s %12s\n" "$1" "$3" "$4" "$5" "$s1" "$s3" "$it" "$res" "$mem" "$exact" "$terms"
 }
+
+if [ "$what" = all ] || [ "$what" = net ]; then
+  echo
+  echo "== TorusNet"
+  build/bin/gsd-bench --net --sizes "${GSD_BENCH_NET_SIZES:-10000,100000}"
+fi
 
 if [ "$what" = all ] || [ "$what" = shm ]; then
   max=${GSD_BENCH_SHM_MAX:-256}

@@ -33,6 +33,9 @@ layout(push_constant) uniform Push {
     float dmin;       // smallest distance used by the SHC kernel (1e-6 h)
 } pc;
 
+#define KNN_MAX K_MAX
+#include "box_tree_knn.glsl"
+
 // Running sums, as in src/blend/blend_cpu.cpp: w = e·T(d/ρ), q = e·T'(d/ρ), e = A·exp(−λ(d − σ)).
 struct Acc { float W, G, D, GD, QD, QGD, shc; vec3 Gg, U, GU, QU, QGU; };
 
@@ -91,8 +94,6 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
     add_term(a, x, pts[j].xyz, t0, t1, t2, d, lambda, sigma, rho, tapered);
 }
 
-float box_distance2(vec3 x, uint i) { return box_distance2(x, nodes[i].lo, nodes[i].hi); }
-
 // Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
 uint sum_ball(vec3 x, inout Acc a) {
     float r2 = pc.r_eval * pc.r_eval;
@@ -103,7 +104,7 @@ uint sum_ball(vec3 x, inout Acc a) {
     stack[top++] = 0;
     while (top > 0) {
         uint i = stack[--top];
-        if (box_distance2(x, i) > r2) continue;
+        if (node_distance2(x, i) > r2) continue;
         if (i >= pc.first_leaf) {
             for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
                 vec3 dv = x - pts[j].xyz;
@@ -119,34 +120,6 @@ uint sum_ball(vec3 x, inout Acc a) {
         }
     }
     return found;
-}
-
-// The k nearest points, nearest first, by a best-first-ish kd-tree walk.
-void knn(vec3 x, uint k, inout float kd[K_MAX], inout uint ki[K_MAX]) {
-    for (int m = 0; m < K_MAX; ++m) { kd[m] = 3.0e38; ki[m] = 0; }
-    uint stack[STACK];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        uint i = stack[--top];
-        float worst = kd[k - 1];
-        if (box_distance2(x, i) > worst * worst) continue;
-        if (i >= pc.first_leaf) {
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-                float d = distance(x, pts[j].xyz);
-                if (d >= kd[k - 1]) continue;
-                int m = int(k) - 1;
-                while (m > 0 && kd[m - 1] > d) { kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
-                kd[m] = d;
-                ki[m] = j;
-            }
-        } else {
-            uint l = 2 * i + 1, r = 2 * i + 2;
-            bool left_first = box_distance2(x, l) <= box_distance2(x, r);
-            stack[top++] = left_first ? r : l;  // the nearer child is popped first
-            stack[top++] = left_first ? l : r;
-        }
-    }
 }
 
 shared vec4 tile_p[TILE];
@@ -209,7 +182,7 @@ void main() {
             a = acc_zero();
             float kd[K_MAX];
             uint ki[K_MAX];
-            knn(x, pc.k_fallback, kd, ki);
+            knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);
             uint k = pc.k_fallback;
             rho = max(kd[k - 1], 1e-30);
             rho_varies = true;

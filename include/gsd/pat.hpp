@@ -1,7 +1,7 @@
 // gsd/pat.hpp — Points as Tori (thesis ch. 5): generalized signed distance from an oriented
 // point cloud by blending the signed distance functions of tori fitted at every point.
 //
-//   gsd::JetFitter fitter;                        // or TorusNet once it lands
+//   gsd::JetFitter fitter;                        // or gsd::TorusNet (the learned fitter)
 //   gsd::FittedTori tori = fitter.fit(cloud);     // once per cloud (save/load with the .tori format)
 //   gsd::TorusField field(tori);                  // options: exact sum, device, radius
 //   auto phi = field.evaluate(queries);           // φ at any points; gradients on request
@@ -72,7 +72,7 @@ struct FittedTori {
     Points tangents;             ///< s_i (unit, ⟂ n_i); t_i = n_i × s_i
     std::vector<Jet> jets;       ///< coefficients in the frame (s_i, t_i, n_i)
     double spacing = 0;          ///< mean nearest-neighbor spacing h of the cloud
-    std::string fitter;          ///< which fitter made them ("jet", ...)
+    std::string fitter;          ///< which fitter made them ("jet", "net")
 
     Eigen::Index size() const { return points.rows(); }
     /// The torus of point i.
@@ -109,6 +109,39 @@ public:
 
 private:
     JetFitterOptions options_;
+};
+
+struct TorusNetOptions {
+    /// Weights file (.safetensors, docs/torusnet.md); empty: the model shipped in the library
+    /// (models/torusnet.safetensors, embedded at build time).
+    std::string model;
+    /// "auto" | "gpu" | "cpu" | a device index or name substring; empty: $GSD_DEVICE, else auto.
+    std::string device;
+    /// Points per GPU chunk (0: chosen from device limits). Results do not depend on it.
+    std::size_t chunk_size = 0;
+};
+
+/// TorusNet (thesis §5.1.2, docs/torusnet.md): a small transformer reads each point's k nearest
+/// neighbors (k fixed by the model) in the point's tangent frame and predicts the six jet
+/// coefficients the jet fit would solve for. Runs on the device chosen by `options.device`
+/// (float32 kernels) or on the CPU reference (double, multi-threaded); a device that was
+/// selected but fails is an error, not a silent fallback. Copies share the loaded model.
+class TorusNet {
+public:
+    /// Loads and validates the model (throws gsd::Error naming the file on any problem).
+    explicit TorusNet(TorusNetOptions options = {});
+    /// Predicts every point of a validated cloud with at least k() points (fitter "net").
+    /// Reports progress as ("fit", fraction).
+    FittedTori fit(const PointCloud& cloud, const ProgressFn& progress = {}) const;
+    /// Neighbors per point, the point itself included.
+    int k() const;
+    /// The model's architecture and its free-form description, in one line.
+    std::string description() const;
+    const TorusNetOptions& options() const;
+
+private:
+    struct Impl;
+    std::shared_ptr<const Impl> impl_;
 };
 
 // ---- evaluation ---------------------------------------------------------------------------

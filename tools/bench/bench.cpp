@@ -2,6 +2,8 @@
 // (points/s) and evaluation (queries/s) on each device, measured side by side in one run, with
 // the GPU/CPU ratio. The first evaluation on a device (tree build, upload, pipeline compile) is
 // timed separately as "setup" and not counted in queries/s.
+// `--net`: TorusNet fitting instead (points/s on each device, the shipped model); a first
+// 256-point fit per device (pipeline compile) is timed as setup.
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
@@ -39,25 +41,59 @@ Points make_queries(const shapes::Shape& shape, std::size_t m, std::uint64_t see
     return q;
 }
 
+// TorusNet fit throughput (points/s) on each device, side by side, with the GPU/CPU ratio.
+int bench_net(const shapes::Shape& shape, const std::vector<std::string>& sizes, const std::vector<std::string>& devices) {
+    std::printf("TorusNet fit throughput: torus shape, shipped model (%s)\n", TorusNet().description().c_str());
+    for (const auto& d : devices) std::printf("  device '%s' = %s\n", d.c_str(), gpu::select(d).device_name.c_str());
+    std::printf("\n%10s", "points");
+    for (const auto& d : devices) std::printf(" %14s %9s", (d + " pts/s").c_str(), (d + " setup").c_str());
+    if (devices.size() == 2) std::printf(" %10s", "ratio");
+    std::printf("\n");
+    for (const auto& s : sizes) {
+        const std::size_t n = std::stoul(s);
+        const PointCloud cloud = shape.sample(n, 1);
+        std::printf("%10zu", n);
+        std::vector<double> rates;
+        for (const auto& d : devices) {
+            TorusNetOptions o;
+            o.device = d;
+            const TorusNet fitter(o);
+            double t0 = now();
+            fitter.fit(shape.sample(256, 2));  // setup: pipelines, weights
+            const double setup = now() - t0;
+            t0 = now();
+            const FittedTori t = fitter.fit(cloud);
+            rates.push_back(double(n) / (now() - t0));
+            std::printf(" %14.3g %8.2fs", rates.back(), setup);
+            std::fflush(stdout);
+        }
+        if (rates.size() == 2) std::printf(" %9.2fx", rates[1] / rates[0]);
+        std::printf("\n");
+    }
+    return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
     std::vector<std::string> sizes{"10000", "100000", "1000000"}, devices{"cpu", "gpu"};
     std::size_t queries = 1000000;
-    bool exact = false;
+    bool exact = false, net = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--sizes" && i + 1 < argc) sizes = split(argv[++i]);
         else if (a == "--devices" && i + 1 < argc) devices = split(argv[++i]);
         else if (a == "--queries" && i + 1 < argc) queries = std::stoul(argv[++i]);
         else if (a == "--exact") exact = true;
+        else if (a == "--net") net = true;
         else {
-            std::fprintf(stderr, "usage: gsd-bench [--sizes N,N,...] [--queries M] [--devices cpu,gpu,...] [--exact]\n");
+            std::fprintf(stderr, "usage: gsd-bench [--sizes N,N,...] [--queries M] [--devices cpu,gpu,...] [--exact] [--net]\n");
             return 2;
         }
     }
     set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
     auto shape = shapes::by_name("torus");
+    if (net) return bench_net(*shape, sizes, devices);
     const Points q = make_queries(*shape, queries, 99);
     std::printf("PAT throughput: torus shape, %zu queries (half near the surface), %s sum\n", queries, exact ? "exact" : "accelerated");
     for (const auto& d : devices) {

@@ -1,0 +1,64 @@
+// gsd::TorusNet: loads a model once, then fits clouds on the chosen device (GPU kernels, or
+// the CPU reference of torus_net.cpp).
+#include <gsd/gpu.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/spatial.hpp>
+
+#include "pat/torus_net.hpp"
+#include "pat/torus_net_gpu.hpp"
+
+namespace gsd {
+
+struct TorusNet::Impl {
+    TorusNetOptions options;
+    // The shipped model lives for the whole process; a loaded one is owned here.
+    std::shared_ptr<const detail::TorusNetModel> model;
+};
+
+TorusNet::TorusNet(TorusNetOptions options) {
+    auto impl = std::make_shared<Impl>();
+    if (options.model.empty())
+        impl->model = std::shared_ptr<const detail::TorusNetModel>(&detail::TorusNetModel::shipped(), [](auto*) {});
+    else impl->model = std::make_shared<const detail::TorusNetModel>(detail::TorusNetModel::load(options.model));
+    impl->options = std::move(options);
+    impl_ = std::move(impl);
+}
+
+int TorusNet::k() const { return impl_->model->k; }
+
+const TorusNetOptions& TorusNet::options() const { return impl_->options; }
+
+std::string TorusNet::description() const {
+    const detail::TorusNetModel& m = *impl_->model;
+    std::string d = "TorusNet k=" + std::to_string(m.k) + ", width " + std::to_string(m.width) + ", " +
+                    std::to_string(m.blocks) + " blocks, " + std::to_string(m.heads) + " heads, MLP " +
+                    std::to_string(m.mlp);
+    return m.description.empty() ? d : d + " (" + m.description + ")";
+}
+
+FittedTori TorusNet::fit(const PointCloud& cloud, const ProgressFn& progress) const {
+    const detail::TorusNetModel& model = *impl_->model;
+    const Eigen::Index n = cloud.size();
+    if (cloud.normals.rows() != n) throw Error("point cloud has " + std::to_string(n) + " points but " +
+                                               std::to_string(cloud.normals.rows()) + " normals");
+    // The network reads exactly k tokens; a smaller neighborhood is not something it has seen.
+    if (n < model.k)
+        throw Error("the point cloud has " + std::to_string(n) + " points; TorusNet needs at least k = " +
+                    std::to_string(model.k) + " (its neighborhood size)");
+    const KdTree tree(cloud.points);
+    FittedTori out;
+    out.points = cloud.points;
+    out.normals = cloud.normals;
+    out.spacing = mean_spacing(tree);
+    out.fitter = "net";
+
+    const gpu::Selection sel = gpu::select(impl_->options.device);
+    if (!sel.note.empty()) log_once(sel.note);
+    if (sel.context)  // a failure here is an error: the caller asked for this device
+        detail::predict_jets_gpu(model, cloud, *sel.context, out.jets, out.tangents, impl_->options.chunk_size,
+                                 progress);
+    else detail::predict_jets_cpu(model, cloud, tree, out.jets, out.tangents, progress);
+    return out;
+}
+
+}  // namespace gsd

@@ -1,0 +1,11 @@
+#pragma once
+#include "pat/torus_net_model.hpp"
+#include <gsd/pat.hpp>
+namespace gsd::gpu { class Context; }
+namespace gsd::detail {
+/// Predicts every point's jet and tangent on the device (docs/torusnet.md), chaining neighbor
+/// search, features, network in one submission per chunk. chunk_size 0: from device limits.
+void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::Context& ctx,
+                      std::vector<Jet>& jets, Points& tangents, std::size_t chunk_size,
+                      const ProgressFn& progress);
+}
