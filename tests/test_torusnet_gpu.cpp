@@ -140,7 +140,8 @@ struct Reference {
     Jet jet;
 };
 
-Reference reference(const TorusNetModel& model, const detail::TorusNetCpu& net, const Neighborhoods& nb, int p) {
+// The CPU features and m of neighborhood p.
+Reference features_of(const TorusNetModel& model, const Neighborhoods& nb, int p) {
     const int k = model.k;
     const auto kk = std::size_t(k);
     std::vector<Eigen::Vector3d> P(kk), N(kk);
@@ -149,25 +150,20 @@ Reference reference(const TorusNetModel& model, const detail::TorusNetCpu& net, 
         N[std::size_t(j)] = nb.normals.row(Eigen::Index(p) * k + j).transpose();
     }
     Reference r;
-    r.features.resize(std::size_t(k) * 7);
+    r.features.resize(kk * 7);
     detail::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), r.features.data(), r.m);
+    return r;
+}
+
+Reference reference(const TorusNetModel& model, const detail::TorusNetCpu& net, const Neighborhoods& nb, int p) {
+    Reference r = features_of(model, nb, p);
     r.jet = net.predict(r.features.data(), r.m);
     return r;
 }
 
 // The CPU's m of neighborhood p.
 double scale_of(const TorusNetModel& model, const Neighborhoods& nb, int p) {
-    const int k = model.k;
-    const auto kk = std::size_t(k);
-    std::vector<Eigen::Vector3d> P(kk), N(kk);
-    for (int j = 0; j < k; ++j) {
-        P[std::size_t(j)] = nb.positions.row(Eigen::Index(p) * k + j).transpose();
-        N[std::size_t(j)] = nb.normals.row(Eigen::Index(p) * k + j).transpose();
-    }
-    std::vector<double> f(kk * 7);
-    double m = 0;
-    detail::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), f.data(), m);
-    return m;
+    return features_of(model, nb, p).m;
 }
 
 struct Errors {
