@@ -77,7 +77,9 @@ def make(args):
 
 def spsr(cloud, out, depth=8):
     """Screened Poisson surface reconstruction (Open3D, Debian's python3-open3d) at octree depth
-    `depth`, then the signed distance to its mesh on the grid (sign by Open3D's ray parity)."""
+    `depth`, then the signed distance to its mesh on the grid. The mesh is usually not watertight
+    (Open3D trims it to the input's box), so ray parity can't sign it: the sign is that of
+    (x − closest point)·(normal of the closest triangle)."""
     import open3d as o3d
     a = np.load(cloud).astype(np.float64)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(a[:, :3]))
@@ -85,7 +87,11 @@ def spsr(cloud, out, depth=8):
     mesh, _ = o3d.geometry.TriangleMesh.create_from_point_cloud_poisson(pcd, depth=depth)
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(o3d.t.geometry.TriangleMesh.from_legacy(mesh))
-    sd = scene.compute_signed_distance(o3d.core.Tensor(grid_nodes().astype(np.float32))).numpy()
+    x = grid_nodes().astype(np.float32)
+    hit = scene.compute_closest_points(o3d.core.Tensor(x))
+    off = x - hit['points'].numpy()
+    side = np.sign((off * hit['primitive_normals'].numpy()).sum(-1))
+    sd = np.linalg.norm(off, axis=-1) * np.where(side == 0, 1.0, side)
     np.save(out, sd.reshape(GRID, GRID, GRID).astype(np.float32))
 
 
