@@ -38,7 +38,7 @@ std::string fmt(const char* f, double v) {
 // ---- shared options ----------------------------------------------------------------------
 
 // The fitter `pat fit` and `pat eval` use unless --fitter says otherwise: TorusNet, which beats
-// the jet fit and the baselines on every row of the validation set (models/MODEL.md).
+// the jet fit, SSPD and SHC on every row of the validation set (models/MODEL.md).
 constexpr const char* kDefaultFitter = "net";
 
 struct FitArgs {
