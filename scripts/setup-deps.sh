@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev libnanoflann-dev libsuitesparse-dev coinor-libclp-dev
   libvulkan-dev libvulkan-volk-dev glslang-tools mesa-vulkan-drivers vulkan-validationlayers
   libcli11-dev libstb-dev nlohmann-json3-dev doctest-dev
+  libopenblas0-pthread
   python3 python3-numpy
 )
 

@@ -9,6 +9,8 @@
 
 #include <gsd/core.hpp>
 
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -35,10 +37,42 @@ void write_point_cloud(const std::string& path, const PointCloud& cloud);
 PolygonMesh read_mesh(const std::string& path);
 /// Writes .obj, .ply (binary little endian), .off or .stl (binary; polygons fan-triangulated).
 void write_mesh(const std::string& path, const PolygonMesh& mesh);
+/// Writes a triangle/polygon mesh as binary little-endian .ply with per-vertex colors
+/// (red green blue, uchar) and, if `values` is non-empty, a float per vertex named `value_name`
+/// (NaN allowed), e.g. colors from gsd::diverging_color and the values they show. Throws
+/// gsd::Error for a path not ending in .ply, an invalid mesh, a color or value count other
+/// than the vertex count, or a value name that is empty, has whitespace or clashes with
+/// x y z red green blue. read_mesh reads the file back (colors and values are skipped).
+void write_colored_mesh(const std::string& path, const PolygonMesh& mesh,
+                        const std::vector<std::array<std::uint8_t, 3>>& colors,
+                        const std::vector<double>& values = {}, const std::string& value_name = "value");
 
 /// True if the file at `path` holds faces (a mesh) rather than only points. Used by the CLI
 /// to decide how to treat an input that could be either (.ply, .obj).
 bool file_has_faces(const std::string& path);
+
+// ---- curves on surfaces -----------------------------------------------------------------
+/// Raw records of a file of curves on a surface, checked for syntax but not against a mesh.
+struct CurveFile {
+    struct Point {
+        char kind = 'v';          ///< 'v' vertex, 'e' edge, 'f' triangle
+        std::uint64_t index = 0;  ///< 0-based vertex / edge / triangle index
+        double a = 0, b = 0;      ///< 'e': t; 'f': u, v
+        std::size_t line = 0;     ///< line number in the file, for errors found later
+    };
+    struct Line {
+        std::vector<std::uint32_t> points;  ///< indices into `points`
+        std::size_t line = 0;
+    };
+    std::vector<Point> points;
+    std::vector<Line> lines;
+};
+/// Reads the curve text format (any extension but .obj) or the l/p lines of an .obj (each l
+/// token becomes a 'v' point). Throws gsd::Error naming the file and line for: unknown records,
+/// wrong token counts, non-integer or negative indices, indices too large, t outside [0,1],
+/// NaN/Inf, bad barycentric weights, an `l` with fewer than 2 points or naming a point record
+/// that does not exist, a file with no points at all.
+CurveFile read_curve_file(const std::string& path);
 
 // ---- .npy arrays ----------------------------------------------------------------------
 /// A dense array in C order, values widened to double.

@@ -67,6 +67,17 @@ struct MeshCorruption {
 /// Returns a damaged copy (deterministic for a seed); unused vertices are kept.
 PolygonMesh corrupt(const PolygonMesh& mesh, const MeshCorruption& c, std::uint64_t seed);
 
+/// A flat triangle mesh of the square [−half, half]² in the plane z = 0 (test and demo domain for
+/// the surface methods): n × n squares, each split along a diagonal (directions alternate, or are
+/// random when `random_diagonals`), interior vertices jittered by up to `jitter` × the cell
+/// size. Faces are counter-clockwise seen from +z. Deterministic for a seed.
+PolygonMesh grid_mesh(int n, double jitter = 0, bool random_diagonals = false, std::uint64_t seed = 0,
+                      double half = 1.0);
+
+/// A sphere as an icosahedron whose faces are split 1→4 `level` times (20·4^level triangles),
+/// vertices pushed onto the sphere; faces oriented outward.
+PolygonMesh icosphere(int level, double radius = 1.0, const Eigen::Vector3d& center = Eigen::Vector3d::Zero());
+
 /// Total area of a mesh's faces (polygons fanned).
 double area(const PolygonMesh& mesh);
 

@@ -1,8 +1,11 @@
-// gsd/viz.hpp — turning scalar grids into things people look at: iso-surfaces and slices.
+// gsd/viz.hpp — turning scalar fields into things people look at: iso-surfaces and slices of
+// grids, and pictures of fields on meshes.
 #pragma once
 
 #include <gsd/core.hpp>
 
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -40,5 +43,60 @@ Image render_slice(const GridSpec& grid, const std::vector<float>& values, const
 
 /// Writes an image as PNG (atomically).
 void write_png(const std::string& path, const Image& image);
+
+// ---- fields on surfaces ------------------------------------------------------------------
+
+/// A polyline in 3D (consecutive points joined).
+using Polyline = std::vector<Eigen::Vector3d>;
+
+/// What to draw on a surface picture.
+struct SurfacePicture {
+    /// Triangles or polygons (fanned); vertex positions define the geometry. Not owned.
+    const PolygonMesh* mesh = nullptr;
+    /// Either a value per vertex (colored with the diverging map of render_slice, linear over
+    /// each triangle, with isolines and a thick zero contour), or a label per face (flat colors
+    /// from label_color), or neither (plain gray). A triangle with a NaN or infinite vertex
+    /// value is drawn gray.
+    std::vector<double> vertex_values;
+    std::vector<int> face_labels;
+    /// Curves drawn on top (e.g. the input curve, or the curve decomposition of SWN).
+    struct Curves {
+        std::vector<Polyline> lines;
+        std::array<std::uint8_t, 3> color{20, 20, 20};
+        double width = 3.0;  ///< pixels (of the final image)
+    };
+    std::vector<Curves> curves;
+};
+
+struct SurfaceRenderOptions {
+    int width = 1024, height = 768;
+    /// Direction the camera looks from, toward the mesh center (need not be unit). Default: a
+    /// three-quarter view from the front-right-top.
+    Eigen::Vector3d view_from{1.0, 0.8, 1.6};
+    Eigen::Vector3d up{0, 1, 0};  ///< must not be parallel to view_from
+    double range = 0;             ///< vertex values: the color scale saturates at ±range (0: max |value|)
+    int isolines = 20;            ///< isolines over [−range, range], spacing 2·range/isolines (0: none)
+    bool zero_contour = true;     ///< vertex values: draw φ = 0 as a thick dark line
+    int supersample = 2;          ///< render at this factor and box-downsample (antialiasing), 1 to 8
+    /// Tint faces seen from their back side (opposite their normal) a little yellow and darker,
+    /// so flipped or inconsistent orientation and the inside of holey meshes are visible.
+    bool mark_back_faces = true;
+    std::array<std::uint8_t, 3> background{255, 255, 255};
+};
+
+/// Renders a shaded mesh (two-sided Lambert + ambient, perspective camera framing the whole
+/// mesh) colored by the picture's field, with curves on top, depth-tested so that curves on
+/// the far side of the mesh are hidden. Deterministic. Throws gsd::Error on a missing or
+/// invalid mesh, wrong value or label counts, non-finite curve points, bad options, or a
+/// render buffer (width·height·supersample²) above 10^8 pixels.
+Image render_surface(const SurfacePicture& picture, const SurfaceRenderOptions& options = {});
+
+/// The diverging color of render_slice for value x on a scale ±range (range > 0; NaN: the
+/// gray of missing values), exposed so other outputs, e.g. colored meshes, match the pictures.
+std::array<std::uint8_t, 3> diverging_color(double x, double range);
+/// A categorical color for an integer label: 0 off-white, then +1 blue, −1 orange, +2 green,
+/// −2 red, +3 purple, −3 brown, +4 pink, −4 olive, +5 cyan; further labels repeat the
+/// cycle darker.
+std::array<std::uint8_t, 3> label_color(int label);
 
 }  // namespace gsd

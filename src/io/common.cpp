@@ -103,7 +103,11 @@ bool LineScanner::next(std::string_view& line) {
     line = rest_.substr(0, end);
     rest_ = end == std::string_view::npos ? std::string_view{} : rest_.substr(end + 1);
     ++line_;
-    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) line = line.substr(0, hash);
+    comment_ = {};
+    if (const std::size_t hash = line.find('#'); hash != std::string_view::npos) {
+        comment_ = line.substr(hash + 1);
+        line = line.substr(0, hash);
+    }
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     return true;
 }

@@ -3,6 +3,8 @@
 // write_file_atomic.
 #include "io/io_internal.hpp"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 
 namespace gsd::io {
@@ -101,6 +103,28 @@ void write_mesh(const std::string& path, const PolygonMesh& mesh) {
     const MeshWriter bytes_of = mesh_writer(path);
     validate(mesh, path);
     write_file_atomic(path, bytes_of(mesh));
+}
+
+void write_colored_mesh(const std::string& path, const PolygonMesh& mesh,
+                        const std::vector<std::array<std::uint8_t, 3>>& colors, const std::vector<double>& values,
+                        const std::string& value_name) {
+    if (extension(path) != ".ply") throw Error(path, "colored meshes are written as .ply only");
+    validate(mesh, path);
+    const auto n = std::size_t(mesh.vertices.rows());
+    if (colors.size() != n)
+        throw Error(path, "mesh has " + std::to_string(n) + " vertices but " + std::to_string(colors.size()) +
+                              " colors were given");
+    if (!values.empty() && values.size() != n)
+        throw Error(path, "mesh has " + std::to_string(n) + " vertices but " + std::to_string(values.size()) +
+                              " values were given");
+    // The name goes into the text header: one printable token, not one of the other properties.
+    const bool printable = std::all_of(value_name.begin(), value_name.end(),
+                                       [](char c) { return std::isgraph(static_cast<unsigned char>(c)); });
+    for (const char* taken : {"x", "y", "z", "red", "green", "blue"})
+        if (value_name == taken) throw Error(path, "value name '" + value_name + "' is taken by another property");
+    if (value_name.empty() || !printable)
+        throw Error(path, "value name must be one word of printable characters");
+    write_file_atomic(path, detail::ply_colored_mesh_bytes(mesh, colors, values, value_name));
 }
 
 bool file_has_faces(const std::string& path) {

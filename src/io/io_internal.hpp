@@ -5,6 +5,7 @@
 
 #include <gsd/io.hpp>
 
+#include <array>
 #include <bit>
 #include <cstdint>
 #include <cstring>
@@ -43,9 +44,13 @@ public:
     /// Next line (possibly blank after comment stripping); false at the end of the text.
     bool next(std::string_view& line);
     std::size_t line_number() const { return line_; }
+    /// What followed '#' on the current line ("" if none): for formats that put directives
+    /// in comments (`#offset 0` in curve files).
+    std::string_view comment() const { return comment_; }
 
 private:
     std::string_view rest_;
+    std::string_view comment_;
     std::size_t line_ = 0;
 };
 
@@ -115,6 +120,10 @@ PolygonMesh read_ply_mesh(const std::string& path, std::string_view bytes);
 bool ply_has_faces(const std::string& path, std::string_view bytes);
 std::string ply_cloud_bytes(const PointCloud& cloud);
 std::string ply_mesh_bytes(const PolygonMesh& mesh);
+/// A mesh with per-vertex uchar colors and, if `values` is non-empty, a float property
+/// `value_name` (both already checked against the vertex count).
+std::string ply_colored_mesh_bytes(const PolygonMesh& mesh, const std::vector<std::array<std::uint8_t, 3>>& colors,
+                                   const std::vector<double>& values, const std::string& value_name);
 
 PointCloud read_xyz_cloud(const std::string& path, std::string_view bytes);
 std::string xyz_cloud_bytes(const PointCloud& cloud);

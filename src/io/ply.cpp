@@ -505,6 +505,29 @@ std::string header_start(std::size_t vertices) {
            std::to_string(vertices) + "\nproperty float x\nproperty float y\nproperty float z\n";
 }
 
+/// uchar counts are what most tools expect; faces past 255 corners need a wider count.
+bool wide_face_counts(const PolygonMesh& mesh) {
+    for (std::size_t f = 0; f < mesh.face_count(); ++f)
+        if (mesh.face_size(f) > 255) return true;
+    return false;
+}
+
+/// The face element's header lines, through end_header.
+std::string face_header(const PolygonMesh& mesh) {
+    return "element face " + std::to_string(mesh.face_count()) + "\nproperty list " +
+           (wide_face_counts(mesh) ? "uint" : "uchar") + " int vertex_indices\nend_header\n";
+}
+
+void append_faces(std::string& out, const PolygonMesh& mesh) {
+    const bool wide = wide_face_counts(mesh);
+    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+        const auto n = std::uint32_t(mesh.face_size(f));
+        if (wide) append_le(out, n);
+        else append_le(out, std::uint8_t(n));
+        for (auto k = mesh.offsets[f]; k < mesh.offsets[f + 1]; ++k) append_le(out, std::int32_t(mesh.indices[k]));
+    }
+}
+
 }  // namespace
 
 PointCloud read_ply_cloud(const std::string& path, std::string_view bytes) {
@@ -574,22 +597,28 @@ std::string ply_cloud_bytes(const PointCloud& cloud) {
 }
 
 std::string ply_mesh_bytes(const PolygonMesh& mesh) {
-    std::uint32_t largest = 0;
-    for (std::size_t f = 0; f < mesh.face_count(); ++f) largest = std::max(largest, std::uint32_t(mesh.face_size(f)));
-    // uchar counts are what most tools expect; faces past 255 corners need a wider count.
-    const bool wide = largest > 255;
-    std::string out = header_start(std::size_t(mesh.vertices.rows())) + "element face " +
-                      std::to_string(mesh.face_count()) + "\nproperty list " + (wide ? "uint" : "uchar") +
-                      " int vertex_indices\nend_header\n";
+    std::string out = header_start(std::size_t(mesh.vertices.rows())) + face_header(mesh);
     out.reserve(out.size() + std::size_t(mesh.vertices.rows()) * 12 + mesh.face_count() + mesh.indices.size() * 4);
     for (Eigen::Index i = 0; i < mesh.vertices.rows(); ++i)
         for (int k = 0; k < 3; ++k) append_le(out, float(mesh.vertices(i, k)));
-    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-        const auto n = std::uint32_t(mesh.face_size(f));
-        if (wide) append_le(out, n);
-        else append_le(out, std::uint8_t(n));
-        for (auto k = mesh.offsets[f]; k < mesh.offsets[f + 1]; ++k) append_le(out, std::int32_t(mesh.indices[k]));
+    append_faces(out, mesh);
+    return out;
+}
+
+std::string ply_colored_mesh_bytes(const PolygonMesh& mesh, const std::vector<std::array<std::uint8_t, 3>>& colors,
+                                   const std::vector<double>& values, const std::string& value_name) {
+    const bool with_values = !values.empty();
+    std::string out = header_start(std::size_t(mesh.vertices.rows())) +
+                      "property uchar red\nproperty uchar green\nproperty uchar blue\n" +
+                      (with_values ? "property float " + value_name + "\n" : "") + face_header(mesh);
+    const std::size_t row = 15 + (with_values ? 4 : 0);
+    out.reserve(out.size() + std::size_t(mesh.vertices.rows()) * row + mesh.face_count() + mesh.indices.size() * 4);
+    for (Eigen::Index i = 0; i < mesh.vertices.rows(); ++i) {
+        for (int k = 0; k < 3; ++k) append_le(out, float(mesh.vertices(i, k)));
+        for (std::uint8_t c : colors[std::size_t(i)]) append_le(out, c);
+        if (with_values) append_le(out, float(values[std::size_t(i)]));
     }
+    append_faces(out, mesh);
     return out;
 }
 

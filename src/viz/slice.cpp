@@ -7,6 +7,8 @@
 // falls off linearly over one pixel at the line's edge), without tracing any curves.
 #include <gsd/viz.hpp>
 
+#include "viz/palette.hpp"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -122,83 +124,13 @@ double gradient_per_pixel(const FieldImage& f, int x, int y) {
     return std::hypot(gx, gy);
 }
 
-struct Rgb {
-    double r, g, b;
-};
+using viz::LevelLines;
+using viz::Rgb;
 
-Rgb mix(const Rgb& a, const Rgb& b, double t) {
-    return {a.r + (b.r - a.r) * t, a.g + (b.g - a.g) * t, a.b + (b.b - a.b) * t};
-}
-
-// ColorBrewer RdBu (reversed so that blue is negative), with a pure white center so that the
-// zero level reads as "nothing here". s runs from −1 (deep blue) to +1 (deep red).
-Rgb diverging_color(double s) {
-    static constexpr std::array<Rgb, 11> stops{{
-        {5, 48, 97}, {33, 102, 172}, {67, 147, 195}, {146, 197, 222}, {209, 229, 240},
-        {255, 255, 255},
-        {253, 219, 199}, {244, 165, 130}, {214, 96, 77}, {178, 24, 43}, {103, 0, 31},
-    }};
-    const double f = (std::clamp(s, -1.0, 1.0) + 1) * 0.5 * (stops.size() - 1);
-    const std::size_t n = std::min(std::size_t(f), stops.size() - 2);
-    return mix(stops[n], stops[n + 1], f - double(n));
-}
-
-// Fraction of a pixel covered by a line of the given half width whose center is `distance`
-// pixels away (a one-pixel linear ramp at the edge is the anti-aliasing).
-double line_coverage(double distance, double half_width) {
-    return std::clamp(half_width + 0.5 - distance, 0.0, 1.0);
-}
-
-// How the lines look; widths in pixels.
-struct LineStyle {
-    double iso_half_width, iso_opacity, zero_half_width;
-    Rgb iso_color, zero_color;
-};
-
-LineStyle line_style(int width) {
+viz::LineStyle line_style(int width) {
     const double scale = std::max(1.0, width / double(kDefaultWidth));  // wider images, wider lines
-    return {0.5 * scale, 0.55, 1.25 * scale, {25, 25, 25}, {0, 0, 0}};
+    return {0.5 * scale, 0.55, 1.25 * scale, {25, 25, 25}, {0, 0, 0}, 3.0};
 }
-
-class SlicePainter {
-public:
-    SlicePainter(const SliceOptions& opt, double range, int width)
-        : opt_(opt), range_(range), style_(line_style(width)),
-          spacing_(opt.isolines > 0 ? range / opt.isolines : 0.0) {}
-
-    Rgb pixel(double value, double gradient) const {
-        Rgb c = diverging_color(value / range_);
-        // Where the field is flat, the first-order distance blows up: no line, as it should be.
-        const double g = std::max(gradient, 1e-300);
-        if (spacing_ > 0) c = mix(c, style_.iso_color, isoline_alpha(value, g));
-        if (opt_.zero_contour)
-            c = mix(c, style_.zero_color, line_coverage(std::abs(value) / g, style_.zero_half_width));
-        return c;
-    }
-
-private:
-    // Coverage of the nearest isoline (level k·spacing; k = 0 belongs to the zero contour when
-    // that is drawn). Isolines fade out where they crowd closer than a few pixels, so steep
-    // regions read as a darker tone instead of moiré.
-    double isoline_alpha(double value, double g) const {
-        const double k0 = std::floor(value / spacing_);
-        double distance = INFINITY;
-        for (double k : {k0, k0 + 1}) {
-            if (k == 0 && opt_.zero_contour) continue;
-            distance = std::min(distance, std::abs(value - k * spacing_) / g);
-        }
-        const double gap = spacing_ / g;  // pixels between neighboring isolines
-        const double fade = std::clamp((gap - 3.0) / 3.0, 0.0, 1.0);
-        return style_.iso_opacity * fade * line_coverage(distance, style_.iso_half_width);
-    }
-
-    const SliceOptions& opt_;
-    double range_;
-    LineStyle style_;
-    double spacing_;
-};
-
-std::uint8_t to_byte(double c) { return static_cast<std::uint8_t>(std::lround(std::clamp(c, 0.0, 255.0))); }
 
 Image paint(const FieldImage& f, const SliceOptions& opt) {
     double range = opt.range;
@@ -206,15 +138,14 @@ Image paint(const FieldImage& f, const SliceOptions& opt) {
         for (double v : f.value) range = std::max(range, std::abs(v));
         if (range == 0) range = 1;  // an all-zero slice: any scale shows it as white
     }
-    const SlicePainter painter(opt, range, f.width);
+    const LevelLines lines(opt.isolines > 0 ? range / opt.isolines : 0.0, opt.zero_contour, line_style(f.width));
     Image img{f.width, f.height, std::vector<std::uint8_t>(std::size_t(f.width) * f.height * 3)};
     for (int y = 0; y < f.height; ++y)
         for (int x = 0; x < f.width; ++x) {
-            const Rgb c = painter.pixel(f(x, y), gradient_per_pixel(f, x, y));
-            std::uint8_t* px = &img.rgb[(std::size_t(y) * f.width + x) * 3];
-            px[0] = to_byte(c.r);
-            px[1] = to_byte(c.g);
-            px[2] = to_byte(c.b);
+            const double v = f(x, y);
+            const Rgb c = lines.draw(viz::diverging(v / range), v, gradient_per_pixel(f, x, y));
+            const auto bytes = viz::to_bytes(c);
+            std::copy(bytes.begin(), bytes.end(), &img.rgb[(std::size_t(y) * f.width + x) * 3]);
         }
     return img;
 }

@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <unistd.h>
 
 namespace gsd::cli {
@@ -15,6 +17,30 @@ Globals& globals() {
 
 void note(const std::string& message) {
     if (!globals().quiet) std::fprintf(stderr, "gsd: %s\n", message.c_str());
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+std::string fmt(const char* format, double value) {
+    char buf[64];
+    std::snprintf(buf, sizeof(buf), format, value);
+    return buf;
+}
+
+std::string peak_memory() {
+    std::FILE* f = std::fopen("/proc/self/status", "r");
+    if (!f) return "unknown";
+    char line[256];
+    std::string out = "unknown";
+    while (std::fgets(line, sizeof(line), f))
+        if (std::strncmp(line, "VmHWM:", 6) == 0) {
+            out = fmt("%.0f MiB", std::atof(line + 6) / 1024.0);
+            break;
+        }
+    std::fclose(f);
+    return out;
 }
 
 Progress::Progress(std::string task)

@@ -64,4 +64,13 @@ void write_values(const std::string& path, const Domain& d, const GridSpec& g, s
 /// Prints "gsd: <message>" unless --quiet.
 void note(const std::string& message);
 
+double seconds_since(std::chrono::steady_clock::time_point t0);
+/// printf-style formatting of one number.
+std::string fmt(const char* format, double value);
+/// Peak resident memory of this process (Linux), for --verbose reports.
+std::string peak_memory();
+
+/// `gsd shm surface` (tools/gsd/surface.cpp), added under the `shm` command.
+void add_shm_surface(CLI::App& shm);
+
 }  // namespace gsd::cli

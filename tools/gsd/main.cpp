@@ -25,16 +25,6 @@ using namespace gsd::cli;
 
 namespace {
 
-double seconds_since(std::chrono::steady_clock::time_point t0) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
-
-std::string fmt(const char* f, double v) {
-    char buf[64];
-    std::snprintf(buf, sizeof(buf), f, v);
-    return buf;
-}
-
 // ---- shared options ----------------------------------------------------------------------
 
 // The fitter `pat fit` and `pat eval` use unless --fitter says otherwise: TorusNet, which beats
@@ -309,21 +299,6 @@ void add_sample(CLI::App& app) {
     });
 }
 
-// Peak resident memory of this process (Linux), for --verbose reports.
-std::string peak_memory() {
-    std::FILE* f = std::fopen("/proc/self/status", "r");
-    if (!f) return "unknown";
-    char line[256];
-    std::string out = "unknown";
-    while (std::fgets(line, sizeof(line), f))
-        if (std::strncmp(line, "VmHWM:", 6) == 0) {
-            out = fmt("%.0f MiB", std::atof(line + 6) / 1024.0);
-            break;
-        }
-    std::fclose(f);
-    return out;
-}
-
 void add_shm(CLI::App& app) {
     auto* shm = app.add_subcommand("shm", "Signed Heat Method (thesis ch. 4): signed distance from broken meshes and clouds");
     shm->require_subcommand(1);
@@ -432,6 +407,7 @@ void add_shm(CLI::App& app) {
         }
         note("wrote " + *output + (contour_out->empty() ? "" : " and " + *contour_out));
     });
+    add_shm_surface(*shm);
 }
 
 void add_mesh(CLI::App& app) {

@@ -1,0 +1,233 @@
+// gsd/surface.hpp — geometry *on* a triangle mesh: points and curves on surfaces, and the
+// Signed Heat Method on surfaces (thesis ch. 4, §4.3–4.5): geodesic signed distance to curves
+// that are broken, open, self-crossing or badly oriented, on meshes that are nonmanifold,
+// nonorientable, noisy or holey.
+//
+//   gsd::SurfaceMesh mesh(gsd::io::read_mesh("bunny.obj"));         // topology, once
+//   gsd::SurfaceSources src = gsd::read_surface_sources("heart.txt", mesh);
+//   gsd::SignedHeatSurface shm(mesh);                                // operators: lazily, cached
+//   gsd::SurfaceShmResult r = shm.solve(src);                        // r.phi per input vertex
+//   r = shm.solve(other_curve);                                      // back-substitutions only
+//
+// Sign convention (the same in every gsd method): φ < 0 on the LEFT of an oriented curve, i.e.
+// inside a loop that runs counter-clockwise seen from the side the face normals point to.
+// (geometry-central's SignedHeatSolver returns the opposite sign.) docs/shm-surface.md has the
+// discretization, the options and measured accuracy and timings.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gsd {
+
+namespace surface {
+struct Topology;
+}
+
+/// A polygon mesh prepared for surface computations: polygons fan-triangulated, edges numbered.
+///
+/// Edge numbering (the one curve files use): walk the faces in file order and each face's
+/// sides v0→v1, v1→v2, …, v(n−1)→v0; an edge gets the next index the first time its vertex pair
+/// is seen, and its first vertex is the tail of that first side. The diagonals added when
+/// polygons are triangulated come after all of those. Triangles are numbered in face order
+/// (an n-gon gives n−2 consecutive triangles); for a triangle mesh triangle f is face f.
+///
+/// Nothing is required of the mesh beyond gsd::validate: nonmanifold edges and vertices,
+/// inconsistent orientation, boundaries, several components and unreferenced vertices are all
+/// allowed. Degenerate (zero-area) triangles are kept in the numbering but carry no area.
+/// Copies share the (immutable) topology.
+class SurfaceMesh {
+public:
+    explicit SurfaceMesh(PolygonMesh mesh, const std::string& where = {});
+
+    std::size_t vertex_count() const;
+    std::size_t face_count() const;      ///< input faces (polygons)
+    std::size_t triangle_count() const;
+    std::size_t edge_count() const;      ///< all edges, diagonals included
+    std::size_t file_edge_count() const; ///< edges numbered from the faces' sides (curve files)
+
+    /// (first, second) vertex of an edge: its direction for `e i t` points.
+    std::array<std::uint32_t, 2> edge(std::size_t e) const;
+    /// Vertex indices of a triangle, in the orientation of its input face.
+    std::array<std::uint32_t, 3> triangle(std::size_t t) const;
+    /// The input face a triangle came from.
+    std::uint32_t triangle_face(std::size_t t) const;
+
+    const PolygonMesh& polygons() const;
+    /// The triangulated mesh (same vertices) as a PolygonMesh, for writers and renderers.
+    PolygonMesh triangles() const;
+
+    /// Surface facts: boundary edges (one triangle), nonmanifold edges (three or more),
+    /// edges whose two triangles disagree on orientation, connected components (through edges),
+    /// vertices on no triangle, and the Euler characteristic V − E + F of the triangulation.
+    struct Summary {
+        std::size_t boundary_edges = 0, nonmanifold_edges = 0, misoriented_edges = 0;
+        std::size_t components = 0, unreferenced_vertices = 0, degenerate_triangles = 0;
+        long long euler_characteristic = 0;
+        double mean_edge_length = 0;
+    };
+    Summary summary() const;
+
+    const surface::Topology& topology() const { return *topology_; }
+
+private:
+    std::shared_ptr<const surface::Topology> topology_;
+};
+
+/// A point on the surface: a vertex, a point on an edge, or a point inside a triangle.
+struct SurfacePoint {
+    enum class Kind : std::uint8_t { Vertex, Edge, Face };
+    Kind kind = Kind::Vertex;
+    std::uint32_t index = 0;  ///< vertex, edge (SurfaceMesh numbering) or triangle
+    double u = 0;             ///< Edge: t, the point is (1−t)·first + t·second. Face: weight of corner 1
+    double v = 0;             ///< Face: weight of corner 2 (corner 0 has 1 − u − v)
+
+    static SurfacePoint at_vertex(std::uint32_t i) { return {Kind::Vertex, i, 0, 0}; }
+    static SurfacePoint on_edge(std::uint32_t e, double t) { return {Kind::Edge, e, t, 0}; }
+    static SurfacePoint in_triangle(std::uint32_t t, double u, double v) { return {Kind::Face, t, u, v}; }
+};
+
+/// An oriented polyline on the surface. Consecutive nodes may lie in different triangles: the
+/// piece between them then follows the shortest path through the triangles that join them.
+/// Signed curves carry their orientation (φ < 0 on their left); unsigned curves give distance
+/// without a side.
+struct SurfaceCurve {
+    std::vector<SurfacePoint> nodes;
+    bool is_signed = true;
+};
+
+/// Everything a solve measures distance to: curves (signed or unsigned) and isolated points
+/// (always unsigned). Mixing is allowed (thesis fig. 4.10).
+struct SurfaceSources {
+    std::vector<SurfaceCurve> curves;
+    std::vector<SurfacePoint> points;
+    bool empty() const { return curves.empty() && points.empty(); }
+};
+
+/// Reads curves on a mesh: the curve text format (`v i`, `e i t`, `f i u v`, `l a b c …`,
+/// `#offset 0` for 0-based indices, 1-based otherwise; see docs/formats.md) or the `l` lines of
+/// an .obj file (1-based vertex indices). Each `l` line becomes one curve; points no line uses
+/// are ignored. Errors name the file and line (index out of range, t outside [0, 1], NaN, …).
+SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& mesh);
+/// Reads isolated points: every `v`/`e`/`f` record of a curve text file (lines not allowed),
+/// or every vertex named by the `p`/`l` lines of an .obj.
+std::vector<SurfacePoint> read_surface_points(const std::string& path, const SurfaceMesh& mesh);
+/// Checks sources against a mesh (indices in range, finite coordinates in range, ≥ 2 nodes per
+/// curve). `where` names the source for the message. Throws gsd::Error.
+void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std::string& where = {});
+/// The 3D position of a surface point.
+Eigen::Vector3d position(const SurfaceMesh& mesh, const SurfacePoint& p);
+
+/// Sources drawn in 3D: each curve as polylines that follow the surface (a piece between nodes
+/// in different triangles bends where it crosses edges), each isolated point as a one-point
+/// polyline. For pictures and OBJ output.
+std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources);
+
+/// The level set {f = level} of a per-vertex function (linear on each triangle) as curves whose
+/// nodes lie on edges, oriented so that f < level on their left (counter-clockwise around the
+/// regions below the level): the zero set of a signed distance comes back as its source curve.
+/// Vertices exactly at the level count as above it. Pieces are chained into polylines across
+/// triangles that share an edge; closed loops repeat their first node at the end.
+std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::vector<double>& f, double level = 0);
+
+// ---- the Signed Heat Method on surfaces ---------------------------------------------------
+
+/// How φ is pinned down after integration (thesis §4.4, eq. 4.11, fig. 4.12).
+enum class LevelSetConstraint {
+    None,        ///< no constraint: φ is shifted so its mean over the curves is zero
+    ZeroSet,     ///< φ = 0 at every curve node and point (hard, or soft with a weight)
+    Components,  ///< φ constant along each connected curve component (levels found by the solve)
+};
+LevelSetConstraint level_set_from_name(const std::string& name);  // "none" | "zero" | "components"
+
+/// Per-mesh settings: they decide the operators, which are factored once and cached.
+struct SurfaceShmSetup {
+    /// Diffusion time t = t_coef · h², h = half the mean edge length (the mean spacing of the
+    /// Crouzeix–Raviart nodes, edge midpoints).
+    double t_coef = 1.0;
+    /// Solve on an intrinsic Delaunay triangulation of the mesh (edge flips; the input mesh is
+    /// not changed and φ is reported on its vertices). Improves accuracy on poor triangles.
+    bool intrinsic_delaunay = false;
+    /// With intrinsic_delaunay: also refine (insert vertices) until no angle is below
+    /// `refine_min_angle` degrees, inserting at most `refine_max_vertices` (0: as many as the
+    /// mesh has).
+    bool refine = false;
+    double refine_min_angle = 25.0;
+    std::size_t refine_max_vertices = 0;
+};
+
+/// Per-solve options.
+struct SurfaceShmOptions {
+    LevelSetConstraint level_set = LevelSetConstraint::ZeroSet;
+    /// With ZeroSet or Components: w > 0 adds w·Σ_nodes φ(node)² (Components: w·Σ_pieces
+    /// (φ(a) − φ(b))²) to the Dirichlet energy, whose matrix has cotangent weights (entries of
+    /// order 1); 0 makes the constraint hard (eq. 4.11: φ = 0 exactly at every node).
+    ///
+    /// The default is soft because a piecewise-linear φ can vanish at every node of a curve
+    /// that crosses edges only if the nodes happen to lie on the zero set of such a function
+    /// (a level set, or a path along edges). For a generic closed curve through edge points,
+    /// the hard constraints have no other solution than φ ≡ 0 on every vertex next to the
+    /// curve, a band of wrong distances (measured: ε 4–10× larger than unconstrained on exact
+    /// circles; the reference implementation behaves the same). Weights 30–300 stay within 1 %
+    /// of the hard constraint's ε where it is consistent and avoid the collapse where it is not.
+    double soft_weight = 100.0;
+    /// Constrain the diffused field to stay normal to the curves at the curves (an extra
+    /// constrained vector solve; signed curves only).
+    bool preserve_normals = false;
+};
+
+struct SurfaceShmResult {
+    std::vector<double> phi;              ///< per input vertex; NaN at vertices on no triangle
+    double seconds_factor = 0;            ///< operator assembly and factorizations done by this call
+    double seconds_diffuse = 0;           ///< step 1 (sources and vector heat flow)
+    double seconds_integrate = 0;         ///< steps 2–3 (normalize, divergence, Poisson, constraints)
+    std::size_t constraints = 0;          ///< constraint rows (curve nodes and crossings)
+    double constraint_residual = 0;       ///< max |φ(node) − level| after the solve (hard constraints)
+    std::size_t constraint_iterations = 0;///< conjugate-gradient steps that made the constraints exact
+    std::size_t unreached_vertices = 0;   ///< vertices where the diffused field vanished (no source
+                                          ///< in their component): φ there is not a distance
+    std::size_t solve_vertices = 0;       ///< vertices of the triangulation solved on (refinement adds)
+    std::size_t flips = 0;                ///< intrinsic Delaunay edge flips
+};
+
+/// The surface SHM solver: one per mesh. Operators (Crouzeix–Raviart connection Laplacian and
+/// mass matrix, cotan Laplacian) are assembled and factored (CHOLMOD) on the first solve that
+/// needs them and reused by every later solve, so a new curve on the same mesh costs
+/// back-substitutions. Not thread-safe: use one solver per thread.
+class SignedHeatSurface {
+public:
+    explicit SignedHeatSurface(SurfaceMesh mesh, SurfaceShmSetup setup = {});
+    ~SignedHeatSurface();
+    SignedHeatSurface(SignedHeatSurface&&) noexcept;
+    SignedHeatSurface& operator=(SignedHeatSurface&&) noexcept;
+
+    SurfaceShmResult solve(const SurfaceSources& sources, const SurfaceShmOptions& options = {},
+                           const ProgressFn& progress = {});
+
+    const SurfaceMesh& mesh() const;
+    double mean_edge_length() const;  ///< of the triangulation solved on
+    double diffusion_time() const;    ///< t
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// The error measure of thesis §4.5: ε(φ) = (Σ_i A_i (φ_i − φ⁰_i)²)^½ / ((max φ⁰ − min φ⁰)·𝒜^½),
+/// A_i a third of the area of the triangles at vertex i, 𝒜 = Σ A_i. Vertices where either value
+/// is not finite are left out.
+double surface_distance_error(const SurfaceMesh& mesh, const std::vector<double>& phi,
+                              const std::vector<double>& phi_true);
+/// Share of the surface area (vertex areas A_i) where sign(φ) = sign(φ_true); vertices where
+/// φ_true is 0 count as agreeing.
+double surface_sign_agreement(const SurfaceMesh& mesh, const std::vector<double>& phi,
+                              const std::vector<double>& phi_true);
+/// Vertex areas A_i (a third of the incident triangle areas).
+std::vector<double> vertex_areas(const SurfaceMesh& mesh);
+
+}  // namespace gsd

@@ -1,0 +1,84 @@
+// Level sets of a per-vertex function as oriented curves on edges ("marching triangles").
+#include <gsd/surface.hpp>
+
+#include "surface/geometry.hpp"
+#include "surface/topology.hpp"
+
+#include <unordered_map>
+
+namespace gsd {
+
+namespace {
+
+struct Piece {
+    std::uint32_t from, to;  // edges crossed (a crossing is identified by its edge: there is one)
+    bool used = false;
+};
+
+}  // namespace
+
+std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::vector<double>& f, double level) {
+    const surface::Topology& t = mesh.topology();
+    const surface::Triangulation& T = t.mesh;
+    if (f.size() != T.vertex_count) throw Error("level_set_curves", "expected one value per vertex");
+    auto above = [&](std::uint32_t v) { return !(f[v] < level); };
+    std::vector<Piece> pieces;
+    for (std::size_t fi = 0; fi < T.face_count(); ++fi) {
+        if (t.degenerate(fi)) continue;
+        const auto& c = T.faces[fi];
+        std::array<int, 2> cut{};
+        int n = 0;
+        for (int k = 0; k < 3 && n < 2; ++k)
+            if (above(c[std::size_t(k)]) != above(c[std::size_t((k + 1) % 3)])) cut[std::size_t(n++)] = k;
+        if (n != 2) continue;
+        // Orient so the corner below the level lies on the left (in the face's own plane).
+        const auto p = surface::layout(surface::face_lengths(T, fi));
+        auto crossing = [&](int k) {
+            const double a = f[c[std::size_t(k)]] - level, b = f[c[std::size_t((k + 1) % 3)]] - level;
+            const double s = a / (a - b);
+            return Eigen::Vector2d((1 - s) * p[std::size_t(k)] + s * p[std::size_t((k + 1) % 3)]);
+        };
+        const Eigen::Vector2d x0 = crossing(cut[0]), x1 = crossing(cut[1]);
+        int below = 0;
+        while (above(c[std::size_t(below)])) ++below;
+        const Eigen::Vector2d d = x1 - x0, w = p[std::size_t(below)] - x0;
+        const bool left = d.x() * w.y() - d.y() * w.x() > 0;
+        const std::uint32_t e0 = T.face_edges[fi][std::size_t(cut[0])], e1 = T.face_edges[fi][std::size_t(cut[1])];
+        pieces.push_back(left ? Piece{e0, e1} : Piece{e1, e0});
+    }
+    // Chain pieces: start at crossings nothing leads into (open curves), then close the loops.
+    std::unordered_multimap<std::uint32_t, std::size_t> starting;
+    std::unordered_map<std::uint32_t, int> incoming;
+    for (std::size_t i = 0; i < pieces.size(); ++i) {
+        starting.emplace(pieces[i].from, i);
+        ++incoming[pieces[i].to];
+    }
+    auto node = [&](std::uint32_t e) {
+        const auto ends = T.edges[e];
+        const double a = f[ends[0]] - level, b = f[ends[1]] - level;
+        return SurfacePoint::on_edge(e, std::clamp(a / (a - b), 0.0, 1.0));
+    };
+    std::vector<SurfaceCurve> curves;
+    auto follow = [&](std::size_t first) {
+        SurfaceCurve c;
+        c.nodes.push_back(node(pieces[first].from));
+        for (std::size_t i = first;;) {
+            pieces[i].used = true;
+            c.nodes.push_back(node(pieces[i].to));
+            std::size_t next = pieces.size();
+            auto [lo, hi] = starting.equal_range(pieces[i].to);
+            for (auto it = lo; it != hi; ++it)
+                if (!pieces[it->second].used) next = it->second;
+            if (next == pieces.size()) break;
+            i = next;
+        }
+        curves.push_back(std::move(c));
+    };
+    for (std::size_t i = 0; i < pieces.size(); ++i)
+        if (!pieces[i].used && incoming[pieces[i].from] == 0) follow(i);
+    for (std::size_t i = 0; i < pieces.size(); ++i)
+        if (!pieces[i].used) follow(i);
+    return curves;
+}
+
+}  // namespace gsd

@@ -1,0 +1,166 @@
+// Points and curves on a SurfaceMesh: reading them from files (checked against the mesh, errors
+// naming the file and line), validation, positions; and the error measures of thesis §4.5.
+#include <gsd/io.hpp>
+#include <gsd/surface.hpp>
+
+#include "surface/topology.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace gsd {
+
+namespace {
+
+std::string at_line(std::size_t line, const std::string& what) {
+    return line ? "line " + std::to_string(line) + ": " + what : what;
+}
+
+/// A raw record → a point on the mesh, or an error naming the record's line.
+SurfacePoint to_point(const io::CurveFile::Point& p, const SurfaceMesh& mesh, const std::string& path) {
+    auto out_of_range = [&](const char* what, std::size_t count) {
+        return Error(path, at_line(p.line, std::string(what) + " index " + std::to_string(p.index) +
+                                               " is out of range (the mesh has " + std::to_string(count) + " " +
+                                               what + (count == 1 ? "" : "s") + ", numbered from 0 here)"));
+    };
+    switch (p.kind) {
+        case 'v':
+            if (p.index >= mesh.vertex_count()) throw out_of_range("vertex", mesh.vertex_count());
+            return SurfacePoint::at_vertex(std::uint32_t(p.index));
+        case 'e':
+            if (p.index >= mesh.file_edge_count()) throw out_of_range("edge", mesh.file_edge_count());
+            return SurfacePoint::on_edge(std::uint32_t(p.index), p.a);
+        case 'f':
+            if (p.index >= mesh.triangle_count()) throw out_of_range("triangle", mesh.triangle_count());
+            return SurfacePoint::in_triangle(std::uint32_t(p.index), p.a, p.b);
+        default: throw Error(path, at_line(p.line, "unknown point kind"));
+    }
+}
+
+/// The line (in the file) a point record came from, kept so that validation errors found
+/// after reading still name it.
+void check_on_face(const SurfacePoint& p, const SurfaceMesh& mesh, const std::string& path, std::size_t line) {
+    if (p.kind == SurfacePoint::Kind::Vertex && mesh.topology().vertex_corners.count(p.index) == 0)
+        throw Error(path, at_line(line, "vertex " + std::to_string(p.index) + " is on no face of the mesh"));
+}
+
+}  // namespace
+
+SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& mesh) {
+    const io::CurveFile file = io::read_curve_file(path);
+    if (file.lines.empty()) throw Error(path, "no curves (no `l` lines) in the file");
+    std::vector<SurfacePoint> points;
+    points.reserve(file.points.size());
+    for (const auto& p : file.points) points.push_back(to_point(p, mesh, path));
+    SurfaceSources s;
+    for (const auto& line : file.lines) {
+        SurfaceCurve c;
+        for (std::uint32_t i : line.points) {
+            check_on_face(points[i], mesh, path, file.points[i].line);
+            c.nodes.push_back(points[i]);
+        }
+        s.curves.push_back(std::move(c));
+    }
+    return s;
+}
+
+std::vector<SurfacePoint> read_surface_points(const std::string& path, const SurfaceMesh& mesh) {
+    const io::CurveFile file = io::read_curve_file(path);
+    if (!file.lines.empty() && io::extension(path) != ".obj")
+        throw Error(path, at_line(file.lines.front().line, "a points file has no `l` lines (give curves with --curves)"));
+    std::vector<SurfacePoint> points;
+    for (const auto& p : file.points) {
+        points.push_back(to_point(p, mesh, path));
+        check_on_face(points.back(), mesh, path, p.line);
+    }
+    return points;
+}
+
+void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std::string& where) {
+    auto check = [&](const SurfacePoint& p, const std::string& what) {
+        auto fail = [&](const std::string& why) { throw Error(where, what + ": " + why); };
+        switch (p.kind) {
+            case SurfacePoint::Kind::Vertex:
+                if (p.index >= mesh.vertex_count()) fail("vertex " + std::to_string(p.index) + " out of range");
+                if (mesh.topology().vertex_corners.count(p.index) == 0)
+                    fail("vertex " + std::to_string(p.index) + " is on no face");
+                break;
+            case SurfacePoint::Kind::Edge:
+                if (p.index >= mesh.edge_count()) fail("edge " + std::to_string(p.index) + " out of range");
+                if (!(p.u >= 0 && p.u <= 1)) fail("edge parameter t = " + std::to_string(p.u) + " is not in [0, 1]");
+                break;
+            case SurfacePoint::Kind::Face:
+                if (p.index >= mesh.triangle_count()) fail("triangle " + std::to_string(p.index) + " out of range");
+                if (!(p.u >= -1e-9 && p.v >= -1e-9 && p.u + p.v <= 1 + 1e-9))
+                    fail("barycentric weights (" + std::to_string(p.u) + ", " + std::to_string(p.v) +
+                         ") are not inside the triangle");
+                break;
+            default: fail("unknown point kind");
+        }
+    };
+    for (std::size_t c = 0; c < sources.curves.size(); ++c) {
+        const SurfaceCurve& curve = sources.curves[c];
+        const std::string name = "curve " + std::to_string(c + 1);
+        if (curve.nodes.size() < 2) throw Error(where, name + " has fewer than 2 nodes");
+        for (std::size_t i = 0; i < curve.nodes.size(); ++i) check(curve.nodes[i], name + ", node " + std::to_string(i + 1));
+    }
+    for (std::size_t i = 0; i < sources.points.size(); ++i) check(sources.points[i], "point " + std::to_string(i + 1));
+}
+
+Eigen::Vector3d position(const SurfaceMesh& mesh, const SurfacePoint& p) {
+    const Points& x = mesh.polygons().vertices;
+    switch (p.kind) {
+        case SurfacePoint::Kind::Vertex: return x.row(p.index).transpose();
+        case SurfacePoint::Kind::Edge: {
+            const auto e = mesh.edge(p.index);
+            return (1 - p.u) * x.row(e[0]).transpose() + p.u * x.row(e[1]).transpose();
+        }
+        case SurfacePoint::Kind::Face: {
+            const auto t = mesh.triangle(p.index);
+            return (1 - p.u - p.v) * x.row(t[0]).transpose() + p.u * x.row(t[1]).transpose() +
+                   p.v * x.row(t[2]).transpose();
+        }
+    }
+    return Eigen::Vector3d::Zero();
+}
+
+std::vector<double> vertex_areas(const SurfaceMesh& mesh) {
+    const surface::Topology& t = mesh.topology();
+    std::vector<double> a(t.mesh.vertex_count, 0.0);
+    for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
+        for (std::uint32_t v : t.mesh.faces[f]) a[v] += t.face_areas[f] / 3;
+    return a;
+}
+
+double surface_distance_error(const SurfaceMesh& mesh, const std::vector<double>& phi,
+                              const std::vector<double>& phi_true) {
+    if (phi.size() != mesh.vertex_count() || phi_true.size() != mesh.vertex_count())
+        throw Error("surface_distance_error", "expected one value per vertex");
+    const std::vector<double> A = vertex_areas(mesh);
+    double lo = INFINITY, hi = -INFINITY, sum = 0, area = 0;
+    for (std::size_t i = 0; i < A.size(); ++i) {
+        if (!std::isfinite(phi[i]) || !std::isfinite(phi_true[i])) continue;
+        lo = std::min(lo, phi_true[i]);
+        hi = std::max(hi, phi_true[i]);
+        sum += A[i] * (phi[i] - phi_true[i]) * (phi[i] - phi_true[i]);
+        area += A[i];
+    }
+    if (!(hi > lo) || !(area > 0)) throw Error("surface_distance_error", "the true distance is constant or undefined");
+    return std::sqrt(sum) / ((hi - lo) * std::sqrt(area));
+}
+
+double surface_sign_agreement(const SurfaceMesh& mesh, const std::vector<double>& phi,
+                              const std::vector<double>& phi_true) {
+    if (phi.size() != mesh.vertex_count() || phi_true.size() != mesh.vertex_count())
+        throw Error("surface_sign_agreement", "expected one value per vertex");
+    const std::vector<double> A = vertex_areas(mesh);
+    double agree = 0, area = 0;
+    for (std::size_t i = 0; i < A.size(); ++i) {
+        if (!std::isfinite(phi_true[i])) continue;
+        area += A[i];
+        if (phi_true[i] == 0 || (std::isfinite(phi[i]) && (phi[i] < 0) == (phi_true[i] < 0))) agree += A[i];
+    }
+    return area > 0 ? agree / area : 0.0;
+}
+
+}  // namespace gsd

@@ -1,0 +1,231 @@
+// `gsd shm surface`: the Signed Heat Method on a triangle mesh — geodesic signed distance to
+// (broken) curves and points on it, with optional pictures and derived outputs.
+#include "cli.hpp"
+
+#include <gsd/io.hpp>
+#include <gsd/surface.hpp>
+#include <gsd/viz.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <functional>
+#include <limits>
+
+namespace gsd::cli {
+
+namespace {
+
+struct SurfaceArgs {
+    std::string mesh, curves, points, output, colored, isolines, render;
+    bool is_unsigned = false;
+    std::string level_set = "zero";
+    double isoline_spacing = 0;
+    SurfaceShmOptions options;
+    SurfaceShmSetup setup;
+};
+
+/// A round spacing giving about `count` levels over [lo, hi].
+double nice_spacing(double lo, double hi, int count) {
+    const double raw = (hi - lo) / count;
+    if (!(raw > 0) || !std::isfinite(raw)) return 1.0;
+    const double p = std::pow(10.0, std::floor(std::log10(raw)));
+    for (double m : {1.0, 2.0, 5.0, 10.0})
+        if (m * p >= raw) return m * p;
+    return 10 * p;
+}
+
+/// Isolines of φ at every multiple of `spacing` as OBJ polylines, one group per level.
+std::string isolines_obj(const SurfaceMesh& mesh, const std::vector<double>& phi, double spacing) {
+    double lo = INFINITY, hi = -INFINITY;
+    for (double x : phi)
+        if (std::isfinite(x)) {
+            lo = std::min(lo, x);
+            hi = std::max(hi, x);
+        }
+    std::vector<double> finite = phi;
+    for (double& x : finite)
+        if (!std::isfinite(x)) x = hi + spacing;  // vertices without a value never cross a level
+    std::string out = "# isolines of the surface signed distance written by gsd: one group per level\n";
+    std::size_t vertices = 0;
+    for (long long k = (long long)std::ceil(lo / spacing); k * spacing <= hi; ++k) {
+        const double level = double(k) * spacing;
+        const std::vector<SurfaceCurve> curves = level_set_curves(mesh, finite, level);
+        if (curves.empty()) continue;
+        char name[64];
+        std::snprintf(name, sizeof(name), "g level_%.6g\n", level);
+        out += name;
+        for (const SurfaceCurve& c : curves) {
+            std::string line = "l";
+            for (const SurfacePoint& p : c.nodes) {
+                const Eigen::Vector3d x = position(mesh, p);
+                char v[128];
+                std::snprintf(v, sizeof(v), "v %.9g %.9g %.9g\n", x.x(), x.y(), x.z());
+                out += v;
+                line.append(" ").append(std::to_string(++vertices));
+            }
+            out.append(line).append("\n");
+        }
+    }
+    return out;
+}
+
+/// The sources the command solves for: curves from --curves (or the mesh's own `l` lines),
+/// points from --points.
+SurfaceSources load_sources(const SurfaceArgs& a, const SurfaceMesh& mesh) {
+    SurfaceSources src;
+    if (!a.curves.empty()) src = read_surface_curves(a.curves, mesh);
+    else if (io::extension(a.mesh) == ".obj" && a.points.empty()) src = read_surface_curves(a.mesh, mesh);
+    if (!a.points.empty()) src.points = read_surface_points(a.points, mesh);
+    for (SurfaceCurve& c : src.curves) c.is_signed = !a.is_unsigned;
+    return src;
+}
+
+void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurface& shm, const SurfaceShmResult& r,
+            double load_seconds) {
+    if (globals().verbose) {
+        const SurfaceMesh::Summary s = mesh.summary();
+        note("mesh: " + std::to_string(mesh.vertex_count()) + " vertices, " + std::to_string(mesh.face_count()) +
+             " faces (" + std::to_string(mesh.triangle_count()) + " triangles), " + std::to_string(mesh.edge_count()) +
+             " edges; " + std::to_string(s.boundary_edges) + " boundary, " + std::to_string(s.nonmanifold_edges) +
+             " nonmanifold, " + std::to_string(s.misoriented_edges) + " misoriented edges; " +
+             std::to_string(s.components) + " components, " + std::to_string(s.degenerate_triangles) +
+             " degenerate triangles");
+        note("t = " + fmt("%.4g", shm.diffusion_time()) + " (t_coef " + fmt("%g", a.setup.t_coef) +
+             ", mean edge length " + fmt("%.4g", shm.mean_edge_length()) + ")" +
+             (a.setup.intrinsic_delaunay ? ", intrinsic Delaunay: " + std::to_string(r.flips) + " flips, " +
+                                               std::to_string(r.solve_vertices) + " vertices"
+                                         : std::string()));
+        note("load " + fmt("%.3f s", load_seconds) + ", factor " + fmt("%.3f s", r.seconds_factor) + ", diffuse " +
+             fmt("%.3f s", r.seconds_diffuse) + ", integrate " + fmt("%.3f s", r.seconds_integrate));
+        if (r.constraints)
+            note(std::to_string(r.constraints) + " constraint rows, max |residual| " + fmt("%.2e", r.constraint_residual) +
+                 " after " + std::to_string(r.constraint_iterations) + " iterations");
+        note("peak memory: " + peak_memory());
+    }
+    if (r.unreached_vertices)
+        note("warning: " + std::to_string(r.unreached_vertices) +
+             " vertices lie in mesh components that no source reaches: φ there is not a distance");
+    const std::size_t unreferenced = mesh.summary().unreferenced_vertices;
+    if (unreferenced) note("note: " + std::to_string(unreferenced) + " vertices are on no face: φ is NaN there");
+}
+
+/// Writes every requested output, or none: a failure removes what was already written.
+void write_all(const std::vector<std::pair<std::string, std::function<void()>>>& outputs) {
+    std::vector<std::string> done;
+    try {
+        for (const auto& [path, write] : outputs) {
+            if (path.empty()) continue;
+            write();
+            done.push_back(path);
+        }
+    } catch (...) {
+        for (const std::string& p : done) std::filesystem::remove(p);
+        throw;
+    }
+}
+
+void run(const SurfaceArgs& a) {
+    if (a.curves.empty() && a.points.empty() && io::extension(a.mesh) != ".obj")
+        throw CLI::RequiredError("--curves or --points (or an .obj mesh with `l` lines)");
+    if (!a.render.empty() && io::extension(a.render) != ".png") throw CLI::ValidationError("--render", "must be a .png file");
+    if (!a.colored.empty() && io::extension(a.colored) != ".ply") throw CLI::ValidationError("--colored", "must be a .ply file");
+    if (!a.isolines.empty() && io::extension(a.isolines) != ".obj") throw CLI::ValidationError("--isolines", "must be an .obj file");
+    if (io::extension(a.output) != ".npy") throw CLI::ValidationError("--output", "must be a .npy file");
+    const auto t0 = std::chrono::steady_clock::now();
+    SurfaceMesh mesh(io::read_mesh(a.mesh), a.mesh);
+    const SurfaceSources sources = load_sources(a, mesh);
+    const double load_seconds = seconds_since(t0);
+
+    SurfaceShmOptions options = a.options;
+    options.level_set = level_set_from_name(a.level_set);
+    SignedHeatSurface shm(mesh, a.setup);
+    Progress progress("shm surface");
+    const SurfaceShmResult r = shm.solve(sources, options, progress.fn());
+    progress.finish();
+    report(a, mesh, shm, r, load_seconds);
+
+    // Build every output in memory first, then write them all (or none).
+    const auto t1 = std::chrono::steady_clock::now();
+    std::vector<float> phi(r.phi.begin(), r.phi.end());
+    double lo = INFINITY, hi = -INFINITY, top = 0;
+    for (double x : r.phi)
+        if (std::isfinite(x)) {
+            lo = std::min(lo, x);
+            hi = std::max(hi, x);
+            top = std::max(top, std::abs(x));
+        }
+    const double spacing = a.isoline_spacing > 0 ? a.isoline_spacing : nice_spacing(lo, hi, 20);
+    std::string isolines;
+    if (!a.isolines.empty()) isolines = isolines_obj(mesh, r.phi, spacing);
+    Image picture;
+    const PolygonMesh triangles = mesh.triangles();
+    if (!a.render.empty()) {
+        SurfacePicture p;
+        p.mesh = &triangles;
+        p.vertex_values = r.phi;
+        p.curves.push_back({source_polylines(mesh, sources), {20, 150, 60}, 3.0});  // green: apart from the black zero contour
+        SurfaceRenderOptions o;
+        o.range = top > 0 ? top : 1.0;
+        o.isolines = int(std::lround(2 * o.range / spacing));
+        picture = render_surface(p, o);
+    }
+    write_all({{a.output, [&] { io::write_npy(a.output, {phi.size()}, phi); }},
+               {a.colored,
+                [&] {
+                    std::vector<std::array<std::uint8_t, 3>> colors(r.phi.size());
+                    for (std::size_t i = 0; i < colors.size(); ++i) colors[i] = diverging_color(r.phi[i], top > 0 ? top : 1.0);
+                    io::write_colored_mesh(a.colored, triangles, colors, r.phi, "phi");
+                }},
+               {a.isolines, [&] { io::write_file_atomic(a.isolines, isolines); }},
+               {a.render, [&] { write_png(a.render, picture); }}});
+    if (globals().verbose) note("write " + fmt("%.3f s", seconds_since(t1)));
+    std::string written = a.output;
+    for (const std::string* o : {&a.colored, &a.isolines, &a.render})
+        if (!o->empty()) written.append(", ").append(*o);
+    note("wrote " + written + " (φ per vertex, " + fmt("%.4g", lo) + " to " + fmt("%.4g", hi) + ")");
+}
+
+}  // namespace
+
+void add_shm_surface(CLI::App& shm) {
+    auto* s = shm.add_subcommand(
+        "surface", "Solve on a triangle mesh: geodesic signed distance to (broken) curves and points drawn on it");
+    auto a = std::make_shared<SurfaceArgs>();
+    s->add_option("MESH", a->mesh, "Triangle or polygon mesh (.obj .ply .off .stl)")->required();
+    s->add_option("--curves", a->curves,
+                  "Curves on the mesh: the curve text format (v/e/f points, l lines) or an .obj's l lines "
+                  "(default: the mesh's own l lines)");
+    s->add_option("--points", a->points, "Isolated points (unsigned distance): v/e/f records of a curve text file");
+    s->add_flag("--unsigned", a->is_unsigned, "Treat the curves as unsigned (distance without a side)");
+    s->add_option("--level-set", a->level_set,
+                  "How φ is pinned: zero (φ = 0 at every curve node), components (one level per curve component), "
+                  "none (shift so the curves are zero on average)")
+        ->check(CLI::IsMember({"none", "zero", "components"}))
+        ->capture_default_str();
+    s->add_option("--soft-weight", a->options.soft_weight,
+                  "With zero/components: weight of the level-set penalty (0: exact, eq. 4.11; exact constraints collapse "
+        "φ to 0 next to curves whose nodes are not a level set, see docs/shm-surface.md)")
+        ->check(CLI::NonNegativeNumber)
+        ->capture_default_str();
+    s->add_flag("--preserve-normals", a->options.preserve_normals,
+                "Keep the diffused field normal to the curves at the curves (one more constrained solve)");
+    s->add_option("--t-coef", a->setup.t_coef, "Diffusion time t = t_coef · h², h = half the mean edge length")
+        ->check(CLI::PositiveNumber)
+        ->capture_default_str();
+    auto* idt = s->add_flag("--intrinsic-delaunay", a->setup.intrinsic_delaunay,
+                            "Solve on an intrinsic Delaunay triangulation (edge flips; the mesh is not changed)");
+    s->add_flag("--refine", a->setup.refine, "With --intrinsic-delaunay: also insert vertices until no angle is below --min-angle")
+        ->needs(idt);
+    s->add_option("--min-angle", a->setup.refine_min_angle, "Smallest angle --refine aims for, degrees")
+        ->check(CLI::Range(1.0, 33.0))
+        ->capture_default_str();
+    s->add_option("-o,--output", a->output, "Output .npy: φ per vertex, float32 (V,), in the mesh's vertex order")->required();
+    s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex)");
+    s->add_option("--isolines", a->isolines, "Also write isolines of φ as .obj polylines (one group per level)");
+    s->add_option("--isoline-spacing", a->isoline_spacing, "Spacing of isolines (default: a round number, ~20 levels)")
+        ->check(CLI::PositiveNumber);
+    s->add_option("--render", a->render, "Also render a picture (.png): the mesh shaded and colored by φ, isolines, the curves");
+    s->callback([a] { run(*a); });
+}
+
+}  // namespace gsd::cli
