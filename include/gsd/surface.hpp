@@ -117,6 +117,9 @@ SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& m
 /// Reads isolated points: every `v`/`e`/`f` record of a curve text file (lines not allowed),
 /// or every vertex named by the `p`/`l` lines of an .obj.
 std::vector<SurfacePoint> read_surface_points(const std::string& path, const SurfaceMesh& mesh);
+/// Writes curves (and points, as records no line uses) in the curve text format, 0-based
+/// (`#offset 0`), atomically. Every node gets its own record; `l` lines join consecutive nodes.
+void write_surface_curves(const std::string& path, const SurfaceSources& sources);
 /// Checks sources against a mesh (indices in range, finite coordinates in range, ≥ 2 nodes per
 /// curve). `where` names the source for the message. Throws gsd::Error.
 void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std::string& where = {});

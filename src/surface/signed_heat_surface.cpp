@@ -191,12 +191,14 @@ struct SignedHeatSurface::Impl {
     std::vector<Complex> diffuse(const ResolvedSources& S, const SurfaceShmOptions& o);
     std::vector<double> integrate(const std::vector<double>& g, const ResolvedSources& S, const SurfaceShmOptions& o,
                                   SurfaceShmResult& r);
-    ConstraintRows constraint_rows(const ResolvedSources& S, LevelSetConstraint mode) const;
-    std::vector<double> solve_penalized(const ConstraintRows& C, const std::vector<std::uint32_t>& pins,
-                                        const std::vector<double>& g, double w, bool hard, SurfaceShmResult& r);
-    std::vector<std::uint32_t> free_components(const ConstraintRows& C, bool rows_fix_levels) const;
-    std::vector<double> solve_hard(const ConstraintRows& C, const std::vector<double>& g, double w,
-                                   SurfaceShmResult& r) const;
+    struct Constraints {
+        ConstraintRows exact, soft;
+    };
+    Constraints constraint_rows(const ResolvedSources& S, LevelSetConstraint mode, bool all_exact) const;
+    std::vector<double> solve_constrained(const Constraints& C, const std::vector<std::uint32_t>& pins,
+                                          const std::vector<double>& g, double w_soft, SurfaceShmResult& r);
+    std::vector<std::uint32_t> free_components(const Constraints& C, bool rows_fix_levels) const;
+    std::vector<double> solve_exact(const ConstraintRows& C, const std::vector<double>& g, SurfaceShmResult& r) const;
     double source_mean(const std::vector<double>& phi, const ResolvedSources& S) const;
 };
 
@@ -263,44 +265,67 @@ std::vector<Complex> SignedHeatSurface::Impl::diffuse(const ResolvedSources& S, 
     return vector_heat->solve(rhs2);
 }
 
-ConstraintRows SignedHeatSurface::Impl::constraint_rows(const ResolvedSources& S, LevelSetConstraint mode) const {
-    ConstraintRows C;
+SignedHeatSurface::Impl::Constraints SignedHeatSurface::Impl::constraint_rows(const ResolvedSources& S,
+                                                                               LevelSetConstraint mode,
+                                                                               bool all_exact) const {
+    // Rows whose points are all vertices (a node at a vertex; a piece along an edge between
+    // vertices) are always consistent and are met exactly. Rows with points on edges or inside
+    // faces can contradict each other (see SurfaceShmOptions::soft_weight) and are soft unless
+    // the caller asks for every row to be exact.
+    Constraints C;
     const Triangulation& tri = T();
+    auto at_vertex = [](const FacePoint& p) {
+        int nonzero = 0;
+        for (double b : p.bary) nonzero += b != 0.0;
+        return nonzero == 1;
+    };
     if (mode == LevelSetConstraint::ZeroSet) {
-        for (const FacePoint& p : S.nodes) C.add(interpolation_row(tri, p, 1.0));
+        for (const FacePoint& p : S.nodes)
+            (all_exact || at_vertex(p) ? C.exact : C.soft).add(interpolation_row(tri, p, 1.0));
     } else if (mode == LevelSetConstraint::Components) {
         // φ(a) = φ(b) along every piece: each connected component of the curves gets one level.
         for (const surface::CurvePiece& c : S.pieces) {
-            auto row = interpolation_row(tri, {c.segment.face, c.segment.a}, 1.0);
-            const auto rb = interpolation_row(tri, {c.segment.face, c.segment.b}, -1.0);
+            const FacePoint a{c.segment.face, c.segment.a}, b{c.segment.face, c.segment.b};
+            auto row = interpolation_row(tri, a, 1.0);
+            const auto rb = interpolation_row(tri, b, -1.0);
             row.insert(row.end(), rb.begin(), rb.end());
-            C.add(std::move(row));
+            (all_exact || (at_vertex(a) && at_vertex(b)) ? C.exact : C.soft).add(std::move(row));
         }
     }
     return C;
 }
 
-std::vector<double> SignedHeatSurface::Impl::solve_penalized(const ConstraintRows& C,
-                                                             const std::vector<std::uint32_t>& pins,
-                                                             const std::vector<double>& g, double w, bool hard,
-                                                             SurfaceShmResult& r) {
-    // K + pins + w CᵀC: every row's vertices share a face, so the pattern is K's.
+std::vector<double> SignedHeatSurface::Impl::solve_constrained(const Constraints& C,
+                                                               const std::vector<std::uint32_t>& pins,
+                                                               const std::vector<double>& g, double w_soft,
+                                                               SurfaceShmResult& r) {
+    // F = K + pins + w_soft CsᵀCs + w_exact CeᵀCe. Every row's vertices share a face, so F has
+    // K's pattern and is refactored without a new analysis. The exact rows' penalty, far above
+    // the stiffness scale, only preconditions the conjugate gradients that meet them exactly.
+    double diag = 0;
+    for (std::size_t k = 0; k < stiffness->entries(); ++k)
+        if (stiffness->rows[k] == stiffness->cols[k]) diag = std::max(diag, std::abs(stiffness->values[k]));
+    const double w_exact = 1e6 * diag;
     SparseLower<double> A = with_pins(*stiffness, pins);
-    for (const auto& row : C.rows)
-        for (std::size_t i = 0; i < row.size(); ++i)
-            for (std::size_t j = 0; j <= i; ++j) {
-                const auto [vi, ci] = row[i];
-                const auto [vj, cj] = row[j];
-                A.add(std::max(vi, vj), std::min(vi, vj), w * ci * cj);
-            }
+    auto add_penalty = [&A](const ConstraintRows& rows, double w) {
+        for (const auto& row : rows.rows)
+            for (std::size_t i = 0; i < row.size(); ++i)
+                for (std::size_t j = 0; j <= i; ++j) {
+                    const auto [vi, ci] = row[i];
+                    const auto [vj, cj] = row[j];
+                    A.add(std::max(vi, vj), std::min(vi, vj), w * ci * cj);
+                }
+    };
+    add_penalty(C.soft, w_soft);
+    add_penalty(C.exact, w_exact);
     if (!constrained) constrained.emplace(factor_like_K(A));
     else constrained->refactor(A);
-    if (!hard) return constrained->solve(g);
-    return solve_hard(C, g, w, r);
+    if (C.exact.size() == 0) return constrained->solve(g);
+    return solve_exact(C.exact, g, r);
 }
 
-std::vector<double> SignedHeatSurface::Impl::solve_hard(const ConstraintRows& C, const std::vector<double>& g,
-                                                        double w, SurfaceShmResult& r) const {
+std::vector<double> SignedHeatSurface::Impl::solve_exact(const ConstraintRows& C, const std::vector<double>& g,
+                                                         SurfaceShmResult& r) const {
     // Exact constraints from the penalized factor F = K + pins + w CᵀC: φ(λ) = F⁻¹(g − Cᵀλ)
     // satisfies K φ + Cᵀ(λ + w Cφ) = g for any λ, so only C φ(λ) = 0 is left, i.e. the SPD
     // system C F⁻¹ Cᵀ λ = C F⁻¹ g. Its eigenvalues σ/(1 + wσ) (σ those of C K⁻¹ Cᵀ) crowd
@@ -341,27 +366,22 @@ std::vector<double> SignedHeatSurface::Impl::solve_hard(const ConstraintRows& C,
 
 std::vector<double> SignedHeatSurface::Impl::integrate(const std::vector<double>& g, const ResolvedSources& S,
                                                        const SurfaceShmOptions& o, SurfaceShmResult& r) {
-    LevelSetConstraint mode = o.level_set;
-    const ConstraintRows C = constraint_rows(S, mode);
-    r.constraints = C.size();
-    if (mode == LevelSetConstraint::None || C.size() == 0) return plain_poisson().solve(g);
-    const std::vector<std::uint32_t> pins = free_components(C, mode == LevelSetConstraint::ZeroSet);
-    if (o.soft_weight > 0) return solve_penalized(C, pins, g, o.soft_weight, false, r);
-    // Hard: a penalty far above the stiffness scale makes the refinement contract fast.
-    double diag = 0;
-    for (std::size_t k = 0; k < stiffness->entries(); ++k)
-        if (stiffness->rows[k] == stiffness->cols[k]) diag = std::max(diag, std::abs(stiffness->values[k]));
-    return solve_penalized(C, pins, g, 1e6 * diag, true, r);
+    const Constraints C = constraint_rows(S, o.level_set, o.soft_weight == 0);
+    r.constraints = C.exact.size() + C.soft.size();
+    if (r.constraints == 0) return plain_poisson().solve(g);
+    const std::vector<std::uint32_t> pins = free_components(C, o.level_set == LevelSetConstraint::ZeroSet);
+    return solve_constrained(C, pins, g, o.soft_weight, r);
 }
 
-std::vector<std::uint32_t> SignedHeatSurface::Impl::free_components(const ConstraintRows& C,
+std::vector<std::uint32_t> SignedHeatSurface::Impl::free_components(const Constraints& C,
                                                                     bool rows_fix_levels) const {
     // Zero-set rows fix the level of the components they touch; difference rows fix nothing.
     std::vector<std::uint8_t> fixed(components.pins.size(), 0);
     if (rows_fix_levels)
-        for (const auto& row : C.rows)
-            for (const auto& [v, c] : row)
-                if (components.component[v] != UINT32_MAX) fixed[components.component[v]] = 1;
+        for (const ConstraintRows* rows : {&C.exact, &C.soft})
+            for (const auto& row : rows->rows)
+                for (const auto& [v, c] : row)
+                    if (components.component[v] != UINT32_MAX) fixed[components.component[v]] = 1;
     std::vector<std::uint32_t> pins;
     for (std::size_t k = 0; k < fixed.size(); ++k)
         if (!fixed[k]) pins.push_back(components.pins[k]);
@@ -442,6 +462,10 @@ SurfaceShmResult SignedHeatSurface::solve(const SurfaceSources& sources, const S
     std::vector<double> phi = m.integrate(g, S, options, r);
     const double shift = m.source_mean(phi, S);
     for (double& x : phi) x -= shift;
+    if (options.level_set == LevelSetConstraint::ZeroSet)  // exact rows at vertices: exactly 0, not ±1e-16
+        for (const FacePoint& p : S.nodes)
+            for (int k = 0; k < 3; ++k)
+                if (p.bary[std::size_t(k)] == 1.0) phi[tri.faces[p.face][std::size_t(k)]] = 0.0;
     r.seconds_integrate = seconds_since(t0);
 
     // Report on the input vertices; count those cut off from every source.

@@ -6,6 +6,7 @@
 #include "surface/topology.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <string>
 
 namespace gsd {
@@ -74,6 +75,30 @@ std::vector<SurfacePoint> read_surface_points(const std::string& path, const Sur
         check_on_face(points.back(), mesh, path, p.line);
     }
     return points;
+}
+
+void write_surface_curves(const std::string& path, const SurfaceSources& sources) {
+    std::string out = "# curves on a surface written by gsd: v vertex, e edge t, f triangle u v; l joins records\n#offset 0\n";
+    char buf[96];
+    auto record = [&](const SurfacePoint& p) {
+        switch (p.kind) {
+            case SurfacePoint::Kind::Vertex: std::snprintf(buf, sizeof(buf), "v %u\n", p.index); break;
+            case SurfacePoint::Kind::Edge: std::snprintf(buf, sizeof(buf), "e %u %.17g\n", p.index, p.u); break;
+            case SurfacePoint::Kind::Face: std::snprintf(buf, sizeof(buf), "f %u %.17g %.17g\n", p.index, p.u, p.v); break;
+        }
+        out += buf;
+    };
+    std::size_t next = 0;
+    for (const SurfaceCurve& c : sources.curves) {
+        std::string line = "l";
+        for (const SurfacePoint& p : c.nodes) {
+            record(p);
+            line.append(" ").append(std::to_string(next++));
+        }
+        out.append(line).append("\n");
+    }
+    for (const SurfacePoint& p : sources.points) record(p);
+    io::write_file_atomic(path, out);
 }
 
 void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std::string& where) {
