@@ -5,9 +5,15 @@
 #   scripts/bench.sh shm        SHM time and peak memory vs resolution and vs source size,
 #                               step 1 / step 3, CPU vs GPU, multigrid vs CG vs direct
 #   scripts/bench.sh net        TorusNet fit throughput (points/s), CPU reference vs GPU kernels
+#   scripts/bench.sh surface    SHM on surfaces: accuracy vs exact distances (and vs a reference
+#                               program when one is there), setup/solve times and memory vs mesh
+#                               size, first vs repeated solves, whole runs side by side
 # Environment: GSD_BENCH_PAT_ARGS (extra gsd-bench arguments), GSD_BENCH_SHM_MAX (largest grid,
 # default 256; 512 needs a big GPU), GSD_BENCH_NET_SIZES (TorusNet cloud sizes, default
-# 10000,100000; 1000000 and up want a real GPU: lavapipe fits ~2·10³ points/s).
+# 10000,100000; 1000000 and up want a real GPU: lavapipe fits ~2·10³ points/s),
+# GSD_BENCH_SURFACE_LEVELS (icosphere levels for the surface timing, default 4,5,6,7,8: 5k to
+# 1.3M faces), GSD_SURFACE_REFERENCE (a program `REF MESH.obj CURVES.txt -o OUT.npy` to compare
+# with, e.g. geometry-central's signed heat solver; default: ../shared/anchors/gc_shm if present).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh
@@ -74,4 +80,44 @@ if [ "$what" = all ] || [ "$what" = shm ]; then
     "$gsd" -q sample torus -n "$m" -o "$work/t$m.ply"
     shm_row "$m" "$work/t$m.ply" 128 cpu mg
   done
+fi
+
+if [ "$what" = all ] || [ "$what" = surface ]; then
+  ref=${GSD_SURFACE_REFERENCE:-}
+  [ -z "$ref" ] && [ -x ../shared/anchors/gc_shm ] && ref=$(cd ../shared/anchors && pwd)/gc_shm
+  echo
+  echo "== Signed Heat Method on surfaces: accuracy (exact geodesic distances)"
+  if [ -n "$ref" ]; then
+    build/bin/gsd-surface-bench accuracy --reference "$ref" --work "$work/acc"
+  else
+    build/bin/gsd-surface-bench accuracy --work "$work/acc"
+  fi
+  echo
+  echo "== Signed Heat Method on surfaces: time and memory vs mesh size"
+  build/bin/gsd-surface-bench timing --levels "${GSD_BENCH_SURFACE_LEVELS:-4,5,6,7,8}"
+  if [ -n "$ref" ]; then
+    echo
+    echo "== Whole runs side by side (load, factor, solve, write; median of 3, alternating)"
+    printf "%-26s %9s %9s %9s %8s
+" input faces gsd reference ratio
+    build/bin/gsd-surface-bench write 6 "$work/ico6" >/dev/null
+    runs=("$work/ico6.obj $work/ico6.txt")
+    if [ -d ../shared/data/surface-curves ]; then
+      d=../shared/data/surface-curves
+      runs+=("$d/bunny.obj $d/bunny-brokenheart.txt" "$d/spots-on-spot.obj $d/spots-on-spot.txt" "$d/S.obj $d/S.txt")
+    fi
+    median() { sort -g | sed -n 2p; }
+    for r in "${runs[@]}"; do
+      set -- $r
+      g=(); c=()
+      for i in 1 2 3; do
+        t0=$(date +%s.%N); "$gsd" -q shm surface "$1" --curves "$2" -o "$work/g.npy"; t1=$(date +%s.%N)
+        "$ref" "$1" "$2" -o "$work/r.npy" -q >/dev/null 2>&1; t2=$(date +%s.%N)
+        g+=("$(awk "BEGIN{print $t1 - $t0}")"); c+=("$(awk "BEGIN{print $t2 - $t1}")")
+      done
+      gm=$(printf "%s\n" "${g[@]}" | median); cm=$(printf "%s\n" "${c[@]}" | median)
+      faces=$(grep -c '^f ' "$1")
+      printf "%-26s %9s %9.3f %9.3f %8.2f\n" "$(basename "$1" .obj)/$(basename "$2")" "$faces" "$gm" "$cm" "$(awk "BEGIN{print $gm / $cm}")"
+    done
+  fi
 fi

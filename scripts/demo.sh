@@ -5,7 +5,10 @@
 #     with the SSPD baseline beside it;
 #  2. the Signed Heat Method on a broken mesh of a rounded box — 20% of its area cut away in
 #     3 holes, 10% of its faces flipped (data/demo/box-broken.ply, made by `gsd mesh`) → SDF grid
-#     → a closed zero-level surface → a slice.
+#     → a closed zero-level surface → a slice;
+#  3. the Signed Heat Method on a surface: a torus mesh (`gsd mesh`) and a closed curve on it with
+#     40% cut away in three gaps (`gsd curve`) → geodesic signed distance per vertex → a picture,
+#     isolines and a colored mesh.
 # Usage: scripts/demo.sh [OUTPUT_DIR]   (default: out/demo)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -39,6 +42,12 @@ bounds="-1 -1 -1 1 1 1"
 "$gsd" -v shm grid "$broken" --grid 96 --bounds $bounds -o "$out/shm.npy" --contour "$out/shm-surface.obj"
 "$gsd" slice "$out/shm.npy" --bounds $bounds --axis z --at 0 -o "$out/shm-slice-z.png"
 
+surf_mesh="$out/torus-mesh.ply"
+"$gsd" mesh torus -r 72 -o "$surf_mesh"
+"$gsd" curve "$surf_mesh" --sphere 0.39 0.31 0.2 0.28 --break 0.4 --gaps 3 --seed 4 -o "$out/torus-cut.txt"
+"$gsd" -v shm surface "$surf_mesh" --curves "$out/torus-cut.txt" -o "$out/surface-phi.npy" \
+  --render "$out/surface-phi.png" --isolines "$out/surface-isolines.obj" --colored "$out/surface-phi.ply"
+
 cat <<MSG
 
 demo outputs (input: $cloud, $(head -c 300 "$cloud" | grep -a 'element vertex' | cut -d' ' -f3) points):
@@ -53,4 +62,10 @@ SHM on a broken mesh (input: $broken, 20% of the area in 3 holes, 10% of faces f
   SDF grid 96^3        $out/shm.npy
   closed zero surface  $out/shm-surface.obj
   slice                $out/shm-slice-z.png
+
+SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 40% cut away):
+  φ per vertex         $out/surface-phi.npy   (float32, the mesh's vertex order)
+  picture              $out/surface-phi.png
+  isolines             $out/surface-isolines.obj
+  colored mesh         $out/surface-phi.ply
 MSG

@@ -167,17 +167,19 @@ struct SurfaceShmSetup {
 /// Per-solve options.
 struct SurfaceShmOptions {
     LevelSetConstraint level_set = LevelSetConstraint::ZeroSet;
-    /// With ZeroSet or Components: w > 0 adds w·Σ_nodes φ(node)² (Components: w·Σ_pieces
-    /// (φ(a) − φ(b))²) to the Dirichlet energy, whose matrix has cotangent weights (entries of
-    /// order 1); 0 makes the constraint hard (eq. 4.11: φ = 0 exactly at every node).
+    /// Rows whose points are all vertices (a node at a vertex, a piece between two vertices)
+    /// are always exact. Rows with points on edges or inside triangles: w > 0 adds
+    /// w·Σ_nodes φ(node)² (Components: w·Σ_pieces (φ(a) − φ(b))²) to the Dirichlet energy,
+    /// whose matrix has cotangent weights (entries of order 1); w = 0 makes them exact too
+    /// (eq. 4.11 as written: φ = 0 at every node).
     ///
-    /// The default is soft because a piecewise-linear φ can vanish at every node of a curve
-    /// that crosses edges only if the nodes happen to lie on the zero set of such a function
-    /// (a level set, or a path along edges). For a generic closed curve through edge points,
-    /// the hard constraints have no other solution than φ ≡ 0 on every vertex next to the
-    /// curve, a band of wrong distances (measured: ε 4–10× larger than unconstrained on exact
-    /// circles; the reference implementation behaves the same). Weights 30–300 stay within 1 %
-    /// of the hard constraint's ε where it is consistent and avoid the collapse where it is not.
+    /// Soft by default because a piecewise-linear φ can vanish at every node of a curve that
+    /// crosses edges only if the nodes happen to lie on the zero set of such a function. For a
+    /// generic closed curve through edge points the exact rows leave no other solution than
+    /// φ ≡ 0 on every vertex next to the curve, a band of wrong distances (measured: ε 4–10×
+    /// larger than unconstrained on exact circles; the reference implementation behaves the
+    /// same). Weights 100–300 stay within 1 % of the exact rows' ε where those are consistent
+    /// and avoid the collapse where they are not. docs/shm-surface.md has the numbers.
     double soft_weight = 100.0;
     /// Constrain the diffused field to stay normal to the curves at the curves (an extra
     /// constrained vector solve; signed curves only).

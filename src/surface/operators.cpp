@@ -15,12 +15,24 @@
 namespace gsd::surface {
 
 std::vector<double> face_areas(const Triangulation& T) {
+    // Degenerate: flat to rounding relative to its own sides, or so small against the mesh
+    // (sides ~1e-6 of the mean edge, e.g. vertices that coincide up to rounding) that its
+    // stiffness would meet a mass of 1e-12 of its neighbours' and make the operators singular.
+    double mean = 0;
+    std::size_t counted = 0;
+    for (double l : T.edge_lengths)
+        if (l > 0 && std::isfinite(l)) {
+            mean += l;
+            ++counted;
+        }
+    mean = counted ? mean / double(counted) : 0.0;
+    const double tiny = kDegenerateAbsoluteArea * mean * mean;
     std::vector<double> a(T.face_count());
     for (std::size_t f = 0; f < T.face_count(); ++f) {
         const auto l = face_lengths(T, f);
         const double longest = std::max({l[0], l[1], l[2]});
         const double area = triangle_area(l[0], l[1], l[2]);
-        a[f] = area > kDegenerateRelativeArea * longest * longest ? area : 0.0;
+        a[f] = area > kDegenerateRelativeArea * longest * longest && area > tiny ? area : 0.0;
     }
     return a;
 }

@@ -27,11 +27,10 @@ struct SolveMesh {
 
 /// X₀: one complex per edge, in the edge's frame (ê, ê⊥).
 ///  - signed piece: its normal to the right (so φ grows to the right, φ < 0 on the left) times
-///    its length, integrated against the Crouzeix–Raviart basis of its face; a piece along an
-///    edge feeds that edge only;
+///    its length, fed to each edge of its face; a piece along an edge feeds that edge only;
 ///  - unsigned piece: on each side, the normal pointing to that side, fed to that side's edges;
 ///    free ends get a half disk of outward directions;
-///  - point: a disk of outward directions (weight 1).
+///  - point: a disk of outward directions (weight 1), from its face's corners.
 std::vector<Complex> vector_sources(const SolveMesh& M, const ResolvedSources& S);
 
 /// Real-linear constraints Re(c_m^H X) = 0: the component of the diffused field along each

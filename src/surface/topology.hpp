@@ -54,8 +54,9 @@ Adjacency corner_adjacency(std::size_t items, const std::vector<std::array<std::
 /// Triangulates and numbers a validated mesh (see gsd::SurfaceMesh for the rules).
 Topology build_topology(PolygonMesh mesh);
 
-/// Area below which a triangle counts as degenerate: relative to its longest side squared, so
-/// that only triangles flat to rounding carry no area.
+/// Area below which a triangle counts as degenerate: relative to its longest side squared (flat
+/// to rounding), and relative to the mesh's mean edge length squared (vanishingly small).
 constexpr double kDegenerateRelativeArea = 1e-14;
+constexpr double kDegenerateAbsoluteArea = 1e-12;
 
 }  // namespace gsd::surface

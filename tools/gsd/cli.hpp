@@ -72,5 +72,7 @@ std::string peak_memory();
 
 /// `gsd shm surface` (tools/gsd/surface.cpp), added under the `shm` command.
 void add_shm_surface(CLI::App& shm);
+/// `gsd curve` (tools/gsd/surface.cpp): curves on meshes for demos and tests.
+void add_curve(CLI::App& app);
 
 }  // namespace gsd::cli

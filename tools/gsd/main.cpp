@@ -472,6 +472,7 @@ int main(int argc, char** argv) {
     add_shm(app);
     add_sample(app);
     add_mesh(app);
+    add_curve(app);
     add_info(app);
     try {
         app.parse(argc, argv);

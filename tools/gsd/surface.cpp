@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <random>
 
 namespace gsd::cli {
 
@@ -185,7 +186,80 @@ void run(const SurfaceArgs& a) {
     note("wrote " + written + " (φ per vertex, " + fmt("%.4g", lo) + " to " + fmt("%.4g", hi) + ")");
 }
 
+/// Cuts `gaps` stretches out of every curve, `fraction` of its pieces in all, at random places:
+/// broken test input in the manner of thesis fig. 4.16.
+SurfaceSources break_curves(const SurfaceSources& s, double fraction, int gaps, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    SurfaceSources out;
+    for (const SurfaceCurve& c : s.curves) {
+        const std::size_t pieces = c.nodes.size() - 1;
+        std::vector<std::uint8_t> removed(pieces, 0);
+        const std::size_t per_gap = std::size_t(std::lround(fraction * double(pieces) / gaps));
+        std::uniform_int_distribution<std::size_t> start(0, pieces - 1);
+        for (int g = 0; g < gaps && per_gap > 0; ++g) {
+            const std::size_t s0 = start(rng);
+            for (std::size_t k = 0; k < per_gap; ++k) removed[(s0 + k) % pieces] = 1;
+        }
+        SurfaceCurve run;
+        for (std::size_t i = 0; i < pieces; ++i) {
+            if (!removed[i]) {
+                if (run.nodes.empty()) run.nodes.push_back(c.nodes[i]);
+                run.nodes.push_back(c.nodes[i + 1]);
+            } else if (!run.nodes.empty()) {
+                out.curves.push_back(run);
+                run.nodes.clear();
+            }
+        }
+        if (!run.nodes.empty()) out.curves.push_back(run);
+    }
+    return out;
+}
+
 }  // namespace
+
+void add_curve(CLI::App& app) {
+    auto* c = app.add_subcommand("curve", "Draw curves on a mesh (demo and test input for the surface methods): the "
+                                          "intersection with a plane or a sphere, optionally broken");
+    auto mesh_path = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto plane = std::make_shared<std::vector<double>>();
+    auto sphere = std::make_shared<std::vector<double>>();
+    auto fraction = std::make_shared<double>(0.0);
+    auto gaps = std::make_shared<int>(3);
+    auto seed = std::make_shared<std::uint64_t>(1);
+    c->add_option("MESH", *mesh_path, "Mesh (.obj .ply .off .stl)")->required();
+    auto* p = c->add_option("--plane", *plane, "Plane nx ny nz d: the curve n·x = d, with n·x < d on its left (inside)")
+                  ->expected(4);
+    auto* s = c->add_option("--sphere", *sphere, "Sphere cx cy cz r: the curve |x − c| = r, with the inside on its left")
+                  ->expected(4);
+    p->excludes(s);
+    c->add_option("--break", *fraction, "Cut up to this fraction of every curve away, in --gaps stretches at random places (they may overlap; 0: whole curves)")
+        ->check(CLI::Range(0.0, 0.95))
+        ->capture_default_str();
+    c->add_option("--gaps", *gaps, "Number of stretches --break cuts from each curve")->check(CLI::Range(1, 1000))->capture_default_str();
+    c->add_option("--seed", *seed, "Random seed for --break")->capture_default_str();
+    c->add_option("-o,--output", *output, "Output curve file (the curve text format, 0-based)")->required();
+    c->callback([=] {
+        if (plane->empty() && sphere->empty()) throw CLI::RequiredError("--plane or --sphere");
+        const SurfaceMesh mesh(io::read_mesh(*mesh_path), *mesh_path);
+        const Points& x = mesh.polygons().vertices;
+        std::vector<double> f(mesh.vertex_count());
+        for (std::size_t i = 0; i < f.size(); ++i) {
+            const Eigen::Vector3d v = x.row(Eigen::Index(i)).transpose();
+            if (!plane->empty()) f[i] = Eigen::Vector3d((*plane)[0], (*plane)[1], (*plane)[2]).dot(v) - (*plane)[3];
+            else f[i] = (v - Eigen::Vector3d((*sphere)[0], (*sphere)[1], (*sphere)[2])).norm() - (*sphere)[3];
+        }
+        SurfaceSources src;
+        src.curves = level_set_curves(mesh, f, 0);
+        if (src.curves.empty()) throw Error(*mesh_path, "the plane or sphere does not cross the mesh");
+        if (*fraction > 0) src = break_curves(src, *fraction, *gaps, *seed);
+        std::size_t pieces = 0;
+        for (const SurfaceCurve& k : src.curves) pieces += k.nodes.size() - 1;
+        if (pieces == 0) throw Error(*output, "--break removed every piece");
+        write_surface_curves(*output, src);
+        note("wrote " + std::to_string(src.curves.size()) + " curves (" + std::to_string(pieces) + " pieces) to " + *output);
+    });
+}
 
 void add_shm_surface(CLI::App& shm) {
     auto* s = shm.add_subcommand(

@@ -1,0 +1,150 @@
+// `gsd shm surface` and `gsd curve` as a user meets them: outputs and their shapes, the sign
+// convention end to end, curves from .obj l lines, points, exit codes and messages on bad input,
+// and no partial outputs.
+#include <doctest/doctest.h>
+
+#include <gsd/io.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/surface.hpp>
+
+#include "support.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+using namespace gsd;
+using test::run_cli;
+using test::ScratchDir;
+
+namespace {
+
+/// An icosphere and a circle of latitude on it, z = 0.3, written as files.
+struct Files {
+    std::string mesh, curves;
+};
+
+Files sphere_with_circle(const ScratchDir& dir) {
+    const PolygonMesh m = shapes::icosphere(3);
+    Files f{dir.file("sphere.obj"), dir.file("circle.txt")};
+    io::write_mesh(f.mesh, m);
+    const SurfaceMesh mesh(m);
+    std::vector<double> z(mesh.vertex_count());
+    for (std::size_t i = 0; i < z.size(); ++i) z[i] = 0.3 - m.vertices(Eigen::Index(i), 2);  // < 0 above: the cap inside
+    SurfaceSources s;
+    s.curves = level_set_curves(mesh, z, 0);
+    write_surface_curves(f.curves, s);
+    return f;
+}
+
+}  // namespace
+
+TEST_CASE("shm surface: φ per vertex, negative on the curve's left, and every optional output") {
+    ScratchDir dir("cli-surface");
+    const Files f = sphere_with_circle(dir);
+    const std::string out = dir.file("phi.npy");
+    const auto r = run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + out + " --render " +
+                           dir.file("pic.png") + " --isolines " + dir.file("iso.obj") + " --colored " + dir.file("c.ply"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    const io::NpyArray phi = io::read_npy(out);
+    const PolygonMesh m = io::read_mesh(f.mesh);
+    REQUIRE(phi.shape == std::vector<std::size_t>{std::size_t(m.vertices.rows())});
+    for (Eigen::Index i = 0; i < m.vertices.rows(); ++i) {
+        const double z = m.vertices(i, 2);
+        if (z > 0.45) CHECK(phi.data[std::size_t(i)] < 0);   // the cap above the circle is inside
+        if (z < 0.15) CHECK(phi.data[std::size_t(i)] > 0);
+    }
+    CHECK(test::file_exists(dir.file("pic.png")));
+    const PolygonMesh colored = io::read_mesh(dir.file("c.ply"));
+    CHECK(colored.vertices.rows() == m.vertices.rows());
+    std::ifstream iso(dir.file("iso.obj"));
+    std::string text((std::istreambuf_iterator<char>(iso)), std::istreambuf_iterator<char>());
+    CHECK(text.find("\nl ") != std::string::npos);
+    CHECK(text.find("g level_0\n") != std::string::npos);
+}
+
+TEST_CASE("shm surface: the modes and options run from the command line") {
+    ScratchDir dir("cli-surface-modes");
+    const Files f = sphere_with_circle(dir);
+    for (const std::string extra :
+         {"--level-set none", "--level-set components", "--soft-weight 0", "--preserve-normals", "--t-coef 4",
+          "--intrinsic-delaunay", "--intrinsic-delaunay --refine --min-angle 20", "--unsigned"}) {
+        const auto r = run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + dir.file("p.npy") + " " + extra);
+        CHECK_MESSAGE(r.exit_code == 0, extra << ": " << r.output);
+    }
+    // --unsigned: no negative side.
+    run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + dir.file("u.npy") + " --unsigned");
+    double lowest = INFINITY;
+    for (double x : io::read_npy(dir.file("u.npy")).data) lowest = std::min(lowest, x);
+    CHECK(lowest > -0.05);
+}
+
+TEST_CASE("shm surface: curves from an .obj's own l lines, points from --points") {
+    ScratchDir dir("cli-surface-obj");
+    const PolygonMesh m = shapes::icosphere(2);
+    std::string obj;
+    for (Eigen::Index i = 0; i < m.vertices.rows(); ++i)
+        obj += "v " + std::to_string(m.vertices(i, 0)) + " " + std::to_string(m.vertices(i, 1)) + " " +
+               std::to_string(m.vertices(i, 2)) + "\n";
+    for (std::size_t k = 0; k < m.face_count(); ++k)
+        obj += "f " + std::to_string(m.indices[3 * k] + 1) + " " + std::to_string(m.indices[3 * k + 1] + 1) + " " +
+               std::to_string(m.indices[3 * k + 2] + 1) + "\n";
+    const std::string with_lines = dir.file("lines.obj");
+    test::write_bytes(with_lines, obj + "l 1 2 3\n");
+    const auto r = run_cli("shm surface " + with_lines + " -o " + dir.file("a.npy"));
+    CHECK_MESSAGE(r.exit_code == 0, r.output);
+    test::write_bytes(dir.file("pts.txt"), "v 1\nv 5\n");
+    const auto p = run_cli("shm surface " + with_lines + " --points " + dir.file("pts.txt") + " -o " + dir.file("b.npy"));
+    REQUIRE_MESSAGE(p.exit_code == 0, p.output);
+    const io::NpyArray b = io::read_npy(dir.file("b.npy"));
+    CHECK(b.data[0] == doctest::Approx(0).scale(1));  // distance 0 at the points themselves
+    CHECK(b.data[4] == doctest::Approx(0).scale(1));
+}
+
+TEST_CASE("shm surface: bad input is a clear error naming the file and line, and leaves no output") {
+    ScratchDir dir("cli-surface-bad");
+    const Files f = sphere_with_circle(dir);
+    const std::string out = dir.file("phi.npy");
+    test::write_bytes(dir.file("bad.txt"), "#offset 0\nv 0\nv 100000\nl 0 1\n");
+    auto r = run_cli("shm surface " + f.mesh + " --curves " + dir.file("bad.txt") + " -o " + out);
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("bad.txt: line 3: vertex index 100000 is out of range") != std::string::npos);
+    CHECK_FALSE(test::file_exists(out));
+
+    test::write_bytes(dir.file("nan.txt"), "v 1\ne 2 nan\nl 1 2\n");
+    r = run_cli("shm surface " + f.mesh + " --curves " + dir.file("nan.txt") + " -o " + out);
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("nan.txt: line 2") != std::string::npos);
+
+    // Outputs go all or none: a render into a missing folder fails after φ was computed.
+    r = run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + out + " --render " + dir.file("no/such/dir.png"));
+    CHECK(r.exit_code == 1);
+    CHECK_FALSE(test::file_exists(out));
+
+    // Usage errors exit 2.
+    io::write_mesh(dir.file("m.ply"), io::read_mesh(f.mesh));
+    CHECK(run_cli("shm surface " + dir.file("m.ply") + " -o " + out).exit_code == 2);  // no curves anywhere
+    CHECK(run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + out + " --refine").exit_code == 2);
+    CHECK(run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + dir.file("phi.txt")).exit_code == 2);
+    CHECK(run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + out + " --level-set sometimes").exit_code == 2);
+    CHECK_FALSE(test::file_exists(out));
+}
+
+TEST_CASE("curve: the intersection with a plane or sphere, whole or broken, as a curve file") {
+    ScratchDir dir("cli-curve");
+    const std::string mesh = dir.file("s.obj");
+    io::write_mesh(mesh, shapes::icosphere(3));
+    auto r = run_cli("curve " + mesh + " --plane 0 0 1 0.2 -o " + dir.file("whole.txt"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    const SurfaceMesh m(io::read_mesh(mesh));
+    const SurfaceSources whole = read_surface_curves(dir.file("whole.txt"), m);
+    REQUIRE(whole.curves.size() == 1);
+    for (const SurfacePoint& p : whole.curves[0].nodes) CHECK(position(m, p).z() == doctest::Approx(0.2));
+    r = run_cli("curve " + mesh + " --sphere 0 0 1 0.8 --break 0.4 --gaps 2 --seed 3 -o " + dir.file("broken.txt"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    const SurfaceSources broken = read_surface_curves(dir.file("broken.txt"), m);
+    CHECK(broken.curves.size() >= 1);
+    CHECK(run_cli("curve " + mesh + " --plane 0 0 1 5 -o " + dir.file("x.txt")).exit_code == 1);  // misses the mesh
+    CHECK(run_cli("curve " + mesh + " -o " + dir.file("x.txt")).exit_code == 2);
+}
