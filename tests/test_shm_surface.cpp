@@ -691,11 +691,23 @@ TEST_CASE("bad sources are refused with a clear error") {
     two.vertices.bottomRows(other.vertices.rows()) = other.vertices;
     for (std::size_t f = 0; f < other.face_count(); ++f)
         two.add_face({other.indices[3 * f] + offset, other.indices[3 * f + 1] + offset, other.indices[3 * f + 2] + offset});
-    SignedHeatSurface split{SurfaceMesh(two)};
+    const SurfaceMesh two_mesh(two);
+    SignedHeatSurface split(two_mesh);
     try {
         split.solve({{{{SurfacePoint::at_vertex(0), SurfacePoint::at_vertex(offset)}, true}}, {}});
         FAIL("no error for a segment between two components");
     } catch (const Error& e) {
+        CHECK(std::string(e.what()).find("no path") != std::string::npos);
+    }
+    // From a file, the error names the file and the line of the `l`.
+    test::ScratchDir dir("surface-no-path");
+    test::write_bytes(dir.file("c.txt"), "#offset 0\nv 0\nv 1\nv " + std::to_string(offset) + "\nl 0 1 2\n");
+    try {
+        read_surface_curves(dir.file("c.txt"), two_mesh);
+        FAIL("no error for a curve file joining two components");
+    } catch (const Error& e) {
+        CHECK(e.where() == dir.file("c.txt"));
+        CHECK(std::string(e.what()).find("line 5") != std::string::npos);
         CHECK(std::string(e.what()).find("no path") != std::string::npos);
     }
 }

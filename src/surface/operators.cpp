@@ -37,6 +37,22 @@ std::vector<double> face_areas(const Triangulation& T) {
     return a;
 }
 
+double mean_edge_length(const Triangulation& T, const std::vector<double>& areas) {
+    std::vector<std::uint8_t> counted(T.edge_count(), 0);
+    double sum = 0;
+    std::size_t n = 0;
+    for (std::size_t f = 0; f < T.face_count(); ++f) {
+        if (areas[f] <= 0) continue;
+        for (std::uint32_t e : T.face_edges[f])
+            if (!counted[e]) {
+                counted[e] = 1;
+                sum += T.edge_lengths[e];
+                ++n;
+            }
+    }
+    return n ? sum / double(n) : 0.0;
+}
+
 FaceFrame face_frame(const Triangulation& T, std::size_t f, double area) {
     FaceFrame F;
     F.area = area;

@@ -24,6 +24,9 @@ using Complex = std::complex<double>;
 /// Face areas, 0 for degenerate faces (area below kDegenerateRelativeArea × longest side²).
 std::vector<double> face_areas(const Triangulation& T);
 
+/// Mean length of the edges of non-degenerate faces (each edge once); 0 if there are none.
+double mean_edge_length(const Triangulation& T, const std::vector<double>& areas);
+
 /// One face seen in its own plane (geometry::layout): corner positions, the unit direction of
 /// each halfedge's *edge* (its canonical direction, as a complex number), corner cotangents.
 struct FaceFrame {

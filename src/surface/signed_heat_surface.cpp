@@ -126,22 +126,9 @@ struct SignedHeatSurface::Impl {
         } else {
             solve_mesh.emplace(topo.mesh);
         }
-        // h: mean edge length over the edges of non-degenerate faces, halved (CR node spacing).
-        const Triangulation& tri = T();
-        std::vector<std::uint8_t> counted(tri.edge_count(), 0);
-        double sum = 0;
-        std::size_t n = 0;
-        for (std::size_t f = 0; f < tri.face_count(); ++f) {
-            if (solve_mesh->areas[f] <= 0) continue;
-            for (std::uint32_t e : tri.face_edges[f])
-                if (!counted[e]) {
-                    counted[e] = 1;
-                    sum += tri.edge_lengths[e];
-                    ++n;
-                }
-        }
-        if (n == 0) throw Error("mesh", "every triangle is degenerate");
-        mean_edge = sum / double(n);
+        // h: half the mean edge length (the spacing of the CR nodes, edge midpoints).
+        mean_edge = surface::mean_edge_length(T(), solve_mesh->areas);
+        if (!(mean_edge > 0)) throw Error("mesh", "every triangle is degenerate");
         time = setup.t_coef * 0.25 * mean_edge * mean_edge;
     }
 

@@ -54,10 +54,25 @@ SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& m
     points.reserve(file.points.size());
     for (const auto& p : file.points) points.push_back(to_point(p, mesh, path));
     SurfaceSources s;
+    const surface::Topology& t = mesh.topology();
     for (const auto& line : file.lines) {
         SurfaceCurve c;
+        std::uint32_t previous = UINT32_MAX;
+        std::size_t previous_line = 0;
         for (std::uint32_t i : line.points) {
             check_on_face(points[i], mesh, path, file.points[i].line);
+            // Consecutive nodes must be joined by some path of triangles (the piece between
+            // them follows the shortest one): on different pieces of the mesh they cannot be.
+            const std::uint32_t component = t.component_of(int(points[i].kind), points[i].index);
+            if (!c.nodes.empty() && component != UINT32_MAX && previous != UINT32_MAX && component != previous)
+                throw Error(path, at_line(line.line, "the segment from the point of line " +
+                                                         std::to_string(previous_line) + " to the point of line " +
+                                                         std::to_string(file.points[i].line) +
+                                                         " joins separate pieces of the mesh: no path connects them"));
+            if (component != UINT32_MAX) {
+                previous = component;
+                previous_line = file.points[i].line;
+            }
             c.nodes.push_back(points[i]);
         }
         s.curves.push_back(std::move(c));

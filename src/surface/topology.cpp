@@ -142,21 +142,7 @@ void measure(Topology& t) {
     for (std::size_t e = 0; e < T.edges.size(); ++e)
         T.edge_lengths[e] = (x.row(T.edges[e][0]) - x.row(T.edges[e][1])).norm();
     t.face_areas = face_areas(T);
-    double length_sum = 0;
-    std::size_t length_count = 0;
-    std::vector<std::uint8_t> counted(T.edges.size(), 0);
-    for (std::size_t f = 0; f < T.faces.size(); ++f) {
-        if (t.face_areas[f] <= 0) continue;
-        for (int k = 0; k < 3; ++k) {
-            const std::uint32_t e = T.face_edges[f][std::size_t(k)];
-            if (!counted[e]) {
-                counted[e] = 1;
-                length_sum += T.edge_lengths[e];
-                ++length_count;
-            }
-        }
-    }
-    t.mean_edge_length = length_count ? length_sum / double(length_count) : 0.0;
+    t.mean_edge_length = mean_edge_length(T, t.face_areas);
 }
 
 }  // namespace
@@ -172,6 +158,47 @@ std::uint32_t Topology::find_edge(std::uint32_t a, std::uint32_t b) const {
     return UINT32_MAX;
 }
 
+std::uint32_t Topology::component_of(int kind, std::uint32_t index) const {
+    const Adjacency& holders = kind == 0 ? vertex_corners : edge_halfedges;
+    if (kind == 2) return face_component[index];
+    for (const std::uint32_t* c = holders.begin(index); c != holders.end(index); ++c)
+        if (face_component[corner_face(*c)] != UINT32_MAX) return face_component[corner_face(*c)];
+    return UINT32_MAX;
+}
+
+namespace {
+
+/// Non-degenerate triangles joined through shared edges (union–find), numbered in face order.
+std::vector<std::uint32_t> face_components(const Topology& t) {
+    const std::size_t F = t.mesh.face_count();
+    std::vector<std::uint32_t> parent(F);
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto root = [&](std::uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    for (std::size_t e = 0; e < t.mesh.edge_count(); ++e) {
+        std::uint32_t first = UINT32_MAX;
+        for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
+            const std::uint32_t f = corner_face(*h);
+            if (t.degenerate(f)) continue;
+            if (first == UINT32_MAX) first = f;
+            else parent[root(f)] = root(first);
+        }
+    }
+    std::vector<std::uint32_t> label(F, UINT32_MAX), id(F, UINT32_MAX);
+    std::uint32_t next = 0;
+    for (std::uint32_t f = 0; f < F; ++f) {
+        if (t.degenerate(f)) continue;
+        std::uint32_t& r = id[root(f)];
+        if (r == UINT32_MAX) r = next++;
+        label[f] = r;
+    }
+    return label;
+}
+
+}  // namespace
+
 Topology build_topology(PolygonMesh mesh) {
     Topology t;
     t.polygons = std::move(mesh);
@@ -184,6 +211,7 @@ Topology build_topology(PolygonMesh mesh) {
     t.edge_halfedges = corner_adjacency(t.mesh.edges.size(), t.mesh.face_edges);
     t.vertex_corners = corner_adjacency(n, t.mesh.faces);
     measure(t);
+    t.face_component = face_components(t);
     return t;
 }
 

@@ -36,9 +36,14 @@ struct Topology {
     Adjacency edge_halfedges;                 ///< per edge: the halfedges (3f+k) on it
     Adjacency vertex_corners;                 ///< per vertex: the corners (3f+k) at it
     std::vector<double> face_areas;           ///< 0 for degenerate triangles
+    std::vector<std::uint32_t> face_component;///< non-degenerate triangles joined through edges
+                                              ///< (UINT32_MAX for degenerate ones)
     double mean_edge_length = 0;              ///< over the edges of non-degenerate triangles
 
     bool degenerate(std::size_t f) const { return face_areas[f] <= 0; }
+    /// The component of a non-degenerate triangle holding a vertex, edge point or face point
+    /// (`kind` 0, 1, 2 as in SurfacePoint), or UINT32_MAX if only degenerate ones hold it.
+    std::uint32_t component_of(int kind, std::uint32_t index) const;
     /// The edge joining two vertices, or UINT32_MAX (the first one if several).
     std::uint32_t find_edge(std::uint32_t a, std::uint32_t b) const;
     /// Position of corner k of triangle f.
