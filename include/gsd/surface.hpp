@@ -126,6 +126,17 @@ void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std:
 /// The 3D position of a surface point.
 Eigen::Vector3d position(const SurfaceMesh& mesh, const SurfacePoint& p);
 
+/// Damage to curves for tests and demos, as in thesis fig. 4.16: every curve loses `gaps`
+/// stretches holding `cut` of its pieces in all (gaps at random places may overlap, so up to
+/// that), then `reversed` single pieces, picked at random, flip their orientation.
+struct CurveDamage {
+    double cut = 0;
+    int gaps = 3;
+    int reversed = 0;
+};
+/// Returns the damaged curves (points kept); deterministic for a seed.
+SurfaceSources damage(const SurfaceSources& sources, const CurveDamage& d, std::uint64_t seed);
+
 /// Sources drawn in 3D: each curve as polylines that follow the surface (a piece between nodes
 /// in different triangles bends where it crosses edges), each isolated point as a one-point
 /// polyline. For pictures and OBJ output.
@@ -167,19 +178,18 @@ struct SurfaceShmSetup {
 /// Per-solve options.
 struct SurfaceShmOptions {
     LevelSetConstraint level_set = LevelSetConstraint::ZeroSet;
-    /// Rows whose points are all vertices (a node at a vertex, a piece between two vertices)
-    /// are always exact. Rows with points on edges or inside triangles: w > 0 adds
-    /// w·Σ_nodes φ(node)² (Components: w·Σ_pieces (φ(a) − φ(b))²) to the Dirichlet energy,
-    /// whose matrix has cotangent weights (entries of order 1); w = 0 makes them exact too
-    /// (eq. 4.11 as written: φ = 0 at every node).
-    ///
-    /// Soft by default because a piecewise-linear φ can vanish at every node of a curve that
-    /// crosses edges only if the nodes happen to lie on the zero set of such a function. For a
-    /// generic closed curve through edge points the exact rows leave no other solution than
-    /// φ ≡ 0 on every vertex next to the curve, a band of wrong distances (measured: ε 4–10×
-    /// larger than unconstrained on exact circles; the reference implementation behaves the
-    /// same). Weights 100–300 stay within 1 % of the exact rows' ε where those are consistent
-    /// and avoid the collapse where they are not. docs/shm-surface.md has the numbers.
+    /// Constraint rows are exact where they can be: rows whose points are all vertices (a node
+    /// at a vertex, a piece between two vertices), and groups of rows through points on edges
+    /// or inside triangles that leave φ a nonzero solution next to the curve (generically: R
+    /// rows sharing V vertices, Z of them fixed at 0, with R + Z < V — open curves, curves
+    /// broken into pieces). The other groups (closed curves through edge points, corners
+    /// inside triangles) would force φ ≡ 0 on every vertex next to the curve, a band of wrong
+    /// distances (measured: ε 4–10× larger than unconstrained on exact circles; the reference
+    /// implementation behaves the same), so their rows are soft: w·Σ_nodes φ(node)²
+    /// (Components: w·Σ_pieces (φ(a) − φ(b))²) is added to the Dirichlet energy, whose matrix
+    /// has cotangent weights (entries of order 1). Weights 100–300 stay within 1 % of exact
+    /// rows' ε where those are consistent. w = 0 makes every row exact (eq. 4.11 as written).
+    /// docs/shm-surface.md has the numbers.
     double soft_weight = 100.0;
     /// Constrain the diffused field to stay normal to the curves at the curves (an extra
     /// constrained vector solve; signed curves only).

@@ -25,6 +25,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <unordered_map>
 
 namespace gsd {
 
@@ -182,6 +183,8 @@ struct SignedHeatSurface::Impl {
         ConstraintRows exact, soft;
     };
     Constraints constraint_rows(const ResolvedSources& S, LevelSetConstraint mode, bool all_exact) const;
+    void split_by_consistency(const ConstraintRows& rows, const std::vector<std::uint32_t>& fixed, bool differences,
+                              Constraints& C) const;
     std::vector<double> solve_constrained(const Constraints& C, const std::vector<std::uint32_t>& pins,
                                           const std::vector<double>& g, double w_soft, SurfaceShmResult& r);
     std::vector<std::uint32_t> free_components(const Constraints& C, bool rows_fix_levels) const;
@@ -257,8 +260,8 @@ SignedHeatSurface::Impl::Constraints SignedHeatSurface::Impl::constraint_rows(co
                                                                                bool all_exact) const {
     // Rows whose points are all vertices (a node at a vertex; a piece along an edge between
     // vertices) are always consistent and are met exactly. Rows with points on edges or inside
-    // faces can contradict each other (see SurfaceShmOptions::soft_weight) and are soft unless
-    // the caller asks for every row to be exact.
+    // faces are exact too where they leave φ free to be nonzero next to the curve; where they do
+    // not (see SurfaceShmOptions::soft_weight), they are soft unless the caller asks for exact.
     Constraints C;
     const Triangulation& tri = T();
     auto at_vertex = [](const FacePoint& p) {
@@ -266,9 +269,14 @@ SignedHeatSurface::Impl::Constraints SignedHeatSurface::Impl::constraint_rows(co
         for (double b : p.bary) nonzero += b != 0.0;
         return nonzero == 1;
     };
+    ConstraintRows candidates;
+    std::vector<std::uint32_t> fixed_vertices;  // zero-set rows at vertices: φ = 0 there
     if (mode == LevelSetConstraint::ZeroSet) {
-        for (const FacePoint& p : S.nodes)
-            (all_exact || at_vertex(p) ? C.exact : C.soft).add(interpolation_row(tri, p, 1.0));
+        for (const FacePoint& p : S.nodes) {
+            const bool vertex = at_vertex(p);
+            (all_exact || vertex ? C.exact : candidates).add(interpolation_row(tri, p, 1.0));
+            if (vertex) fixed_vertices.push_back(C.exact.rows.back().front().first);
+        }
     } else if (mode == LevelSetConstraint::Components) {
         // φ(a) = φ(b) along every piece: each connected component of the curves gets one level.
         for (const surface::CurvePiece& c : S.pieces) {
@@ -276,10 +284,39 @@ SignedHeatSurface::Impl::Constraints SignedHeatSurface::Impl::constraint_rows(co
             auto row = interpolation_row(tri, a, 1.0);
             const auto rb = interpolation_row(tri, b, -1.0);
             row.insert(row.end(), rb.begin(), rb.end());
-            (all_exact || (at_vertex(a) && at_vertex(b)) ? C.exact : C.soft).add(std::move(row));
+            (all_exact || (at_vertex(a) && at_vertex(b)) ? C.exact : candidates).add(std::move(row));
         }
     }
+    split_by_consistency(candidates, fixed_vertices, mode == LevelSetConstraint::Components, C);
     return C;
+}
+
+void SignedHeatSurface::Impl::split_by_consistency(const ConstraintRows& rows, const std::vector<std::uint32_t>& fixed,
+                                                   bool differences, Constraints& C) const {
+    // Rows that share vertices form groups. Generically a group of R rows on V vertices, Z of
+    // them fixed to 0 by vertex rows, leaves φ a nonzero solution there only if R + Z < V
+    // (difference rows always allow constants, so: only if R < V − 1). A group that fails the
+    // count would be forced to 0 (or to one constant) on every vertex it touches: soft rows.
+    std::unordered_map<std::uint32_t, std::uint32_t> parent;
+    auto root = [&](std::uint32_t x) {
+        auto it = parent.try_emplace(x, x).first;
+        while (it->second != x) {
+            x = it->second;
+            it = parent.find(x);
+        }
+        return x;
+    };
+    for (const auto& row : rows.rows)
+        for (const auto& [v, c] : row) parent[root(v)] = root(row.front().first);
+    std::unordered_map<std::uint32_t, long long> balance;  // V − R − Z per group
+    for (const auto& [v, p] : parent) ++balance[root(v)];
+    for (const auto& row : rows.rows) --balance[root(row.front().first)];
+    for (std::uint32_t v : fixed)
+        if (parent.count(v)) --balance[root(v)];
+    for (const auto& row : rows.rows) {
+        const long long room = balance[root(row.front().first)];
+        (room > (differences ? 1 : 0) ? C.exact : C.soft).rows.push_back(row);
+    }
 }
 
 std::vector<double> SignedHeatSurface::Impl::solve_constrained(const Constraints& C,

@@ -135,28 +135,6 @@ SurfaceSources edge_path(const SurfaceMesh& mesh, const std::vector<double>& f) 
     return s;
 }
 
-/// Deletes pieces (each kept with probability `keep`) and reverses one surviving stretch.
-SurfaceSources broken(const SurfaceSources& s, double keep, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::bernoulli_distribution coin(keep);
-    SurfaceSources out;
-    for (const SurfaceCurve& c : s.curves) {
-        SurfaceCurve run;
-        for (std::size_t i = 0; i + 1 < c.nodes.size(); ++i) {
-            if (coin(rng)) {
-                if (run.nodes.empty()) run.nodes.push_back(c.nodes[i]);
-                run.nodes.push_back(c.nodes[i + 1]);
-            } else if (!run.nodes.empty()) {
-                out.curves.push_back(run);
-                run.nodes.clear();
-            }
-        }
-        if (!run.nodes.empty()) out.curves.push_back(run);
-    }
-    if (out.curves.size() > 1) std::reverse(out.curves[1].nodes.begin(), out.curves[1].nodes.end());
-    return out;
-}
-
 std::vector<std::vector<Eigen::Vector2d>> loops_2d(const SurfaceMesh& mesh, const SurfaceSources& s) {
     std::vector<std::vector<Eigen::Vector2d>> loops;
     for (const SurfaceCurve& c : s.curves) {
@@ -297,7 +275,7 @@ int accuracy(const std::string& reference, const std::string& work) {
         const SurfaceMesh mesh(c.mesh);
         SignedHeatSurface shm(mesh);
         for (const auto& [label, s] : {std::pair<std::string, SurfaceSources>{"clean", c.clean},
-                                       std::pair<std::string, SurfaceSources>{"broken", broken(c.clean, 0.6, 5)}}) {
+                                       std::pair<std::string, SurfaceSources>{"broken", damage(c.clean, {0.4, 3, 1}, 5)}}) {
             std::size_t pieces = 0;
             for (const SurfaceCurve& k : s.curves) pieces += k.nodes.size() - 1;
             const Score ours = score(mesh, shm.solve(s).phi, c.truth);

@@ -10,7 +10,6 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
-#include <random>
 
 namespace gsd::cli {
 
@@ -186,35 +185,6 @@ void run(const SurfaceArgs& a) {
     note("wrote " + written + " (φ per vertex, " + fmt("%.4g", lo) + " to " + fmt("%.4g", hi) + ")");
 }
 
-/// Cuts `gaps` stretches out of every curve, `fraction` of its pieces in all, at random places:
-/// broken test input in the manner of thesis fig. 4.16.
-SurfaceSources break_curves(const SurfaceSources& s, double fraction, int gaps, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    SurfaceSources out;
-    for (const SurfaceCurve& c : s.curves) {
-        const std::size_t pieces = c.nodes.size() - 1;
-        std::vector<std::uint8_t> removed(pieces, 0);
-        const std::size_t per_gap = std::size_t(std::lround(fraction * double(pieces) / gaps));
-        std::uniform_int_distribution<std::size_t> start(0, pieces - 1);
-        for (int g = 0; g < gaps && per_gap > 0; ++g) {
-            const std::size_t s0 = start(rng);
-            for (std::size_t k = 0; k < per_gap; ++k) removed[(s0 + k) % pieces] = 1;
-        }
-        SurfaceCurve run;
-        for (std::size_t i = 0; i < pieces; ++i) {
-            if (!removed[i]) {
-                if (run.nodes.empty()) run.nodes.push_back(c.nodes[i]);
-                run.nodes.push_back(c.nodes[i + 1]);
-            } else if (!run.nodes.empty()) {
-                out.curves.push_back(run);
-                run.nodes.clear();
-            }
-        }
-        if (!run.nodes.empty()) out.curves.push_back(run);
-    }
-    return out;
-}
-
 }  // namespace
 
 void add_curve(CLI::App& app) {
@@ -224,8 +194,7 @@ void add_curve(CLI::App& app) {
     auto output = std::make_shared<std::string>();
     auto plane = std::make_shared<std::vector<double>>();
     auto sphere = std::make_shared<std::vector<double>>();
-    auto fraction = std::make_shared<double>(0.0);
-    auto gaps = std::make_shared<int>(3);
+    auto harm = std::make_shared<CurveDamage>();
     auto seed = std::make_shared<std::uint64_t>(1);
     c->add_option("MESH", *mesh_path, "Mesh (.obj .ply .off .stl)")->required();
     auto* p = c->add_option("--plane", *plane, "Plane nx ny nz d: the curve n·x = d, with n·x < d on its left (inside)")
@@ -233,10 +202,17 @@ void add_curve(CLI::App& app) {
     auto* s = c->add_option("--sphere", *sphere, "Sphere cx cy cz r: the curve |x − c| = r, with the inside on its left")
                   ->expected(4);
     p->excludes(s);
-    c->add_option("--break", *fraction, "Cut up to this fraction of every curve away, in --gaps stretches at random places (they may overlap; 0: whole curves)")
+    c->add_option("--break", harm->cut,
+                  "Cut up to this fraction of every curve away, in --gaps stretches at random places (they may "
+                  "overlap; 0: whole curves)")
         ->check(CLI::Range(0.0, 0.95))
         ->capture_default_str();
-    c->add_option("--gaps", *gaps, "Number of stretches --break cuts from each curve")->check(CLI::Range(1, 1000))->capture_default_str();
+    c->add_option("--gaps", harm->gaps, "Number of stretches --break cuts from each curve")
+        ->check(CLI::Range(1, 1000))
+        ->capture_default_str();
+    c->add_option("--reverse", harm->reversed, "Reverse this many single pieces, picked at random among the surviving ones")
+        ->check(CLI::Range(0, 1000000))
+        ->capture_default_str();
     c->add_option("--seed", *seed, "Random seed for --break")->capture_default_str();
     c->add_option("-o,--output", *output, "Output curve file (the curve text format, 0-based)")->required();
     c->callback([=] {
@@ -252,7 +228,7 @@ void add_curve(CLI::App& app) {
         SurfaceSources src;
         src.curves = level_set_curves(mesh, f, 0);
         if (src.curves.empty()) throw Error(*mesh_path, "the plane or sphere does not cross the mesh");
-        if (*fraction > 0) src = break_curves(src, *fraction, *gaps, *seed);
+        src = damage(src, *harm, *seed);
         std::size_t pieces = 0;
         for (const SurfaceCurve& k : src.curves) pieces += k.nodes.size() - 1;
         if (pieces == 0) throw Error(*output, "--break removed every piece");

@@ -1,9 +1,12 @@
-// Level sets of a per-vertex function as oriented curves on edges ("marching triangles").
+// Making curves: level sets of a per-vertex function as oriented curves on edges ("marching
+// triangles"), and damaged copies of curves for tests and demos.
 #include <gsd/surface.hpp>
 
 #include "surface/geometry.hpp"
 #include "surface/topology.hpp"
 
+#include <algorithm>
+#include <random>
 #include <unordered_map>
 
 namespace gsd {
@@ -79,6 +82,55 @@ std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::v
     for (std::size_t i = 0; i < pieces.size(); ++i)
         if (!pieces[i].used) follow(i);
     return curves;
+}
+
+SurfaceSources damage(const SurfaceSources& sources, const CurveDamage& d, std::uint64_t seed) {
+    if (!(d.cut >= 0 && d.cut < 1)) throw Error("CurveDamage::cut", "must be in [0, 1)");
+    if (d.gaps < 1) throw Error("CurveDamage::gaps", "must be at least 1");
+    std::mt19937_64 rng(seed);
+    SurfaceSources out;
+    out.points = sources.points;
+    for (const SurfaceCurve& c : sources.curves) {
+        if (c.nodes.size() < 2) continue;
+        const std::size_t pieces = c.nodes.size() - 1;
+        std::vector<std::uint8_t> removed(pieces, 0);
+        const auto per_gap = std::size_t(std::lround(d.cut * double(pieces) / d.gaps));
+        std::uniform_int_distribution<std::size_t> start(0, pieces - 1);
+        for (int g = 0; g < d.gaps && per_gap > 0; ++g) {
+            const std::size_t s0 = start(rng);
+            for (std::size_t k = 0; k < per_gap; ++k) removed[(s0 + k) % pieces] = 1;
+        }
+        SurfaceCurve run;
+        run.is_signed = c.is_signed;
+        for (std::size_t i = 0; i < pieces; ++i) {
+            if (!removed[i]) {
+                if (run.nodes.empty()) run.nodes.push_back(c.nodes[i]);
+                run.nodes.push_back(c.nodes[i + 1]);
+            } else if (!run.nodes.empty()) {
+                out.curves.push_back(run);
+                run.nodes.clear();
+            }
+        }
+        if (!run.nodes.empty()) out.curves.push_back(run);
+    }
+    // Reverse single pieces: each becomes a curve of its own running the other way.
+    for (int r = 0; r < d.reversed; ++r) {
+        std::size_t total = 0;
+        for (const SurfaceCurve& c : out.curves) total += c.nodes.size() - 1;
+        if (total == 0) break;
+        std::size_t k = std::uniform_int_distribution<std::size_t>(0, total - 1)(rng), i = 0;
+        while (k >= out.curves[i].nodes.size() - 1) k -= out.curves[i++].nodes.size() - 1;
+        const SurfaceCurve c = out.curves[i];
+        SurfaceCurve before, piece, after;
+        before.is_signed = piece.is_signed = after.is_signed = c.is_signed;
+        before.nodes.assign(c.nodes.begin(), c.nodes.begin() + std::ptrdiff_t(k + 1));
+        piece.nodes = {c.nodes[k + 1], c.nodes[k]};
+        after.nodes.assign(c.nodes.begin() + std::ptrdiff_t(k + 1), c.nodes.end());
+        out.curves.erase(out.curves.begin() + std::ptrdiff_t(i));
+        for (SurfaceCurve* part : {&before, &piece, &after})
+            if (part->nodes.size() >= 2) out.curves.push_back(std::move(*part));
+    }
+    return out;
 }
 
 }  // namespace gsd
