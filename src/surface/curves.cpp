@@ -15,6 +15,7 @@
 #include <optional>
 #include <queue>
 #include <string>
+#include <unordered_map>
 
 namespace gsd::surface {
 
@@ -127,26 +128,35 @@ Eigen::Vector3d centroid(const Topology& t, std::size_t f) {
 /// face centroids, non-degenerate faces only). Empty if there is none.
 std::vector<std::uint32_t> face_strip(const Topology& t, const std::vector<FacePoint>& from,
                                       const std::vector<FacePoint>& to) {
+    // A* over face centroids, guided by the straight distance to the target point. Only the
+    // faces it reaches are stored, so short pieces on big meshes cost little; the strip needs
+    // to be good, not shortest — the funnel and the rerouting straighten the path inside it.
     const Triangulation& T = t.mesh;
-    const std::size_t F = T.face_count();
-    std::vector<double> dist(F, INFINITY);
-    std::vector<std::uint32_t> prev(F, UINT32_MAX);
-    std::vector<std::uint8_t> target(F, 0);
-    for (const FacePoint& q : to) target[q.face] = 1;
-    using Item = std::pair<double, std::uint32_t>;
+    const Eigen::Vector3d goal = point_in(t, to.front());
+    std::unordered_map<std::uint32_t, std::pair<double, std::uint32_t>> best;  // face → (distance, previous)
+    std::unordered_map<std::uint32_t, bool> target;
+    for (const FacePoint& q : to) target[q.face] = true;
+    using Item = std::pair<double, std::uint32_t>;  // (distance + heuristic, face)
     std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-    for (const FacePoint& p : from) {
-        if (t.degenerate(p.face)) continue;
-        const double d = (point_in(t, p) - centroid(t, p.face)).norm();
-        if (d < dist[p.face]) heap.push({dist[p.face] = d, p.face});
-    }
+    auto relax = [&](std::uint32_t f, double d, std::uint32_t previous) {
+        auto [it, inserted] = best.try_emplace(f, d, previous);
+        if (!inserted && d >= it->second.first) return;
+        it->second = {d, previous};
+        heap.push({d + (centroid(t, f) - goal).norm(), f});
+    };
+    for (const FacePoint& p : from)
+        if (!t.degenerate(p.face)) relax(p.face, (point_in(t, p) - centroid(t, p.face)).norm(), UINT32_MAX);
     while (!heap.empty()) {
-        const auto [d, f] = heap.top();
+        const std::uint32_t f = heap.top().second;
+        const double d = best[f].first;
+        if (heap.top().first > d + (centroid(t, f) - goal).norm() + 1e-12 * (1 + d)) {
+            heap.pop();  // a stale entry
+            continue;
+        }
         heap.pop();
-        if (d > dist[f]) continue;
-        if (target[f]) {
+        if (target.count(f)) {
             std::vector<std::uint32_t> strip;
-            for (std::uint32_t g = f; g != UINT32_MAX; g = prev[g]) strip.push_back(g);
+            for (std::uint32_t g = f; g != UINT32_MAX; g = best[g].second) strip.push_back(g);
             std::reverse(strip.begin(), strip.end());
             return strip;
         }
@@ -155,13 +165,7 @@ std::vector<std::uint32_t> face_strip(const Topology& t, const std::vector<FaceP
             const std::uint32_t e = T.face_edges[f][std::size_t(k)];
             for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
                 const std::uint32_t g = corner_face(*h);
-                if (g == f || t.degenerate(g)) continue;
-                const double nd = d + (centroid(t, g) - cf).norm();
-                if (nd < dist[g]) {
-                    dist[g] = nd;
-                    prev[g] = f;
-                    heap.push({nd, g});
-                }
+                if (g != f && !t.degenerate(g)) relax(g, d + (centroid(t, g) - cf).norm(), f);
             }
         }
     }
