@@ -641,6 +641,30 @@ TEST_CASE("intrinsic Delaunay: same answer on a Delaunay mesh, better on a mesh 
     }
 }
 
+TEST_CASE("vertices on no face get NaN; components no source reaches are counted, φ stays finite") {
+    PolygonMesh m = shapes::icosphere(2);
+    const PolygonMesh other = shapes::icosphere(2, 1.0, Eigen::Vector3d(4, 0, 0));
+    const auto offset = std::uint32_t(m.vertices.rows());
+    m.vertices.conservativeResize(m.vertices.rows() + other.vertices.rows() + 1, 3);
+    m.vertices.block(offset, 0, other.vertices.rows(), 3) = other.vertices;
+    m.vertices.bottomRows(1) << 9, 9, 9;  // on no face
+    for (std::size_t f = 0; f < other.face_count(); ++f)
+        m.add_face({other.indices[3 * f] + offset, other.indices[3 * f + 1] + offset, other.indices[3 * f + 2] + offset});
+    const SurfaceMesh mesh(m);
+    CHECK(mesh.summary().components == 2);
+    CHECK(mesh.summary().unreferenced_vertices == 1);
+    std::vector<double> z(mesh.vertex_count(), 1.0);
+    for (std::uint32_t i = 0; i < offset; ++i) z[i] = m.vertices(i, 2) - 0.2;
+    SurfaceSources s;
+    s.curves = level_set_curves(mesh, z, 0);
+    REQUIRE(s.curves.size() == 1);
+    SignedHeatSurface shm(mesh);
+    const SurfaceShmResult r = shm.solve(s);
+    CHECK(std::isnan(r.phi.back()));
+    for (std::size_t i = 0; i + 1 < r.phi.size(); ++i) CHECK(std::isfinite(r.phi[i]));
+    CHECK(r.unreached_vertices == other.vertices.rows());
+}
+
 TEST_CASE("bad sources are refused with a clear error") {
     const SurfaceMesh mesh(shapes::icosphere(1));
     SignedHeatSurface shm(mesh);
