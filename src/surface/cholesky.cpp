@@ -68,29 +68,22 @@ struct Cholesky<Scalar>::Impl {
         return s;
     }
 
-    void factorize(cholmod_sparse* s) {
-        const int ok = cholmod_l_factorize(s, factor, &common);
-        if (!ok || common.status != CHOLMOD_OK)
-            throw Error("CHOLMOD could not factor a " + std::to_string(n) + "² operator: " + status_text(common));
+    /// Numeric factorization of A with the current symbolic factor; analyses first if asked.
+    void factorize(const SparseLower<Scalar>& A, bool analyse) {
+        cholmod_sparse* s = to_sparse(A);
+        if (analyse) factor = cholmod_l_analyze(s, &common);
+        const bool ok = factor && cholmod_l_factorize(s, factor, &common) && common.status == CHOLMOD_OK;
+        cholmod_l_free_sparse(&s, &common);
+        if (!factor)
+            throw Error("CHOLMOD could not analyse a " + std::to_string(n) + "² operator: " + status_text(common));
+        if (!ok) throw Error("CHOLMOD could not factor a " + std::to_string(n) + "² operator: " + status_text(common));
     }
 };
 
 template <class Scalar>
 Cholesky<Scalar>::Cholesky(const SparseLower<Scalar>& A) : impl_(std::make_unique<Impl>()) {
     impl_->n = A.n;
-    cholmod_sparse* s = impl_->to_sparse(A);
-    impl_->factor = cholmod_l_analyze(s, &impl_->common);
-    if (!impl_->factor) {
-        cholmod_l_free_sparse(&s, &impl_->common);
-        throw Error("CHOLMOD could not analyse a " + std::to_string(A.n) + "² operator: " + status_text(impl_->common));
-    }
-    try {
-        impl_->factorize(s);
-    } catch (...) {
-        cholmod_l_free_sparse(&s, &impl_->common);
-        throw;
-    }
-    cholmod_l_free_sparse(&s, &impl_->common);
+    impl_->factorize(A, true);
 }
 
 template <class Scalar>
@@ -112,14 +105,7 @@ Cholesky<Scalar>& Cholesky<Scalar>::operator=(Cholesky&&) noexcept = default;
 template <class Scalar>
 void Cholesky<Scalar>::refactor(const SparseLower<Scalar>& A) {
     if (A.n != impl_->n) throw Error("Cholesky::refactor: size changed");
-    cholmod_sparse* s = impl_->to_sparse(A);
-    try {
-        impl_->factorize(s);
-    } catch (...) {
-        cholmod_l_free_sparse(&s, &impl_->common);
-        throw;
-    }
-    cholmod_l_free_sparse(&s, &impl_->common);
+    impl_->factorize(A, false);
 }
 
 template <class Scalar>
