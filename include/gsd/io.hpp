@@ -89,6 +89,9 @@ void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const float* values, std::size_t count);
 void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const std::vector<float>& values);
+/// Writes int32 values ('<i4'), e.g. labels.
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+               const std::vector<std::int32_t>& values);
 
 /// Reads an (M, 3) query list (.npy float32/float64). Throws on other shapes or non-finite values.
 Points read_queries(const std::string& path);

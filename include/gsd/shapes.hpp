@@ -78,6 +78,14 @@ PolygonMesh grid_mesh(int n, double jitter = 0, bool random_diagonals = false, s
 /// vertices pushed onto the sphere; faces oriented outward.
 PolygonMesh icosphere(int level, double radius = 1.0, const Eigen::Vector3d& center = Eigen::Vector3d::Zero());
 
+/// A ring torus around the z axis (major radius R, tube radius r), n_major × n_minor vertices on
+/// its parameter grid, each grid cell split in two; faces oriented outward. Genus 1.
+PolygonMesh torus_mesh(int n_major, int n_minor, double R = 0.5, double r = 0.2);
+
+/// A double torus (genus 2): two tori (R 0.5, r 0.2) around the z axis with centers (±0.425, 0, 0)
+/// whose tubes merge, contoured on an n³ grid over [−1.3, 1.3]³; oriented outward.
+PolygonMesh double_torus_mesh(int n);
+
 /// Total area of a mesh's faces (polygons fanned).
 double area(const PolygonMesh& mesh);
 

@@ -153,6 +153,10 @@ void write_npy(const std::string& path, const std::vector<std::size_t>& shape, c
     write_npy(path, shape, values.data(), values.size());
 }
 
+void write_npy(const std::string& path, const std::vector<std::size_t>& shape, const std::vector<std::int32_t>& values) {
+    write_file_atomic(path, detail::npy_bytes(path, shape, values.data(), values.size()));
+}
+
 Points read_queries(const std::string& path) {
     const NpyArray a = read_npy(path);
     if (a.shape.size() != 2 || a.shape[1] != 3)

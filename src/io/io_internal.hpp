@@ -146,6 +146,8 @@ std::string stl_mesh_bytes(const PolygonMesh& mesh);
 NpyArray parse_npy(const std::string& path, std::string_view bytes);
 std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape,
                       const float* values, std::size_t count);
+std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape,
+                      const std::int32_t* values, std::size_t count);
 /// "(3,)", "(4, 6)": a shape as numpy prints it.
 std::string npy_shape_text(const std::vector<std::size_t>& shape);
 PointCloud read_npy_cloud(const std::string& path, std::string_view bytes);

@@ -186,15 +186,20 @@ NpyArray parse_npy(const std::string& path, std::string_view bytes) {
     return a;
 }
 
-std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape, const float* values,
-                      std::size_t count) {
+namespace {
+
+/// The .npy bytes of `count` little-endian values of type T (descr '<f4' or '<i4').
+template <class T>
+std::string npy_bytes_of(const std::string& path, const std::vector<std::size_t>& shape, const T* values,
+                         std::size_t count, const char* descr) {
     std::uint64_t expected = 1;
     for (std::size_t d : shape) expected = mul_sat(expected, d);
     if (expected != count)
         throw Error(path, "shape " + shape_text(shape) + " holds " + std::to_string(expected) + " values, but " +
                               std::to_string(count) + " were given");
     if (count > 0 && values == nullptr) throw Error(path, "no values to write");
-    std::string dict = "{'descr': '<f4', 'fortran_order': False, 'shape': " + shape_text(shape) + ", }";
+    std::string dict = "{'descr': '";
+    dict.append(descr).append("', 'fortran_order': False, 'shape': ").append(shape_text(shape)).append(", }");
     // numpy's rule: magic + version + length + header is a multiple of 64, header ends in '\n'.
     const bool v1 = dict.size() + 1 + 10 <= 65535;
     const std::size_t preamble = v1 ? 10 : 12;
@@ -207,9 +212,21 @@ std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& s
     if (v1) append_le(out, std::uint16_t(dict.size()));
     else append_le(out, std::uint32_t(dict.size()));
     out += dict;
-    out.reserve(out.size() + count * 4);
+    out.reserve(out.size() + count * sizeof(T));
     for (std::size_t i = 0; i < count; ++i) append_le(out, values[i]);
     return out;
+}
+
+}  // namespace
+
+std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape, const float* values,
+                      std::size_t count) {
+    return npy_bytes_of(path, shape, values, count, "<f4");
+}
+
+std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape, const std::int32_t* values,
+                      std::size_t count) {
+    return npy_bytes_of(path, shape, values, count, "<i4");
 }
 
 PointCloud read_npy_cloud(const std::string& path, std::string_view bytes) {

@@ -1,6 +1,8 @@
 // Meshes for the surface methods' tests, benchmarks and demos: a flat square and an icosphere,
-// whose exact geodesic distances are known.
+// whose exact geodesic distances are known, and a torus and a double torus (genus 1 and 2) for
+// curves that bound nothing.
 #include <gsd/shapes.hpp>
+#include <gsd/viz.hpp>
 
 #include <Eigen/Geometry>
 
@@ -76,6 +78,49 @@ PolygonMesh icosphere(int level, double radius, const Eigen::Vector3d& center) {
     for (std::size_t i = 0; i < v.size(); ++i) m.vertices.row(Eigen::Index(i)) = (center + radius * v[i]).transpose();
     for (const auto& t : f) m.add_face(t.data(), 3);
     return m;
+}
+
+PolygonMesh torus_mesh(int n_major, int n_minor, double R, double r) {
+    if (n_major < 3 || n_minor < 3 || std::int64_t(n_major) * n_minor > (std::int64_t(1) << 28))
+        throw Error("torus_mesh", "needs at least 3 × 3 and at most 2^28 vertices");
+    if (!(r > 0 && R > r)) throw Error("torus_mesh", "needs 0 < r < R");
+    PolygonMesh m;
+    m.vertices.resize(Eigen::Index(n_major) * n_minor, 3);
+    auto id = [&](int i, int j) { return std::uint32_t((i % n_major) * n_minor + (j % n_minor)); };
+    for (int i = 0; i < n_major; ++i)
+        for (int j = 0; j < n_minor; ++j) {
+            const double u = 2 * M_PI * i / n_major, v = 2 * M_PI * j / n_minor;
+            m.vertices.row(id(i, j)) << (R + r * std::cos(v)) * std::cos(u), (R + r * std::cos(v)) * std::sin(u),
+                r * std::sin(v);
+        }
+    // u around the z axis, v around the tube: (∂u × ∂v) points outward.
+    for (int i = 0; i < n_major; ++i)
+        for (int j = 0; j < n_minor; ++j) {
+            const std::uint32_t a = id(i, j), b = id(i + 1, j), c = id(i + 1, j + 1), d = id(i, j + 1);
+            m.add_face({a, b, c});
+            m.add_face({a, c, d});
+        }
+    return m;
+}
+
+PolygonMesh double_torus_mesh(int n) {
+    if (n < 16 || n > 1024) throw Error("double_torus_mesh", "grid size must be in 16..1024");
+    // Two tori (R 0.5, r 0.2) around the z axis, centers 0.85 apart: their tubes merge in the
+    // middle into one genus-2 surface, the zero set of the smaller of their distances.
+    const Box box{Eigen::Vector3d(-1.3, -1.3, -1.3), Eigen::Vector3d(1.3, 1.3, 1.3)};
+    const GridSpec g = GridSpec::cube(n, box);
+    const Points nodes = g.nodes();
+    std::vector<float> v(g.node_count());
+    for (Eigen::Index i = 0; i < nodes.rows(); ++i) {
+        const Eigen::Vector3d x = nodes.row(i).transpose();
+        double d = INFINITY;
+        for (double cx : {-0.425, 0.425}) {
+            const double q = std::hypot(x.x() - cx, x.y()) - 0.5;
+            d = std::min(d, std::hypot(q, x.z()) - 0.2);
+        }
+        v[std::size_t(i)] = float(d);
+    }
+    return contour(g, v, 0.0);
 }
 
 }  // namespace gsd::shapes

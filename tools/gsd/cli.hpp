@@ -74,5 +74,7 @@ std::string peak_memory();
 void add_shm_surface(CLI::App& shm);
 /// `gsd curve` (tools/gsd/surface.cpp): curves on meshes for demos and tests.
 void add_curve(CLI::App& app);
+/// `gsd swn` (tools/gsd/swn.cpp): Surface Winding Numbers.
+void add_swn(CLI::App& app);
 
 }  // namespace gsd::cli

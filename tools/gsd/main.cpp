@@ -473,6 +473,7 @@ int main(int argc, char** argv) {
     add_sample(app);
     add_mesh(app);
     add_curve(app);
+    add_swn(app);
     add_info(app);
     try {
         app.parse(argc, argv);

@@ -1,0 +1,106 @@
+// gsd/swn.hpp — Surface Winding Numbers (thesis ch. 6): inside/outside of broken curves on
+// surfaces of any topology. From oriented curves on a triangle mesh it completes the curves,
+// labels the regions they bound with integer winding numbers, and separates the loops that
+// bound nothing (around a handle, say), which naive rounding of a jump harmonic function gets
+// wrong.
+//
+//   gsd::SurfaceMesh mesh(gsd::io::read_mesh("torus.obj"));
+//   gsd::SurfaceWindingNumbers swn(mesh);                       // operators cached per mesh
+//   gsd::SwnResult r = swn.solve(gsd::read_surface_curves("loops.txt", mesh));
+//   // r.labels[f]: winding number of input face f; r.nonbounding: the loops that bound nothing
+//
+// Sign convention (as everywhere in gsd): a counter-clockwise loop (seen from the side the face
+// normals point to) has winding number +1 on its left, 0 outside. docs/swn.md has the method.
+#pragma once
+
+#include <gsd/core.hpp>
+#include <gsd/surface.hpp>
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace gsd {
+
+/// How step ④ finds the residual function whose jumps are the nonbounding curves (only on
+/// surfaces that are not simply connected).
+enum class SwnResidual {
+    Full,     ///< the linear program over every face (minimal L1 jumps, thesis §6.1)
+    Reduced,  ///< the same program over the components of a shortest-path cut (fig. 6.11)
+    None,     ///< skip: labels from rounding the jump harmonic function u (the naive baseline)
+};
+SwnResidual swn_residual_from_name(const std::string& name);  // "full" | "reduced" | "none"
+
+/// How the residual's linear program is solved. Both give an optimum of the same program; where
+/// it has several (ties), they may pick different ones.
+enum class SwnSolver {
+    Network,  ///< network simplex on its dual, a minimum-cost circulation (LEMON): exact on data
+              ///< rounded to ~2⁻²⁸ of its range, and much faster
+    Clp,      ///< COIN-OR CLP's dual simplex on the program as written in the thesis
+};
+SwnSolver swn_solver_from_name(const std::string& name);  // "network" | "clp"
+
+struct SwnOptions {
+    SwnResidual residual = SwnResidual::Full;
+    SwnSolver solver = SwnSolver::Network;
+    /// Cost per unit length of a jump of the residual along an input curve, relative to a jump
+    /// anywhere else (ε of the linear program): small, so nonbounding curves are read off the
+    /// input where they run and completed elsewhere only across gaps.
+    double curve_weight = 1e-3;
+    /// Thesis §6.2: on meshes with boundary, replace the jump solution's derivative near the
+    /// boundary by the vector-diffused one, so labels near the boundary behave like free-space
+    /// winding numbers instead of bending to meet it at right angles.
+    bool boundary_aware = false;
+};
+
+/// A curve decomposition as 3D polylines (edges of the mesh SWN ran on).
+using Polylines = std::vector<std::vector<Eigen::Vector3d>>;
+
+struct SwnResult {
+    std::vector<int> labels;                     ///< per input face: the rounded winding number
+    std::vector<std::array<double, 3>> w;        ///< per triangle (SurfaceMesh numbering) and corner
+    std::vector<int> naive_labels;               ///< per input face: rounding of u (no step ②–⑤)
+    Polylines bounding;                          ///< input curves that bound regions
+    Polylines nonbounding;                       ///< input curves that bound nothing
+    Polylines completed;                         ///< where the nonbounding curves were completed
+    bool simply_connected = true;                ///< every component a disk or a sphere: steps ②–⑤ skipped
+    bool split = false;                          ///< curves off the edges: solved on a mesh cut along them
+    std::size_t lp_variables = 0, lp_rows = 0;   ///< size of the residual's linear program
+    double lp_objective = 0;                     ///< Σ length·|jump| of the residual (curve_weight on curves)
+    double lp_violation = 0;                     ///< how far a jump on a curve leaves [0, multiplicity] (0: none)
+    double seconds_jump = 0, seconds_hodge = 0, seconds_residual = 0, seconds_boundary = 0, seconds_total = 0;
+};
+
+/// The SWN solver: one per mesh. The mesh must be manifold and consistently oriented (SWN reads
+/// curves' sides from the orientation); other meshes get a clear error (the surface Signed Heat
+/// Method works on them: shm_labels). Boundaries and several components are fine.
+class SurfaceWindingNumbers {
+public:
+    explicit SurfaceWindingNumbers(SurfaceMesh mesh);
+    ~SurfaceWindingNumbers();
+    SurfaceWindingNumbers(SurfaceWindingNumbers&&) noexcept;
+    SurfaceWindingNumbers& operator=(SurfaceWindingNumbers&&) noexcept;
+
+    /// Curves must be signed (oriented); points are not used. Curves along mesh edges are solved
+    /// on the mesh itself; curves with nodes on edges or inside triangles on a copy of the mesh
+    /// cut along them (labels then go to each input face by area majority).
+    SwnResult solve(const SurfaceSources& curves, const SwnOptions& options = {}, const ProgressFn& progress = {});
+
+    const SurfaceMesh& mesh() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+/// Inside/outside from the sign of a surface signed distance (thesis §7.1): label 1 for faces
+/// whose mean φ over their corners is negative, 0 otherwise; per input face, area majority.
+std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi);
+
+/// Share of the area where labels differ, after the best global integer shift of `labels` when
+/// `up_to_shift` (closed surfaces: winding numbers are defined up to a constant there).
+double mislabeled_area(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth,
+                       bool up_to_shift);
+
+}  // namespace gsd

@@ -1,0 +1,1119 @@
+// Surface Winding Numbers (thesis §6.1): ① the jump Laplace equation on corners, ② its Darboux
+// derivative ω, ③ the harmonic part γ by Hodge decomposition, ④ a residual function v that
+// integrates γ with minimal L1 jumps (a linear program), ⑤ the curves minus v's jumps as the
+// bounding part, solved again for the winding number w.
+//
+// Functions with jumps live on corners: u(corner) = u_vertex + offset(corner), the offsets
+// accumulating the curve's multiplicities while walking around the vertex. Vertices where they
+// do not add up to zero (interior ends of open curves) are left out of the system.
+#include <gsd/swn.hpp>
+
+#include "surface/cholesky.hpp"
+#include "surface/curves.hpp"
+#include "surface/operators.hpp"
+#include "surface/split.hpp"
+#include "surface/tension.hpp"
+#include "surface/topology.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <numeric>
+#include <optional>
+#include <queue>
+
+namespace gsd {
+
+namespace {
+
+using surface::Adjacency;
+using surface::Cholesky;
+using surface::corner_face;
+using surface::corner_id;
+using surface::corner_index;
+using surface::SparseLower;
+using surface::Topology;
+using surface::Triangulation;
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+constexpr std::uint32_t kNone = UINT32_MAX;
+const double kNan = std::numeric_limits<double>::quiet_NaN();
+
+// ---- manifold connectivity ------------------------------------------------------------------
+
+/// Twins, corner fans around vertices and cotan weights of a manifold, oriented mesh.
+struct Halfedges {
+    const Topology* t = nullptr;
+    std::vector<std::uint32_t> twin;   ///< per halfedge 3f+k, kNone on the boundary
+    std::vector<double> cot_weight;    ///< per halfedge: ½ cot of the angle across it (0: degenerate face)
+    // Fans: the corners at a vertex, counter-clockwise; a vertex has one fan, or several if it
+    // is a bowtie. fan_of[c] indexes fans.
+    std::vector<std::uint32_t> fan_corners, fan_begin{0}, fan_vertex, fan_of;
+    std::vector<std::uint8_t> fan_closed;
+
+    std::size_t fans() const { return fan_vertex.size(); }
+};
+
+/// The corner after corner c counter-clockwise around its vertex, or kNone at the boundary.
+std::uint32_t ccw(const Halfedges& H, std::uint32_t c) {
+    const std::uint32_t f = corner_face(c);
+    const int k = corner_index(c);
+    const std::uint32_t h = H.twin[corner_id(f, (k + 2) % 3)];  // across the incoming halfedge
+    return h == kNone ? kNone : h;  // the twin leaves the vertex: its id is the corner there
+}
+
+/// The corner before corner c (clockwise), or kNone at the boundary.
+std::uint32_t cw(const Halfedges& H, std::uint32_t c) {
+    const std::uint32_t h = H.twin[c];  // across the outgoing halfedge (id 3f+k = corner id)
+    if (h == kNone) return kNone;
+    return corner_id(corner_face(h), (corner_index(h) + 1) % 3);
+}
+
+Halfedges build_halfedges(const Topology& t) {
+    const Triangulation& T = t.mesh;
+    Halfedges H;
+    H.t = &t;
+    std::size_t nonmanifold = 0, misoriented = 0;
+    H.twin.assign(3 * T.face_count(), kNone);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        const std::size_t n = t.edge_halfedges.count(e);
+        if (n > 2) ++nonmanifold;
+        if (n != 2) continue;
+        const std::uint32_t a = t.edge_halfedges.begin(e)[0], b = t.edge_halfedges.begin(e)[1];
+        if (T.aligned[corner_face(a)][std::size_t(corner_index(a))] == T.aligned[corner_face(b)][std::size_t(corner_index(b))]) {
+            ++misoriented;
+            continue;
+        }
+        H.twin[a] = b;
+        H.twin[b] = a;
+    }
+    if (nonmanifold || misoriented)
+        throw Error("mesh", "surface winding numbers need a manifold, consistently oriented mesh: " +
+                                std::to_string(nonmanifold) + " edges have more than two faces and " +
+                                std::to_string(misoriented) +
+                                " join faces that disagree on orientation (the surface Signed Heat Method works on "
+                                "such meshes: `gsd swn --method shm`)");
+    H.cot_weight.assign(3 * T.face_count(), 0.0);
+    for (std::size_t f = 0; f < T.face_count(); ++f) {
+        if (t.face_areas[f] <= 0) continue;
+        const surface::FaceFrame F = surface::face_frame(T, f, t.face_areas[f]);
+        for (int k = 0; k < 3; ++k) H.cot_weight[corner_id(f, k)] = 0.5 * F.cot[std::size_t((k + 2) % 3)];
+    }
+    // Fans: from each unvisited corner walk clockwise to the fan's first corner, then collect.
+    H.fan_of.assign(3 * T.face_count(), kNone);
+    for (std::uint32_t c0 = 0; c0 < 3 * T.face_count(); ++c0) {
+        if (H.fan_of[c0] != kNone) continue;
+        std::uint32_t start = c0;
+        bool closed = false;
+        for (std::uint32_t c = cw(H, c0); c != kNone; c = cw(H, c)) {
+            if (c == c0) {
+                closed = true;
+                break;
+            }
+            start = c;
+        }
+        if (closed) start = c0;
+        const auto fan = std::uint32_t(H.fan_vertex.size());
+        for (std::uint32_t c = start; c != kNone && H.fan_of[c] == kNone; c = ccw(H, c)) {
+            H.fan_of[c] = fan;
+            H.fan_corners.push_back(c);
+        }
+        H.fan_begin.push_back(std::uint32_t(H.fan_corners.size()));
+        H.fan_vertex.push_back(T.faces[corner_face(c0)][std::size_t(corner_index(c0))]);
+        H.fan_closed.push_back(closed);
+    }
+    return H;
+}
+
+// ---- the jump Laplace equation (step ①, and the final solve) -----------------------------------
+
+/// Corner offsets of a function that jumps by chain[e] across each edge (left side − right side,
+/// "left" of the edge's direction), and the vertices where the jumps around do not close.
+struct JumpData {
+    std::vector<double> offset;          ///< per corner
+    std::vector<std::uint8_t> endpoint;  ///< per vertex: an interior end of the curves
+};
+
+/// Crossing from the corner c counter-clockwise into the next face: the jump of a function
+/// whose jumps are `chain` (it drops by chain[e] leaving the left side of edge e).
+double crossing_jump(const Triangulation& T, std::uint32_t c, const std::vector<double>& chain) {
+    const std::uint32_t f = corner_face(c);
+    const int h = (corner_index(c) + 2) % 3;  // the incoming halfedge: the edge crossed
+    const double g = chain[T.face_edges[f][std::size_t(h)]];
+    return T.aligned[f][std::size_t(h)] ? -g : g;
+}
+
+JumpData jump_offsets(const Halfedges& H, const std::vector<double>& chain, const std::vector<std::uint8_t>* endpoints) {
+    const Triangulation& T = H.t->mesh;
+    JumpData J;
+    J.offset.assign(3 * T.face_count(), 0.0);
+    J.endpoint.assign(T.vertex_count, 0);
+    for (std::size_t fan = 0; fan < H.fans(); ++fan) {
+        const std::uint32_t* c = H.fan_corners.data() + H.fan_begin[fan];
+        const std::size_t n = H.fan_begin[fan + 1] - H.fan_begin[fan];
+        double total = 0;
+        for (std::size_t i = 0; i < n; ++i) {
+            J.offset[c[i]] = total;
+            if (i + 1 < n || H.fan_closed[fan]) total += crossing_jump(T, c[i], chain);
+        }
+        // Around an interior vertex the jumps must add up to zero, else the curves end there.
+        if (H.fan_closed[fan] && std::abs(total) > 0.5) J.endpoint[H.fan_vertex[fan]] = 1;
+    }
+    if (endpoints) J.endpoint = *endpoints;
+    return J;
+}
+
+/// One end of an outer boundary edge in the boundary-aware solve: weight·(u_vertex + offset)²
+/// joins the energy, offset read at `corner` (the edge's face's corner at the vertex).
+struct RobinTerm {
+    std::uint32_t vertex = 0, corner = 0;
+    double weight = 0;
+};
+
+/// The weight of side k of face f (a → a') in the jump Laplace equation. Curve ends have no value
+/// of u: sides touching one are left out (their faces' other side stays, so the function still
+/// feels the neighbours across the end's one-ring). That side alone must not carry a negative
+/// weight (an obtuse angle at the end), or K would lose definiteness: it is clamped at 0.
+double side_weight(const Halfedges& H, std::size_t f, int k, const std::vector<std::uint8_t>& endpoint) {
+    const Triangulation& T = H.t->mesh;
+    const std::uint32_t a = T.faces[f][std::size_t(k)], b = T.faces[f][std::size_t((k + 1) % 3)];
+    if (a == b || endpoint[a] || endpoint[b]) return 0.0;
+    const double w = H.cot_weight[corner_id(f, k)];
+    return endpoint[T.faces[f][std::size_t((k + 2) % 3)]] ? std::max(w, 0.0) : w;
+}
+
+/// K with the endpoint rows replaced by the identity, always the same pattern (K's), so the
+/// analysis of the first factorization serves every later curve.
+SparseLower<double> jump_matrix(const Halfedges& H, const std::vector<std::uint8_t>& endpoint,
+                                const std::vector<RobinTerm>* robin = nullptr) {
+    const Triangulation& T = H.t->mesh;
+    SparseLower<double> K(T.vertex_count);
+    K.reserve(6 * T.face_count() + T.vertex_count);
+    std::vector<double> diagonal(T.vertex_count, 0.0);
+    for (std::size_t f = 0; f < T.face_count(); ++f)
+        for (int k = 0; k < 3; ++k) {
+            const std::uint32_t a = T.faces[f][std::size_t(k)], b = T.faces[f][std::size_t((k + 1) % 3)];
+            const double w = side_weight(H, f, k, endpoint);
+            diagonal[a] += w;
+            diagonal[b] += w;
+            if (a != b) K.add(std::max(a, b), std::min(a, b), -w);
+        }
+    double mean = 0;
+    for (double d : diagonal) mean += d;
+    mean /= double(std::max<std::size_t>(T.vertex_count, 1));
+    // A tiny shift keeps K definite (constant nullspace per component, vertices cut off by the
+    // endpoints); the labels are normalized afterwards.
+    if (robin)
+        for (const RobinTerm& r : *robin)
+            if (!endpoint[r.vertex]) diagonal[r.vertex] += r.weight;
+    for (std::size_t v = 0; v < T.vertex_count; ++v)
+        K.add(v, v, endpoint[v] || diagonal[v] <= 0 ? 1.0 : diagonal[v] + 1e-10 * mean);
+    return K;
+}
+
+/// The right-hand side of min Σ w (u_c + o_c − u_a − o_a)² over the faces' sides a → c (the offsets
+/// o make u jump across the curves), plus Σ weight·(u + o)² over the Robin terms.
+std::vector<double> jump_rhs(const Halfedges& H, const JumpData& J, const std::vector<RobinTerm>* robin = nullptr) {
+    const Triangulation& T = H.t->mesh;
+    std::vector<double> b(T.vertex_count, 0.0);
+    for (std::size_t f = 0; f < T.face_count(); ++f)
+        for (int k = 0; k < 3; ++k) {
+            const std::uint32_t a = T.faces[f][std::size_t(k)], c = T.faces[f][std::size_t((k + 1) % 3)];
+            const double w = side_weight(H, f, k, J.endpoint);
+            if (w == 0) continue;
+            // The offsets' difference moves to the right-hand side.
+            const double d = J.offset[corner_id(f, (k + 1) % 3)] - J.offset[corner_id(f, k)];
+            b[a] += w * d;
+            b[c] -= w * d;
+        }
+    if (robin)
+        for (const RobinTerm& r : *robin)
+            if (!J.endpoint[r.vertex]) b[r.vertex] -= r.weight * J.offset[r.corner];
+    return b;
+}
+
+/// u per corner from vertex values and offsets; NaN at corners of endpoints.
+std::vector<double> corner_values(const Triangulation& T, const std::vector<double>& u_vertex, const JumpData& J) {
+    std::vector<double> u(3 * T.face_count());
+    for (std::size_t f = 0; f < T.face_count(); ++f)
+        for (int k = 0; k < 3; ++k) {
+            const std::uint32_t v = T.faces[f][std::size_t(k)];
+            u[corner_id(f, k)] = J.endpoint[v] ? kNan : u_vertex[v] + J.offset[corner_id(f, k)];
+        }
+    return u;
+}
+
+// ---- steps ② and ③ -------------------------------------------------------------------------------
+
+/// ω = Du: per edge, along its direction, the change of u across it averaged over its faces
+/// (jumps forgotten). 0 at edges touching an endpoint.
+std::vector<double> darboux_derivative(const Topology& t, const std::vector<double>& u, const JumpData& J) {
+    const Triangulation& T = t.mesh;
+    std::vector<double> omega(T.edge_count(), 0.0);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (J.endpoint[T.edges[e][0]] || J.endpoint[T.edges[e][1]]) continue;
+        double sum = 0;
+        int n = 0;
+        for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
+            const std::uint32_t f = corner_face(*h);
+            const int k = corner_index(*h);
+            const double d = u[corner_id(f, (k + 1) % 3)] - u[corner_id(f, k)];
+            sum += T.aligned[f][std::size_t(k)] ? d : -d;
+            ++n;
+        }
+        if (n) omega[e] = sum / n;
+    }
+    return omega;
+}
+
+/// ⋆1⁻¹ per edge: 1/(cotan weight), kept in [.., 1000] and 1 where the weight is not positive
+/// (non-Delaunay edges), as in the reference.
+std::vector<double> inverse_hodge1(const Halfedges& H) {
+    const Topology& t = *H.t;
+    std::vector<double> inv(t.mesh.edge_count(), 1.0);
+    for (std::size_t e = 0; e < t.mesh.edge_count(); ++e) {
+        double w = 0;
+        for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) w += H.cot_weight[*h];
+        const double x = 1.0 / w;
+        inv[e] = !std::isfinite(x) || x <= 0 ? 1.0 : std::min(x, 1000.0);
+    }
+    return inv;
+}
+
+// ---- step ④: the residual function ----------------------------------------------------------
+
+/// v integrated face by face from γ (corner 0 of each face at 0).
+std::vector<double> integrate_in_faces(const Triangulation& T, const std::vector<double>& gamma) {
+    std::vector<double> v(3 * T.face_count(), 0.0);
+    for (std::size_t f = 0; f < T.face_count(); ++f)
+        for (int k = 0; k < 2; ++k) {
+            const double g = gamma[T.face_edges[f][std::size_t(k)]];
+            v[corner_id(f, k + 1)] = v[corner_id(f, k)] + (T.aligned[f][std::size_t(k)] ? g : -g);
+        }
+    return v;
+}
+
+/// The jump of a corner function across interior edge e, left face minus right face, at the
+/// edge's first vertex; and the two faces.
+struct EdgeSides {
+    std::uint32_t left = kNone, right = kNone;  // faces whose halfedge runs with / against the edge
+    std::uint32_t left_corner = kNone, right_corner = kNone;  // their corners at edges[e][0]
+};
+
+EdgeSides sides(const Topology& t, std::size_t e) {
+    EdgeSides s;
+    const Triangulation& T = t.mesh;
+    for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
+        const std::uint32_t f = corner_face(*h);
+        const int k = corner_index(*h);
+        if (T.aligned[f][std::size_t(k)]) {
+            s.left = f;
+            s.left_corner = corner_id(f, k);  // the halfedge starts at the edge's first vertex
+        } else {
+            s.right = f;
+            s.right_corner = corner_id(f, (k + 1) % 3);
+        }
+    }
+    return s;
+}
+
+/// The residual's linear program, over groups of faces that move together (every face alone:
+/// the full program; the components of a cut: the reduced one). Minimizes Σ length_e |J_e| over
+/// the edges between different groups, J_e = v_left − v_right; on input curve edges J_e must
+/// lie between 0 and the curve's multiplicity ("no extra loops") and costs curve_weight per
+/// length. Returns the shift of each group.
+struct ResidualLp {
+    std::vector<double> shift;
+    std::size_t variables = 0, rows = 0;
+    double objective = 0, violation = 0;
+};
+
+ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, const std::vector<std::uint32_t>& group,
+                             std::size_t groups, const std::vector<double>& chain, const SwnOptions& o) {
+    const Triangulation& T = t.mesh;
+    surface::TensionProblem p;
+    p.nodes = groups;
+    // Costs in units of the mean edge length: near 1 whatever the mesh's scale.
+    const double unit = 1.0 / surface::mean_edge_length(T, t.face_areas);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        const EdgeSides s = sides(t, e);
+        if (s.left == kNone || s.right == kNone) continue;
+        surface::TensionProblem::Edge edge;
+        edge.left = group[s.left];
+        edge.right = group[s.right];
+        if (edge.left == edge.right) continue;
+        edge.offset = v0[s.left_corner] - v0[s.right_corner];
+        // Zero-length edges still cost a little: every cost must be positive.
+        edge.cost = std::max(T.edge_lengths[e] * unit, 1e-9);
+        const double m = chain[e];
+        if (std::abs(m) > 1e-9) {
+            edge.cost *= o.curve_weight;
+            edge.lo = std::min(0.0, m);
+            edge.hi = std::max(0.0, m);
+        }
+        p.edges.push_back(edge);
+    }
+    const surface::TensionSolution s =
+        o.solver == SwnSolver::Clp ? surface::solve_tension_lp(p) : surface::solve_tension_network(p);
+    ResidualLp r;
+    r.shift = s.x;
+    r.variables = groups + 2 * p.edges.size();  // as a linear program: shifts and |J|'s two parts
+    r.rows = p.edges.size();
+    r.objective = s.objective / unit;
+    r.violation = s.violation;
+    return r;
+}
+
+/// Jumps of a corner function across every interior edge (left − right at the first vertex).
+std::vector<double> edge_jumps(const Topology& t, const std::vector<double>& v) {
+    std::vector<double> J(t.mesh.edge_count(), 0.0);
+    for (std::size_t e = 0; e < t.mesh.edge_count(); ++e) {
+        const EdgeSides s = sides(t, e);
+        if (s.left != kNone && s.right != kNone) J[e] = v[s.left_corner] - v[s.right_corner];
+    }
+    return J;
+}
+
+// ---- the reduced program's cut ----------------------------------------------------------------
+
+/// Shortest paths along edges (Dijkstra, edge lengths) from each interior curve end to the nearest
+/// end of the opposite sign, paired greedily: where broken nonbounding curves get completed.
+std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<double>& chain,
+                                           const std::vector<std::uint8_t>& endpoint) {
+    const Triangulation& T = t.mesh;
+    std::vector<std::uint8_t> on_path(T.edge_count(), 0);
+    // Signed multiplicity of each end: the chain's boundary there.
+    std::map<std::uint32_t, double> ends;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (chain[e] == 0) continue;
+        if (endpoint[T.edges[e][0]]) ends[T.edges[e][0]] -= chain[e];
+        if (endpoint[T.edges[e][1]]) ends[T.edges[e][1]] += chain[e];
+    }
+    std::vector<std::pair<std::uint32_t, bool>> open;  // (vertex, sign) once per unit of multiplicity
+    for (const auto& [v, m] : ends)
+        for (long k = 0; k < std::lround(std::abs(m)); ++k) open.push_back({v, m > 0});
+    // Vertex adjacency through edges.
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(T.vertex_count);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        const auto [a, b] = T.edges[e];
+        if (a == b) continue;
+        nbr[a].push_back({b, std::uint32_t(e)});
+        nbr[b].push_back({a, std::uint32_t(e)});
+    }
+    while (!open.empty()) {
+        const auto [start, sign] = open.back();
+        open.pop_back();
+        std::map<std::uint32_t, std::size_t> targets;
+        for (std::size_t i = 0; i < open.size(); ++i)
+            if (open[i].second != sign) targets.emplace(open[i].first, i);
+        if (targets.empty()) continue;
+        std::map<std::uint32_t, std::pair<double, std::uint32_t>> best;  // vertex → (distance, edge in)
+        using Item = std::pair<double, std::uint32_t>;
+        std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+        best[start] = {0.0, kNone};
+        heap.push({0.0, start});
+        std::uint32_t found = kNone;
+        while (!heap.empty()) {
+            const auto [d, v] = heap.top();
+            heap.pop();
+            if (d > best[v].first) continue;
+            if (v != start && targets.count(v)) {
+                found = v;
+                break;
+            }
+            for (const auto& [w, e] : nbr[v]) {
+                const double nd = d + T.edge_lengths[e];
+                auto it = best.find(w);
+                if (it == best.end() || nd < it->second.first) {
+                    best[w] = {nd, e};
+                    heap.push({nd, w});
+                }
+            }
+        }
+        if (found == kNone) continue;
+        for (std::uint32_t v = found; v != start;) {
+            const std::uint32_t e = best[v].second;
+            on_path[e] = 1;
+            v = T.edges[e][0] == v ? T.edges[e][1] : T.edges[e][0];
+        }
+        open.erase(open.begin() + std::ptrdiff_t(targets[found]));
+    }
+    return on_path;
+}
+
+/// A cut graph: edges whose removal leaves every component of the mesh a disk (tree–cotree:
+/// a spanning tree of vertices by shortest paths, a spanning tree of faces across the other
+/// edges, and the edges in neither, each closed into a loop through the vertex tree). Within a
+/// component of the mesh minus the cut, every loop bounds, so a closed 1-form integrates
+/// without ambiguity.
+std::vector<std::uint8_t> cut_graph(const Topology& t) {
+    const Triangulation& T = t.mesh;
+    const std::size_t V = T.vertex_count, E = T.edge_count(), F = T.face_count();
+    // Shortest-path tree of vertices (per component).
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(V);
+    for (std::size_t e = 0; e < E; ++e) {
+        const auto [a, b] = T.edges[e];
+        if (a == b) continue;
+        nbr[a].push_back({b, std::uint32_t(e)});
+        nbr[b].push_back({a, std::uint32_t(e)});
+    }
+    std::vector<double> dist(V, INFINITY);
+    std::vector<std::uint32_t> parent_edge(V, kNone);
+    std::vector<std::uint8_t> in_tree(E, 0);
+    for (std::uint32_t root = 0; root < V; ++root) {
+        if (dist[root] < INFINITY || nbr[root].empty()) continue;
+        using Item = std::pair<double, std::uint32_t>;
+        std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+        dist[root] = 0;
+        heap.push({0.0, root});
+        while (!heap.empty()) {
+            const auto [d, v] = heap.top();
+            heap.pop();
+            if (d > dist[v]) continue;
+            for (const auto& [w, e] : nbr[v]) {
+                const double nd = d + T.edge_lengths[e];
+                if (nd < dist[w]) {
+                    dist[w] = nd;
+                    parent_edge[w] = e;
+                    heap.push({nd, w});
+                }
+            }
+        }
+    }
+    for (std::size_t v = 0; v < V; ++v)
+        if (parent_edge[v] != kNone) in_tree[parent_edge[v]] = 1;
+    // Spanning tree of faces across edges not in the vertex tree (the cotree).
+    std::vector<std::uint8_t> in_cotree(E, 0), seen(F, 0);
+    for (std::uint32_t f0 = 0; f0 < F; ++f0) {
+        if (seen[f0]) continue;
+        seen[f0] = 1;
+        std::vector<std::uint32_t> stack{f0};
+        while (!stack.empty()) {
+            const std::uint32_t f = stack.back();
+            stack.pop_back();
+            for (int k = 0; k < 3; ++k) {
+                const std::uint32_t e = T.face_edges[f][std::size_t(k)];
+                if (in_tree[e]) continue;
+                for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
+                    const std::uint32_t g = corner_face(*h);
+                    if (seen[g]) continue;
+                    seen[g] = 1;
+                    in_cotree[e] = 1;
+                    stack.push_back(g);
+                }
+            }
+        }
+    }
+    // Each edge in neither tree closes a homology loop: cut along it and its two tree paths to
+    // the root.
+    std::vector<std::uint8_t> cut(E, 0);
+    for (std::size_t e = 0; e < E; ++e) {
+        if (in_tree[e] || in_cotree[e] || t.edge_halfedges.count(e) < 2) continue;
+        cut[e] = 1;
+        for (std::uint32_t v : T.edges[e])
+            for (std::uint32_t w = v; parent_edge[w] != kNone;) {
+                const std::uint32_t pe = parent_edge[w];
+                if (cut[pe]) break;
+                cut[pe] = 1;
+                w = T.edges[pe][0] == w ? T.edges[pe][1] : T.edges[pe][0];
+            }
+    }
+    return cut;
+}
+
+/// Components of the faces across uncut edges, with γ integrated along a spanning tree of each
+/// (consistent: every loop inside a component bounds, and γ is closed).
+std::vector<std::uint32_t> cut_components(const Topology& t, const std::vector<std::uint8_t>& cut,
+                                          const std::vector<double>& gamma, std::vector<double>& v, std::size_t& count) {
+    const Triangulation& T = t.mesh;
+    const std::size_t F = T.face_count();
+    std::vector<std::uint32_t> comp(F, kNone);
+    v.assign(3 * F, 0.0);
+    count = 0;
+    auto fill_face = [&](std::uint32_t f, int k, double value) {  // corner k of f has `value`
+        v[corner_id(f, k)] = value;
+        for (int i = 0; i < 2; ++i) {
+            const int a = (k + i) % 3;
+            const double g = gamma[T.face_edges[f][std::size_t(a)]];
+            v[corner_id(f, (a + 1) % 3)] = v[corner_id(f, a)] + (T.aligned[f][std::size_t(a)] ? g : -g);
+        }
+    };
+    for (std::uint32_t f0 = 0; f0 < F; ++f0) {
+        if (comp[f0] != kNone) continue;
+        comp[f0] = std::uint32_t(count);
+        fill_face(f0, 0, 0.0);
+        std::vector<std::uint32_t> stack{f0};
+        while (!stack.empty()) {
+            const std::uint32_t f = stack.back();
+            stack.pop_back();
+            for (int k = 0; k < 3; ++k) {
+                const std::uint32_t e = T.face_edges[f][std::size_t(k)];
+                if (cut[e]) continue;
+                for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
+                    const std::uint32_t g = corner_face(*h);
+                    if (comp[g] != kNone) continue;
+                    comp[g] = std::uint32_t(count);
+                    // The corner of g at f's corner k (the halfedge's tail in f is its head in g).
+                    const int j = corner_index(*h);
+                    fill_face(g, (j + 1) % 3, v[corner_id(f, k)]);
+                    stack.push_back(g);
+                }
+            }
+        }
+        ++count;
+    }
+    return comp;
+}
+
+// ---- thesis §6.2: boundary-aware winding numbers -------------------------------------------------
+
+/// The Robin terms of the boundary-aware solve. The jump Laplace equation's natural (Neumann)
+/// condition makes w's level sets meet the boundary at right angles; the winding number of the
+/// same curves in free space has no such condition. Outside a disk of radius R, a field
+/// decaying like a dipole (what a loop looks like from afar) obeys ∂w/∂n = −w/R at the disk's
+/// rim, so this "absorbing" condition on the outer boundary loop of each component, with R the
+/// radius of a disk of the component's area, lets w leave the surface as if it went on. Inner
+/// boundary loops (holes) keep the natural condition: free space goes on through a hole.
+std::vector<RobinTerm> robin_terms(const Topology& t) {
+    const Triangulation& T = t.mesh;
+    // Boundary loops: boundary edges joined through shared vertices.
+    std::vector<std::uint32_t> parent(T.vertex_count);
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto root = [&](std::uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    std::vector<std::uint32_t> boundary;
+    for (std::size_t e = 0; e < T.edge_count(); ++e)
+        if (t.edge_halfedges.count(e) == 1 && !t.degenerate(corner_face(t.edge_halfedges.begin(e)[0]))) {
+            boundary.push_back(std::uint32_t(e));
+            parent[root(T.edges[e][0])] = root(T.edges[e][1]);
+        }
+    std::map<std::uint32_t, double> loop_length;
+    std::map<std::uint32_t, std::uint32_t> loop_component;
+    for (std::uint32_t e : boundary) {
+        const std::uint32_t r = root(T.edges[e][0]);
+        loop_length[r] += T.edge_lengths[e];
+        loop_component[r] = t.face_component[corner_face(t.edge_halfedges.begin(e)[0])];
+    }
+    std::map<std::uint32_t, std::uint32_t> outer;  // component → its longest loop
+    for (const auto& [loop, length] : loop_length) {
+        auto [it, fresh] = outer.emplace(loop_component[loop], loop);
+        if (!fresh && length > loop_length[it->second]) it->second = loop;
+    }
+    std::map<std::uint32_t, double> area;
+    for (std::size_t f = 0; f < T.face_count(); ++f)
+        if (!t.degenerate(f)) area[t.face_component[f]] += t.face_areas[f];
+    std::vector<RobinTerm> terms;
+    for (std::uint32_t e : boundary) {
+        const std::uint32_t loop = root(T.edges[e][0]);
+        const std::uint32_t component = loop_component[loop];
+        if (outer[component] != loop) continue;
+        const double alpha = 1.0 / std::sqrt(area[component] / M_PI);
+        const std::uint32_t h = t.edge_halfedges.begin(e)[0];
+        const std::uint32_t f = corner_face(h);
+        for (int k : {corner_index(h), (corner_index(h) + 1) % 3})
+            terms.push_back({T.faces[f][std::size_t(k)], corner_id(f, k), 0.5 * alpha * T.edge_lengths[e]});
+    }
+    return terms;
+}
+
+// ---- labels and polylines ------------------------------------------------------------------
+
+/// Per triangle: the mean of its defined corner values.
+std::vector<double> face_means(const Triangulation& T, const std::vector<double>& corner) {
+    std::vector<double> m(T.face_count(), 0.0);
+    for (std::size_t f = 0; f < T.face_count(); ++f) {
+        double s = 0;
+        int n = 0;
+        for (int k = 0; k < 3; ++k)
+            if (std::isfinite(corner[corner_id(f, k)])) {
+                s += corner[corner_id(f, k)];
+                ++n;
+            }
+        m[f] = n ? s / n : 0.0;
+    }
+    return m;
+}
+
+/// The shift that puts the curves at half-integer levels of a jump function f: the mean value
+/// of f just outside the curves (the side it jumps down to; length-weighted) moves to the
+/// nearest integer, so rounding cuts halfway up each jump. Without it, rounding broken curves'
+/// functions (values drift between gaps) can flip whole regions (the thesis' contouring).
+double contour_shift(const Topology& t, const std::vector<double>& f, const std::vector<double>& chain) {
+    const Triangulation& T = t.mesh;
+    double sum = 0, weight = 0;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (std::abs(chain[e]) < 0.5) continue;
+        for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
+            const std::uint32_t face = corner_face(*h);
+            const int k = corner_index(*h);
+            // chain > 0: f drops from the left face (halfedge along the edge) to the right one.
+            if (T.aligned[face][std::size_t(k)] == (chain[e] > 0)) continue;
+            const double a = f[*h], b = f[corner_id(face, (k + 1) % 3)];
+            const double m = std::isfinite(a) && std::isfinite(b) ? 0.5 * (a + b) : std::isfinite(a) ? a : b;
+            if (!std::isfinite(m)) continue;
+            sum += T.edge_lengths[e] * m;
+            weight += T.edge_lengths[e];
+        }
+    }
+    if (!(weight > 0)) return 0.0;
+    const double mean = sum / weight;
+    return std::round(mean) - mean;
+}
+
+/// Integer labels from face values, shifted so that the region outside every curve is 0: on a
+/// mesh with boundary, the label most of the boundary has; on a closed surface the smallest
+/// label (a counter-clockwise loop is +1 on its left, so the rest is the least).
+std::vector<int> normalized_labels(const Topology& t, const std::vector<double>& face_value, double shift) {
+    const Triangulation& T = t.mesh;
+    std::vector<int> label(T.face_count());
+    for (std::size_t f = 0; f < T.face_count(); ++f) label[f] = int(std::lround(face_value[f] + shift));
+    std::map<int, double> boundary;
+    for (std::size_t e = 0; e < T.edge_count(); ++e)
+        if (t.edge_halfedges.count(e) == 1) boundary[label[corner_face(t.edge_halfedges.begin(e)[0])]] += T.edge_lengths[e];
+    int zero = 0;
+    if (!boundary.empty()) {
+        zero = std::max_element(boundary.begin(), boundary.end(),
+                                [](const auto& a, const auto& b) { return a.second < b.second; })->first;
+    } else if (!label.empty()) {
+        zero = *std::min_element(label.begin(), label.end());
+    }
+    for (int& l : label) l -= zero;
+    return label;
+}
+
+/// Edges with |value| > ½ as 3D polylines along their direction (flipped where negative),
+/// chained where one ends where the next starts.
+Polylines chain_polylines(const Topology& t, const std::vector<double>& value) {
+    const Triangulation& T = t.mesh;
+    std::multimap<std::uint32_t, std::pair<std::uint32_t, std::uint32_t>> from;  // tail → (head, edge)
+    std::vector<std::uint8_t> used(T.edge_count(), 0);
+    std::map<std::uint32_t, int> indegree;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (std::abs(value[e]) <= 0.5) continue;
+        auto [a, b] = T.edges[e];
+        if (value[e] < 0) std::swap(a, b);
+        from.insert({a, {b, std::uint32_t(e)}});
+        ++indegree[b];
+    }
+    const Points& x = t.polygons.vertices;
+    Polylines out;
+    auto follow = [&](std::uint32_t v) {
+        std::vector<Eigen::Vector3d> line{x.row(v).transpose()};
+        for (;;) {
+            auto [lo, hi] = from.equal_range(v);
+            auto it = lo;
+            while (it != hi && used[it->second.second]) ++it;
+            if (it == hi) break;
+            used[it->second.second] = 1;
+            v = it->second.first;
+            line.push_back(x.row(v).transpose());
+        }
+        if (line.size() > 1) out.push_back(std::move(line));
+    };
+    for (const auto& [v, next] : from)
+        if (!indegree.count(v)) follow(v);
+    for (const auto& [v, next] : from)
+        if (!used[next.second]) follow(v);
+    return out;
+}
+
+// ---- the solver ---------------------------------------------------------------------------------
+
+/// Every connected component a disk or a sphere (genus 0, at most one boundary loop): then the
+/// jump harmonic function already labels regions and steps ②–⑤ are not needed.
+bool simply_connected(const Topology& t) {
+    const Triangulation& T = t.mesh;
+    const std::size_t F = T.face_count();
+    std::vector<std::uint32_t> parent(T.vertex_count);
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto root = [&](std::uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    for (std::size_t f = 0; f < F; ++f)
+        for (int k = 1; k < 3; ++k) parent[root(T.faces[f][std::size_t(k)])] = root(T.faces[f][0]);
+    struct Count {
+        long long v = 0, e = 0, f = 0;
+    };
+    std::map<std::uint32_t, Count> c;
+    for (std::uint32_t v = 0; v < T.vertex_count; ++v)
+        if (t.vertex_corners.count(v)) ++c[root(v)].v;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) ++c[root(T.edges[e][0])].e;
+    for (std::size_t f = 0; f < F; ++f) ++c[root(T.faces[f][0])].f;
+    // Boundary loops: components of the boundary edges' vertex graph.
+    std::vector<std::uint32_t> bparent(T.vertex_count);
+    std::iota(bparent.begin(), bparent.end(), 0u);
+    auto broot = [&](std::uint32_t x) {
+        while (bparent[x] != x) x = bparent[x] = bparent[bparent[x]];
+        return x;
+    };
+    std::vector<std::uint8_t> on_boundary(T.vertex_count, 0);
+    for (std::size_t e = 0; e < T.edge_count(); ++e)
+        if (t.edge_halfedges.count(e) == 1) {
+            on_boundary[T.edges[e][0]] = on_boundary[T.edges[e][1]] = 1;
+            bparent[broot(T.edges[e][0])] = broot(T.edges[e][1]);
+        }
+    std::map<std::uint32_t, long long> loops;
+    for (std::uint32_t v = 0; v < T.vertex_count; ++v)
+        if (on_boundary[v] && broot(v) == v) ++loops[root(v)];
+    for (const auto& [r, n] : c) {
+        const long long chi = n.v - n.e + n.f, b = loops.count(r) ? loops[r] : 0;
+        if (2 - chi - b != 0 || b > 1) return false;  // 2 − χ − b = 2·genus
+    }
+    return true;
+}
+
+/// What one run of the algorithm produces on the mesh it ran on (the input or a cut copy).
+struct CoreResult {
+    std::vector<double> u, w;  // per corner
+    std::vector<int> labels, naive_labels;  // per triangle
+    Polylines bounding, nonbounding, completed;
+    bool simply_connected = true;
+    std::size_t lp_variables = 0, lp_rows = 0;
+    double lp_objective = 0, lp_violation = 0, seconds_jump = 0, seconds_hodge = 0, seconds_residual = 0,
+           seconds_boundary = 0;
+};
+
+/// The operators of one mesh, built on first use and kept.
+struct Operators {
+    const Topology* t = nullptr;
+    Halfedges H;
+    bool simply_connected = true;
+    bool has_boundary = false;
+    std::optional<Cholesky<double>> jump;   // the first factor: its analysis serves later curves
+    std::optional<Cholesky<double>> hodge;  // d1 ⋆1⁻¹ d1ᵀ on faces
+    std::vector<double> inv_hodge;          // ⋆1⁻¹ per edge
+    std::vector<std::uint8_t> cut;          // the reduced program's cut graph
+    std::optional<std::vector<RobinTerm>> robin_;  // the boundary-aware condition
+
+    const std::vector<RobinTerm>& robin() {
+        if (!robin_) robin_ = robin_terms(*t);
+        return *robin_;
+    }
+
+    explicit Operators(const Topology& topology)
+        : t(&topology), H(build_halfedges(topology)), simply_connected(gsd::simply_connected(topology)) {
+        for (std::size_t e = 0; e < topology.mesh.edge_count() && !has_boundary; ++e)
+            has_boundary = topology.edge_halfedges.count(e) == 1;
+    }
+
+    Cholesky<double> factor_jump(const SparseLower<double>& K) {
+        if (!jump) {
+            jump.emplace(K);
+            return Cholesky<double>(*jump, K);
+        }
+        return Cholesky<double>(*jump, K);
+    }
+
+    /// γ = ω − δβ with d δβ = d ω: removes the co-exact part the curve ends put into ω.
+    std::vector<double> harmonic_part(const std::vector<double>& omega) {
+        const Triangulation& T = t->mesh;
+        const std::size_t F = T.face_count();
+        if (!hodge) {
+            inv_hodge = inverse_hodge1(H);
+            SparseLower<double> B(F);
+            std::vector<double> diagonal(F, 1e-8);
+            for (std::size_t e = 0; e < T.edge_count(); ++e) {
+                const EdgeSides s = sides(*t, e);
+                for (std::uint32_t f : {s.left, s.right})
+                    if (f != kNone) diagonal[f] += inv_hodge[e];
+                // The two faces enter d1 with opposite signs (left +, right −).
+                if (s.left != kNone && s.right != kNone) B.add(std::max(s.left, s.right), std::min(s.left, s.right), -inv_hodge[e]);
+            }
+            for (std::size_t f = 0; f < F; ++f) B.add(f, f, diagonal[f]);
+            hodge.emplace(B);
+        }
+        std::vector<double> d_omega(F, 0.0);  // d1 ω: circulation around each face
+        for (std::size_t f = 0; f < F; ++f)
+            for (int k = 0; k < 3; ++k) {
+                const double o = omega[T.face_edges[f][std::size_t(k)]];
+                d_omega[f] += T.aligned[f][std::size_t(k)] ? o : -o;
+            }
+        const std::vector<double> beta = hodge->solve(d_omega);
+        std::vector<double> gamma = omega;
+        for (std::size_t e = 0; e < T.edge_count(); ++e) {
+            const EdgeSides s = sides(*t, e);
+            double d1t = 0;  // (d1ᵀ β)_e
+            if (s.left != kNone) d1t += beta[s.left];
+            if (s.right != kNone) d1t -= beta[s.right];
+            gamma[e] -= inv_hodge[e] * d1t;
+        }
+        return gamma;
+    }
+};
+
+CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnOptions& o, const ProgressFn& progress) {
+    const Topology& t = *ops.t;
+    const Triangulation& T = t.mesh;
+    CoreResult r;
+    r.simply_connected = ops.simply_connected;
+    auto t0 = Clock::now();
+    if (progress) progress("jump Laplace equation", 0.1);
+    const JumpData J = jump_offsets(ops.H, chain, nullptr);
+    const Cholesky<double> K = ops.factor_jump(jump_matrix(ops.H, J.endpoint));
+    r.u = corner_values(T, K.solve(jump_rhs(ops.H, J)), J);
+    r.naive_labels = normalized_labels(t, face_means(T, r.u), contour_shift(t, r.u, chain));
+    r.seconds_jump = seconds_since(t0);
+    std::vector<double> bounding_chain = chain;
+    JumpData J_final = J;  // the jumps of w
+    if (!ops.simply_connected && o.residual != SwnResidual::None) {
+        t0 = Clock::now();
+        if (progress) progress("Hodge decomposition", 0.3);
+        const std::vector<double> omega = darboux_derivative(t, r.u, J);
+        const bool open = std::any_of(J.endpoint.begin(), J.endpoint.end(), [](std::uint8_t e) { return e != 0; });
+        const std::vector<double> gamma = open ? ops.harmonic_part(omega) : omega;
+        r.seconds_hodge = seconds_since(t0);
+        t0 = Clock::now();
+        if (progress) progress("residual function (linear program)", 0.5);
+        std::vector<double> v;
+        std::vector<std::uint32_t> group;
+        std::size_t groups = 0;
+        if (o.residual == SwnResidual::Full) {
+            v = integrate_in_faces(T, gamma);
+            group.resize(T.face_count());
+            std::iota(group.begin(), group.end(), 0u);
+            groups = T.face_count();
+        } else {
+            if (ops.cut.empty()) ops.cut = cut_graph(t);
+            std::vector<std::uint8_t> cut = ops.cut;
+            const std::vector<std::uint8_t> paths = completion_paths(t, chain, J.endpoint);
+            for (std::size_t e = 0; e < T.edge_count(); ++e) cut[e] = cut[e] || paths[e] || std::abs(chain[e]) > 1e-9;
+            group = cut_components(t, cut, gamma, v, groups);
+        }
+        const ResidualLp lp = solve_residual_lp(t, v, group, groups, chain, o);
+        for (std::size_t f = 0; f < T.face_count(); ++f)
+            for (int k = 0; k < 3; ++k) v[corner_id(f, k)] += lp.shift[group[f]];
+        r.lp_variables = lp.variables;
+        r.lp_rows = lp.rows;
+        r.lp_objective = lp.objective;
+        r.lp_violation = lp.violation;
+        // ⑤ The residual's jumps on the input curves are their nonbounding part; elsewhere they
+        // complete it. The bounding part is what remains of the curves.
+        const std::vector<double> jumps = edge_jumps(t, v);
+        std::vector<double> nonbounding(T.edge_count(), 0.0), completed(T.edge_count(), 0.0);
+        for (std::size_t e = 0; e < T.edge_count(); ++e) {
+            if (std::abs(chain[e]) > 1e-9) {
+                nonbounding[e] = jumps[e];
+                bounding_chain[e] = chain[e] - jumps[e];
+            } else {
+                completed[e] = jumps[e];
+            }
+        }
+        r.nonbounding = chain_polylines(t, nonbounding);
+        r.completed = chain_polylines(t, completed);
+        r.seconds_residual = seconds_since(t0);
+        t0 = Clock::now();
+        if (progress) progress("winding number", 0.9);
+        J_final = jump_offsets(ops.H, bounding_chain, &J.endpoint);
+        r.w = corner_values(T, K.solve(jump_rhs(ops.H, J_final)), J_final);
+        r.seconds_jump += seconds_since(t0);
+    } else {
+        r.w = r.u;
+    }
+    if (o.boundary_aware && ops.has_boundary) {
+        t0 = Clock::now();
+        if (progress) progress("boundary-aware winding number", 0.95);
+        const std::vector<RobinTerm>& robin = ops.robin();
+        const Cholesky<double> KR = ops.factor_jump(jump_matrix(ops.H, J.endpoint, &robin));
+        r.w = corner_values(T, KR.solve(jump_rhs(ops.H, J_final, &robin)), J_final);
+        r.seconds_boundary = seconds_since(t0);
+    }
+    r.bounding = chain_polylines(t, bounding_chain);
+    r.labels = normalized_labels(t, face_means(T, r.w), contour_shift(t, r.w, bounding_chain));
+    return r;
+}
+
+/// The chain of pieces that all run along edges between vertices (1 per piece along its
+/// direction), or nothing if some piece does not.
+std::optional<std::vector<double>> edge_chain(const Topology& t, const surface::ResolvedSources& S) {
+    const Triangulation& T = t.mesh;
+    std::vector<double> chain(T.edge_count(), 0.0);
+    auto vertex_of = [](const std::array<double, 3>& b) {
+        int k = -1;
+        for (int i = 0; i < 3; ++i)
+            if (b[std::size_t(i)] == 1.0) k = i;
+        return k;
+    };
+    for (const surface::CurvePiece& p : S.pieces) {
+        const int side = surface::piece_side(p.segment);
+        const int a = vertex_of(p.segment.a), b = vertex_of(p.segment.b);
+        if (side < 0 || a < 0 || b < 0 || a == b) return std::nullopt;
+        const std::uint32_t f = p.segment.face;
+        const std::uint32_t e = T.face_edges[f][std::size_t(side)];
+        const std::uint32_t from = T.faces[f][std::size_t(a)];
+        chain[e] += T.edges[e][0] == from ? 1.0 : -1.0;
+    }
+    return chain;
+}
+
+std::vector<int> majority_per_face(const SurfaceMesh& mesh, const std::vector<std::uint32_t>& triangle_face,
+                                   const std::vector<double>& areas, const std::vector<int>& labels) {
+    std::vector<std::map<int, double>> votes(mesh.face_count());
+    for (std::size_t f = 0; f < labels.size(); ++f) votes[triangle_face[f]][labels[f]] += areas[f] + 1e-300;
+    std::vector<int> out(mesh.face_count(), 0);
+    for (std::size_t f = 0; f < out.size(); ++f)
+        if (!votes[f].empty())
+            out[f] = std::max_element(votes[f].begin(), votes[f].end(),
+                                      [](const auto& a, const auto& b) { return a.second < b.second; })->first;
+    return out;
+}
+
+}  // namespace
+
+SwnResidual swn_residual_from_name(const std::string& name) {
+    if (name == "full") return SwnResidual::Full;
+    if (name == "reduced") return SwnResidual::Reduced;
+    if (name == "none") return SwnResidual::None;
+    throw Error("lp", "unknown residual program '" + name + "' (full, reduced, none)");
+}
+
+SwnSolver swn_solver_from_name(const std::string& name) {
+    if (name == "network") return SwnSolver::Network;
+    if (name == "clp") return SwnSolver::Clp;
+    throw Error("lp solver", "unknown solver '" + name + "' (network, clp)");
+}
+
+struct SurfaceWindingNumbers::Impl {
+    SurfaceMesh mesh;
+    std::optional<Operators> ops;  // of the input mesh
+    explicit Impl(SurfaceMesh m) : mesh(std::move(m)) {}
+};
+
+SurfaceWindingNumbers::SurfaceWindingNumbers(SurfaceMesh mesh) : impl_(std::make_unique<Impl>(std::move(mesh))) {}
+SurfaceWindingNumbers::~SurfaceWindingNumbers() = default;
+SurfaceWindingNumbers::SurfaceWindingNumbers(SurfaceWindingNumbers&&) noexcept = default;
+SurfaceWindingNumbers& SurfaceWindingNumbers::operator=(SurfaceWindingNumbers&&) noexcept = default;
+const SurfaceMesh& SurfaceWindingNumbers::mesh() const { return impl_->mesh; }
+
+SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOptions& options,
+                                       const ProgressFn& progress) {
+    const auto start = Clock::now();
+    if (!(options.curve_weight > 0 && options.curve_weight <= 1))
+        throw Error("SwnOptions::curve_weight", "must be in (0, 1]");
+    if (curves.curves.empty()) throw Error("curves", "no curves: winding numbers need oriented curves");
+    if (!curves.points.empty()) throw Error("curves", "isolated points have no winding number: give curves only");
+    for (const SurfaceCurve& c : curves.curves)
+        if (!c.is_signed) throw Error("curves", "winding numbers need oriented (signed) curves");
+    const SurfaceMesh& mesh = impl_->mesh;
+    validate(curves, mesh, "curves");
+    const Topology& t = mesh.topology();
+    const surface::ResolvedSources S = surface::resolve_sources(t, curves, "curves");
+    if (S.pieces.empty()) throw Error("curves", "every curve has zero length");
+    SwnResult result;
+    if (const auto on_edges = edge_chain(t, S)) {
+        if (!impl_->ops) impl_->ops.emplace(t);
+        CoreResult r = run_core(*impl_->ops, *on_edges, options, progress);
+        result.labels = majority_per_face(mesh, t.triangle_face, t.face_areas, r.labels);
+        result.naive_labels = majority_per_face(mesh, t.triangle_face, t.face_areas, r.naive_labels);
+        result.w.resize(t.mesh.face_count());
+        for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
+            for (int k = 0; k < 3; ++k) result.w[f][std::size_t(k)] = r.w[corner_id(f, k)];
+        result.bounding = std::move(r.bounding);
+        result.nonbounding = std::move(r.nonbounding);
+        result.completed = std::move(r.completed);
+        result.simply_connected = r.simply_connected;
+        result.lp_variables = r.lp_variables;
+        result.lp_rows = r.lp_rows;
+        result.lp_objective = r.lp_objective;
+        result.lp_violation = r.lp_violation;
+        result.seconds_jump = r.seconds_jump;
+        result.seconds_hodge = r.seconds_hodge;
+        result.seconds_residual = r.seconds_residual;
+        result.seconds_boundary = r.seconds_boundary;
+    } else {
+        // Curves off the edges: cut a copy of the mesh along them, solve there.
+        std::vector<surface::FaceSegment> pieces;
+        for (const surface::CurvePiece& p : S.pieces) pieces.push_back(p.segment);
+        const surface::SplitMesh cut = surface::split_along(t, pieces);
+        const SurfaceMesh split_mesh(cut.mesh, "cut mesh");
+        const Topology& st = split_mesh.topology();
+        std::vector<double> chain(st.mesh.edge_count(), 0.0);
+        for (const auto& path : cut.piece_paths)
+            for (std::size_t i = 0; i + 1 < path.size(); ++i) {
+                const std::uint32_t e = st.find_edge(path[i], path[i + 1]);
+                if (e == UINT32_MAX) throw Error("curves", "internal: a cut piece does not run along an edge");
+                chain[e] += st.mesh.edges[e][0] == path[i] ? 1.0 : -1.0;
+            }
+        Operators ops(st);
+        CoreResult r = run_core(ops, chain, options, progress);
+        // Labels per input face by area majority; w at input corners from a sub-triangle there.
+        std::vector<std::uint32_t> input_face(st.mesh.face_count());
+        for (std::size_t f = 0; f < input_face.size(); ++f) input_face[f] = t.triangle_face[cut.triangle_of[f]];
+        result.labels = majority_per_face(mesh, input_face, st.face_areas, r.labels);
+        result.naive_labels = majority_per_face(mesh, input_face, st.face_areas, r.naive_labels);
+        result.w.assign(t.mesh.face_count(), {kNan, kNan, kNan});
+        for (std::size_t f = 0; f < st.mesh.face_count(); ++f) {
+            const std::uint32_t in = cut.triangle_of[f];
+            for (int k = 0; k < 3; ++k)
+                for (int j = 0; j < 3; ++j)
+                    if (st.mesh.faces[f][std::size_t(k)] == t.mesh.faces[in][std::size_t(j)] &&
+                        std::isnan(result.w[in][std::size_t(j)]))
+                        result.w[in][std::size_t(j)] = r.w[corner_id(f, k)];
+        }
+        result.bounding = std::move(r.bounding);
+        result.nonbounding = std::move(r.nonbounding);
+        result.completed = std::move(r.completed);
+        result.simply_connected = r.simply_connected;
+        result.split = true;
+        result.lp_variables = r.lp_variables;
+        result.lp_rows = r.lp_rows;
+        result.lp_objective = r.lp_objective;
+        result.lp_violation = r.lp_violation;
+        result.seconds_jump = r.seconds_jump;
+        result.seconds_hodge = r.seconds_hodge;
+        result.seconds_residual = r.seconds_residual;
+        result.seconds_boundary = r.seconds_boundary;
+    }
+    // Corners at curve ends carry no value of their own: the mean of the triangle's others.
+    for (auto& c : result.w) {
+        double s = 0;
+        int n = 0;
+        for (double x : c)
+            if (std::isfinite(x)) {
+                s += x;
+                ++n;
+            }
+        for (double& x : c)
+            if (!std::isfinite(x)) x = n ? s / n : 0.0;
+    }
+    result.seconds_total = seconds_since(start);
+    if (progress) progress("done", 1.0);
+    return result;
+}
+
+std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi) {
+    if (phi.size() != mesh.vertex_count()) throw Error("shm_labels", "expected one value per vertex");
+    const Topology& t = mesh.topology();
+    std::vector<int> tri(t.mesh.face_count());
+    for (std::size_t f = 0; f < tri.size(); ++f) {
+        double s = 0;
+        for (std::uint32_t v : t.mesh.faces[f]) s += phi[v];
+        tri[f] = s < 0 ? 1 : 0;
+    }
+    return majority_per_face(mesh, t.triangle_face, t.face_areas, tri);
+}
+
+double mislabeled_area(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth,
+                       bool up_to_shift) {
+    if (labels.size() != mesh.face_count() || truth.size() != mesh.face_count())
+        throw Error("mislabeled_area", "expected one label per face");
+    const Topology& t = mesh.topology();
+    std::vector<double> area(mesh.face_count(), 0.0);
+    for (std::size_t f = 0; f < t.mesh.face_count(); ++f) area[t.triangle_face[f]] += t.face_areas[f];
+    double total = 0;
+    for (double a : area) total += a;
+    std::map<int, double> agree;  // shift → area that agrees under it
+    for (std::size_t f = 0; f < area.size(); ++f) agree[truth[f] - labels[f]] += area[f];
+    const double right = up_to_shift ? std::max_element(agree.begin(), agree.end(), [](const auto& a, const auto& b) {
+                                           return a.second < b.second;
+                                       })->second
+                                     : agree[0];
+    return total > 0 ? 1.0 - right / total : 0.0;
+}
+
+}  // namespace gsd

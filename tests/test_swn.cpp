@@ -1,0 +1,416 @@
+// Surface Winding Numbers: exact labels of closed loops on a disk and a sphere (on and off mesh
+// edges), loops around handles that bound nothing (torus, double torus), broken loops, the full
+// and the reduced program agreeing, the two solvers of the residual program reaching the same
+// optimum, the boundary-aware option against the free-space winding number of the plane, the
+// SHM-sign alternative, bad input, and every curve file of the shared data.
+#include <doctest/doctest.h>
+
+#include <gsd/io.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/surface.hpp>
+#include <gsd/swn.hpp>
+
+#include "support.hpp"
+#include "surface/tension.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <random>
+
+using namespace gsd;
+
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+Eigen::Vector3d vertex(const PolygonMesh& m, std::uint32_t v) { return m.vertices.row(v).transpose(); }
+const std::uint32_t* face(const PolygonMesh& m, std::size_t f) { return m.indices.data() + m.offsets[f]; }
+
+/// Per face: 1 where most of it lies where f < 0 (f per vertex, linear over the face).
+std::vector<int> truth_below(const PolygonMesh& m, const std::vector<double>& f) {
+    std::vector<int> t(m.face_count());
+    for (std::size_t i = 0; i < t.size(); ++i) {
+        const std::uint32_t* v = face(m, i);
+        int below = 0, total = 0;
+        for (int a = 0; a <= 6; ++a)
+            for (int b = 0; a + b <= 6; ++b) {
+                below += (a * f[v[0]] + b * f[v[1]] + (6 - a - b) * f[v[2]]) < 0;
+                ++total;
+            }
+        t[i] = 2 * below > total;
+    }
+    return t;
+}
+
+std::vector<double> per_vertex(const PolygonMesh& m, const std::function<double(const Eigen::Vector3d&)>& f) {
+    std::vector<double> v(std::size_t(m.vertices.rows()));
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = f(vertex(m, std::uint32_t(i)));
+    return v;
+}
+
+/// The boundary of a face set as curves along mesh edges, the set on their left.
+SurfaceSources region_boundary(const PolygonMesh& m, const std::vector<int>& inside) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> side;
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        for (int k = 0; k < 3; ++k) side[{face(m, f)[k], face(m, f)[(k + 1) % 3]}] = inside[f];
+    SurfaceSources s;
+    for (const auto& [h, label] : side) {
+        auto twin = side.find({h.second, h.first});
+        if (label && twin != side.end() && !twin->second)
+            s.curves.push_back({{SurfacePoint::at_vertex(h.first), SurfacePoint::at_vertex(h.second)}, true});
+    }
+    return s;
+}
+
+/// The loop of a torus_mesh(n_major, n_minor) around its tube at grid column i (along edges).
+SurfaceCurve meridian(int n_major, int n_minor, int i, bool reverse = false) {
+    SurfaceCurve c;
+    for (int j = 0; j <= n_minor; ++j) c.nodes.push_back(SurfacePoint::at_vertex(std::uint32_t(i * n_minor + j % n_minor)));
+    if (reverse) std::reverse(c.nodes.begin(), c.nodes.end());
+    return c;
+}
+
+/// Loops where the half-plane through `center` with direction (cos θ, sin θ, 0) and the z axis
+/// meets the mesh (around a tube of a torus centered there), off the mesh edges.
+std::vector<SurfaceCurve> tube_loops(const SurfaceMesh& mesh, const Eigen::Vector3d& center, double theta) {
+    const Eigen::Vector3d d(std::cos(theta), std::sin(theta), 0), n(-std::sin(theta), std::cos(theta), 0);
+    std::vector<SurfaceCurve> out;
+    const PolygonMesh& m = mesh.polygons();
+    for (SurfaceCurve& c : level_set_curves(mesh, per_vertex(m, [&](const Eigen::Vector3d& x) { return n.dot(x - center); }), 0)) {
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (const SurfacePoint& p : c.nodes) mean += position(mesh, p);
+        mean /= double(c.nodes.size());
+        if ((mean - center).dot(d) > 0 && (mean - center).dot(d) < 0.75) out.push_back(std::move(c));
+    }
+    return out;
+}
+
+std::vector<int> constant_labels(std::size_t n) { return std::vector<int>(n, 0); }
+
+}  // namespace
+
+TEST_CASE("SWN: a closed loop on a disk, across faces and along edges, gets exact labels") {
+    const PolygonMesh m = shapes::grid_mesh(40, 0.2, true, 3);
+    const SurfaceMesh mesh(m, "disk");
+    SurfaceWindingNumbers swn(mesh);
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return std::hypot(x.x() - 0.2, x.y() + 0.1) - 0.55; });
+    SurfaceSources across;
+    across.curves = level_set_curves(mesh, f, 0);
+    const std::vector<int> truth = truth_below(m, f);
+    const SwnResult r = swn.solve(across);
+    CHECK(r.split);             // nodes on edges: solved on a mesh cut along the curve
+    CHECK(r.simply_connected);  // a disk: no residual step
+    CHECK(r.labels.size() == mesh.face_count());
+    CHECK(mislabeled_area(mesh, r.labels, truth, false) < 0.005);  // +1 inside, 0 outside: no shift
+    CHECK(r.nonbounding.empty());
+
+    // Along edges: the boundary of a face set is solved on the mesh itself, exactly.
+    const SwnResult e = swn.solve(region_boundary(m, truth));
+    CHECK_FALSE(e.split);
+    CHECK(mislabeled_area(mesh, e.labels, truth, false) == 0.0);
+    // w jumps by one across the loop: its corner values are integers up to the global constant.
+    double spread = 0;
+    for (std::size_t t = 0; t < e.w.size(); ++t)
+        for (double x : e.w[t]) spread = std::max(spread, std::abs(x - std::round(x) - (e.w[0][0] - std::round(e.w[0][0]))));
+    CHECK(spread < 1e-6);
+}
+
+TEST_CASE("SWN: a loop on a sphere; reversing it swaps the sides") {
+    const PolygonMesh m = shapes::icosphere(4);
+    const SurfaceMesh mesh(m, "sphere");
+    SurfaceWindingNumbers swn(mesh);
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return x.dot(Eigen::Vector3d(0.3, 0.5, 0.8).normalized()) - 0.2; });
+    SurfaceSources loop;
+    loop.curves = level_set_curves(mesh, f, 0);
+    const std::vector<int> truth = truth_below(m, f);
+    const SwnResult r = swn.solve(loop);
+    CHECK(mislabeled_area(mesh, r.labels, truth, true) < 0.005);
+    for (SurfaceCurve& c : loop.curves) std::reverse(c.nodes.begin(), c.nodes.end());
+    std::vector<int> swapped = truth;
+    for (int& x : swapped) x = 1 - x;
+    const SwnResult s = swn.solve(loop);
+    CHECK(mislabeled_area(mesh, s.labels, swapped, true) < 0.005);
+    CHECK(mislabeled_area(mesh, s.labels, truth, true) > 0.2);
+}
+
+TEST_CASE("SWN: a loop around the tube of a torus bounds nothing; naive rounding makes a phantom region") {
+    const PolygonMesh m = shapes::torus_mesh(48, 16);
+    const SurfaceMesh mesh(m, "torus");
+    SurfaceWindingNumbers swn(mesh);
+    for (bool reverse : {false, true}) {
+        SurfaceSources src;
+        src.curves.push_back(meridian(48, 16, 5, reverse));
+        const SwnResult r = swn.solve(src);
+        CHECK_FALSE(r.simply_connected);
+        CHECK(mislabeled_area(mesh, r.labels, constant_labels(mesh.face_count()), false) == 0.0);
+        CHECK(r.bounding.empty());
+        REQUIRE(r.nonbounding.size() == 1);
+        CHECK(r.nonbounding[0].size() == 17);  // the whole loop
+        CHECK(r.completed.empty());
+        CHECK(mislabeled_area(mesh, r.naive_labels, constant_labels(mesh.face_count()), true) > 0.2);
+        CHECK(r.lp_violation < 1e-6);
+    }
+}
+
+TEST_CASE("SWN: a torus with a bounding loop and a loop around the tube, whole and broken") {
+    const PolygonMesh m = shapes::torus_mesh(72, 24);
+    const SurfaceMesh mesh(m, "torus");
+    SurfaceWindingNumbers swn(mesh);
+    // A disk-like region on the outer side, and a loop around the tube far from it.
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return (x - Eigen::Vector3d(0.7, 0, 0)).norm() - 0.3; });
+    const std::vector<int> truth = truth_below(m, f);
+    SurfaceSources src;
+    src.curves = level_set_curves(mesh, f, 0);
+    for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d::Zero(), 2.0)) src.curves.push_back(std::move(c));
+    REQUIRE(src.curves.size() == 2);
+    const SwnResult r = swn.solve(src);
+    CHECK(mislabeled_area(mesh, r.labels, truth, true) < 0.005);
+    CHECK(r.nonbounding.size() == 1);
+    CHECK(mislabeled_area(mesh, r.naive_labels, truth, true) > 0.05);
+    // Broken: 30 % and 50 % of each loop cut away in 3 gaps.
+    for (double cut : {0.3, 0.5}) {
+        CAPTURE(cut);
+        const SwnResult b = swn.solve(damage(src, {cut, 3, 0}, 7));
+        CHECK(mislabeled_area(mesh, b.labels, truth, true) < 0.05);
+        CHECK(mislabeled_area(mesh, b.labels, truth, true) < mislabeled_area(mesh, b.naive_labels, truth, true));
+    }
+}
+
+TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduced programs agree") {
+    const PolygonMesh m = shapes::double_torus_mesh(40);
+    const SurfaceMesh mesh(m, "double torus");
+    SurfaceWindingNumbers swn(mesh);
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return (x - Eigen::Vector3d(-1.1, 0.3, 0)).norm() - 0.35; });
+    const std::vector<int> truth = truth_below(m, f);
+    SurfaceSources src;
+    src.curves = level_set_curves(mesh, f, 0);
+    for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d(0.425, 0, 0), 0.3)) src.curves.push_back(std::move(c));
+    for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d(-0.425, 0, 0), kPi + 1.2)) src.curves.push_back(std::move(c));
+    REQUIRE(src.curves.size() == 3);
+    SwnOptions reduced;
+    reduced.residual = SwnResidual::Reduced;
+    for (double cut : {0.0, 0.3, 0.5}) {
+        CAPTURE(cut);
+        const SurfaceSources input = cut > 0 ? damage(src, {cut, 3, 0}, 11) : src;
+        const SwnResult full = swn.solve(input);
+        const SwnResult red = swn.solve(input, reduced);
+        CHECK(mislabeled_area(mesh, full.labels, truth, true) < (cut > 0 ? 0.05 : 0.005));
+        // The reduced program completes gaps along shortest paths chosen beforehand: with half of
+        // every loop gone the full program may complete them elsewhere.
+        CHECK(mislabeled_area(mesh, red.labels, truth, true) < (cut > 0.4 ? 0.1 : cut > 0 ? 0.05 : 0.005));
+        if (cut < 0.4) CHECK(mislabeled_area(mesh, red.labels, full.labels, true) < 0.01);
+        CHECK(red.lp_variables < full.lp_variables / 10);
+        CHECK(mislabeled_area(mesh, full.labels, truth, true) < mislabeled_area(mesh, full.naive_labels, truth, true));
+    }
+}
+
+TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
+    // By hand: three nodes in a row, x0 − x1 + 1 and x1 − x2 + 1 at cost 1, x0 − x2 at cost 3:
+    // the cheapest is to jump on the two unit edges... unless they must stay below 0.5.
+    surface::TensionProblem p;
+    p.nodes = 3;
+    p.edges = {{0, 1, 1.0, 1.0}, {1, 2, 1.0, 1.0}, {0, 2, 0.0, 3.0}};
+    for (auto* solve : {&surface::solve_tension_network, &surface::solve_tension_lp}) {
+        const surface::TensionSolution s = solve(p);
+        CHECK(s.objective == doctest::Approx(2.0).epsilon(1e-6));  // x equal: J = 1, 1, 0
+    }
+    p.edges[0].hi = 0.5;
+    p.edges[1].hi = 0.5;
+    for (auto* solve : {&surface::solve_tension_network, &surface::solve_tension_lp}) {
+        const surface::TensionSolution s = solve(p);
+        CHECK(s.violation < 1e-6);
+        CHECK(s.objective == doctest::Approx(4.0).epsilon(1e-6));  // J = ½, ½ and 1 on the costly edge: 1 + 3
+    }
+    // Random problems with bounds on some edges.
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(0, 1);
+    for (int trial = 0; trial < 20; ++trial) {
+        surface::TensionProblem q;
+        q.nodes = 40;
+        for (int e = 0; e < 120; ++e) {
+            surface::TensionProblem::Edge edge;
+            edge.left = std::uint32_t(rng() % 40);
+            edge.right = std::uint32_t((edge.left + 1 + rng() % 39) % 40);
+            edge.offset = 4 * u(rng) - 2;
+            edge.cost = 0.01 + u(rng);
+            if (u(rng) < 0.3) {
+                edge.lo = 0;
+                edge.hi = 1;
+                edge.cost *= 1e-3;
+            }
+            q.edges.push_back(edge);
+        }
+        CAPTURE(trial);
+        bool lp_feasible = true;
+        surface::TensionSolution b;
+        try {
+            b = surface::solve_tension_lp(q);
+        } catch (const Error&) {
+            lp_feasible = false;  // bounds that contradict each other: the network solver still answers
+        }
+        const surface::TensionSolution a = surface::solve_tension_network(q);
+        if (lp_feasible) {
+            CHECK(a.violation < 1e-6);
+            CHECK(b.violation < 1e-6);
+            CHECK(a.objective == doctest::Approx(b.objective).epsilon(1e-5));
+        } else {
+            CHECK(a.violation > 1e-6);
+        }
+    }
+}
+
+TEST_CASE("SWN: the residual program by CLP gives the labels of the network solver") {
+    const PolygonMesh m = shapes::torus_mesh(40, 14);
+    const SurfaceMesh mesh(m, "torus");
+    SurfaceWindingNumbers swn(mesh);
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return (x - Eigen::Vector3d(0.7, 0, 0)).norm() - 0.3; });
+    SurfaceSources src;
+    src.curves = level_set_curves(mesh, f, 0);
+    src.curves.push_back(meridian(40, 14, 22));
+    src = damage(src, {0.3, 2, 0}, 3);
+    SwnOptions clp;
+    clp.solver = SwnSolver::Clp;
+    const SwnResult a = swn.solve(src), b = swn.solve(src, clp);
+    CHECK(a.lp_objective == doctest::Approx(b.lp_objective).epsilon(1e-4));
+    CHECK(mislabeled_area(mesh, a.labels, b.labels, true) < 0.01);
+}
+
+TEST_CASE("SWN boundary-aware: closer to the free-space winding number of a broken loop in the plane") {
+    const PolygonMesh m = shapes::grid_mesh(50, 0.2, true, 3);
+    const SurfaceMesh mesh(m, "square");
+    SurfaceWindingNumbers swn(mesh);
+    // 70 % of a circle reaching near the square's right side.
+    SurfaceSources src;
+    src.curves = level_set_curves(mesh, per_vertex(m, [](const Eigen::Vector3d& x) { return std::hypot(x.x() - 0.3, x.y()) - 0.6; }), 0);
+    REQUIRE(src.curves.size() == 1);
+    src.curves[0].nodes.resize(src.curves[0].nodes.size() * 7 / 10);
+    std::vector<Eigen::Vector3d> P;
+    for (const SurfacePoint& p : src.curves[0].nodes) P.push_back(position(mesh, p));
+    // Mean |w − w_free − c| over faces, c the best constant (the median difference).
+    auto error = [&](const SwnResult& r) {
+        std::vector<double> d;
+        for (std::size_t t = 0; t < r.w.size(); ++t) {
+            const std::uint32_t* v = face(m, t);
+            const Eigen::Vector3d c = (vertex(m, v[0]) + vertex(m, v[1]) + vertex(m, v[2])) / 3;
+            double angle = 0;
+            for (std::size_t k = 0; k + 1 < P.size(); ++k) {
+                const Eigen::Vector3d a = P[k] - c, b = P[k + 1] - c;
+                angle += std::atan2(a.x() * b.y() - a.y() * b.x(), a.x() * b.x() + a.y() * b.y());
+            }
+            d.push_back((r.w[t][0] + r.w[t][1] + r.w[t][2]) / 3 - angle / (2 * kPi));
+        }
+        std::vector<double> s = d;
+        std::nth_element(s.begin(), s.begin() + std::ptrdiff_t(s.size() / 2), s.end());
+        double e = 0;
+        for (double x : d) e += std::abs(x - s[s.size() / 2]);
+        return e / double(d.size());
+    };
+    SwnOptions aware;
+    aware.boundary_aware = true;
+    const SwnResult plain = swn.solve(src), free_like = swn.solve(src, aware);
+    CHECK(free_like.seconds_boundary > 0);
+    CHECK(error(free_like) < 0.5 * error(plain));
+    // A closed loop: w is 1 inside, 0 outside either way.
+    SurfaceSources closed;
+    closed.curves = level_set_curves(mesh, per_vertex(m, [](const Eigen::Vector3d& x) { return std::hypot(x.x(), x.y()) - 0.5; }), 0);
+    const SwnResult a = swn.solve(closed), b = swn.solve(closed, aware);
+    CHECK(mislabeled_area(mesh, a.labels, b.labels, false) == 0.0);
+}
+
+TEST_CASE("SWN: inside/outside from the sign of the surface Signed Heat Method") {
+    const PolygonMesh m = shapes::icosphere(4);
+    const SurfaceMesh mesh(m, "sphere");
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return x.z() - 0.3; });
+    SurfaceSources loop;
+    loop.curves = level_set_curves(mesh, f, 0);
+    const std::vector<int> truth = truth_below(m, f);
+    SignedHeatSurface shm(mesh);
+    const std::vector<int> labels = shm_labels(mesh, shm.solve(loop).phi);
+    CHECK(mislabeled_area(mesh, labels, truth, false) < 0.01);  // 1 where φ < 0: the loop's left
+    CHECK_THROWS_AS(shm_labels(mesh, std::vector<double>(3, 0.0)), Error);
+}
+
+TEST_CASE("mislabeled_area: shares of the area, with or without a global shift") {
+    const SurfaceMesh mesh(shapes::grid_mesh(4), "grid");
+    std::vector<int> a(mesh.face_count(), 0), b(mesh.face_count(), 2);
+    CHECK(mislabeled_area(mesh, a, a, false) == 0.0);
+    CHECK(mislabeled_area(mesh, a, b, false) == doctest::Approx(1.0));
+    CHECK(mislabeled_area(mesh, a, b, true) == 0.0);
+    b[0] = 7;  // one of 32 equal triangles
+    CHECK(mislabeled_area(mesh, a, b, true) == doctest::Approx(1.0 / 32));
+    CHECK_THROWS_AS(mislabeled_area(mesh, a, std::vector<int>(3, 0), true), Error);
+}
+
+TEST_CASE("SWN: bad input is a clear error") {
+    const PolygonMesh m = shapes::icosphere(2);
+    const SurfaceMesh mesh(m, "sphere");
+    SurfaceWindingNumbers swn(mesh);
+    SurfaceSources none;
+    CHECK_THROWS_WITH_AS(swn.solve(none), doctest::Contains("no curves"), Error);
+    SurfaceSources points;
+    points.points.push_back(SurfacePoint::at_vertex(0));
+    points.curves.push_back({{SurfacePoint::at_vertex(0), SurfacePoint::at_vertex(1)}, true});
+    CHECK_THROWS_WITH_AS(swn.solve(points), doctest::Contains("points"), Error);
+    SurfaceSources unsigned_curve;
+    unsigned_curve.curves.push_back({{SurfacePoint::at_vertex(0), SurfacePoint::at_vertex(1)}, false});
+    CHECK_THROWS_WITH_AS(swn.solve(unsigned_curve), doctest::Contains("oriented"), Error);
+    SurfaceSources bad_index;
+    bad_index.curves.push_back({{SurfacePoint::at_vertex(0), SurfacePoint::at_vertex(100000)}, true});
+    CHECK_THROWS_AS(swn.solve(bad_index), Error);
+    SwnOptions o;
+    o.curve_weight = 0;
+    CHECK_THROWS_AS(swn.solve(unsigned_curve, o), Error);
+    CHECK_THROWS_AS(swn_residual_from_name("partial"), Error);
+    CHECK_THROWS_AS(swn_solver_from_name("gurobi"), Error);
+
+    // Three triangles on one edge: a clear error naming the problem and the alternative.
+    PolygonMesh fan;
+    fan.vertices.resize(5, 3);
+    fan.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1;
+    fan.add_face({0, 1, 2});
+    fan.add_face({1, 0, 3});
+    fan.add_face({0, 1, 4});
+    SurfaceWindingNumbers nonmanifold{SurfaceMesh(fan, "fan")};
+    SurfaceSources edge;
+    edge.curves.push_back({{SurfacePoint::at_vertex(2), SurfacePoint::at_vertex(0)}, true});
+    CHECK_THROWS_WITH_AS(nonmanifold.solve(edge), doctest::Contains("manifold"), Error);
+}
+
+TEST_CASE("SWN: the shared curves on surfaces run; the double torus' loops split into bounding and nonbounding") {
+    if (!GSD_HAVE_SHARED_DATA) {
+        MESSAGE("../shared/data not found: shared-data cases not run");
+        return;
+    }
+    const std::vector<std::pair<std::string, std::string>> inputs = {
+        {"asymmetric-torus.obj", "asymmetric-torus.txt"}, {"annulus.obj", "annulus.txt"},
+        {"torus.obj", "torus-phi.txt"},                   {"double-torus.obj", "double-torus.txt"},
+        {"S.obj", "S.txt"},                               {"bunny.obj", "bunny-brokenheart.txt"},
+        {"spots-on-spot.obj", "spots-on-spot.txt"},       {"twirl.obj", "twirl.txt"},
+        {"DoubleTorusWithLoops.obj", ""},                 {"DoubleTorusWithBrokenLoops.obj", ""}};
+    for (const auto& [mesh_file, curve_file] : inputs) {
+        CAPTURE(mesh_file);
+        const std::string mesh_path = test::shared_data("surface-curves/" + mesh_file);
+        const SurfaceMesh mesh(io::read_mesh(mesh_path), mesh_path);
+        const SurfaceSources curves =
+            read_surface_curves(test::shared_data("surface-curves/" + (curve_file.empty() ? mesh_file : curve_file)), mesh);
+        SurfaceWindingNumbers swn(mesh);
+        const SwnResult r = swn.solve(curves);
+        CHECK(r.labels.size() == mesh.face_count());
+        CHECK(r.w.size() == mesh.triangle_count());
+        for (const auto& c : r.w)
+            for (double x : c) REQUIRE(std::isfinite(x));
+        CHECK(r.lp_violation < 1e-6);
+        if (mesh_file.rfind("DoubleTorusWith", 0) == 0) {
+            CHECK_FALSE(r.simply_connected);
+            CHECK_FALSE(r.bounding.empty());
+            CHECK_FALSE(r.nonbounding.empty());
+            SwnOptions reduced;
+            reduced.residual = SwnResidual::Reduced;
+            const SwnResult red = swn.solve(curves, reduced);
+            CHECK(mislabeled_area(mesh, red.labels, r.labels, true) < 0.01);
+        }
+    }
+}

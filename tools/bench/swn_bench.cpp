@@ -1,0 +1,558 @@
+// gsd-swn-bench — Surface Winding Numbers: accuracy on a synthetic benchmark and timing.
+//
+//   gsd-swn-bench accuracy [--cases N] [--reference PROGRAM] [--work DIR] [--quiet]
+//       A benchmark in the style of thesis §6.3: on a sphere, a torus and a double torus, the
+//       regions below a level of a random low-frequency function are the ground truth; their
+//       boundaries (on mesh edges, or across faces), clean or with 30 % / 50 % cut away, plus
+//       broken loops around handles that bound nothing, are the input. Prints the mislabeled
+//       area (up to a global integer shift: the meshes are closed) of SWN with the full and the
+//       reduced program, naive rounding of u, and the sign of the surface Signed Heat Method.
+//       With --reference (a program `REF MESH.obj CURVES.txt -o PREFIX` writing
+//       PREFIX.labels.npy, e.g. the SWN reference code), cases on mesh edges are solved by it too.
+//   gsd-swn-bench timing [--sizes 32,48,64,96,128] [--clp-max 48]
+//       Time per step and full vs reduced program vs mesh size: double tori with broken loops;
+//       the network solver vs CLP on the same program for sizes up to --clp-max.
+//   gsd-swn-bench write CASE PREFIX
+//       Writes one accuracy case (by number) as PREFIX.obj and PREFIX.txt for side-by-side runs.
+#include <gsd/io.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/surface.hpp>
+#include <gsd/swn.hpp>
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <map>
+#include <numbers>
+#include <numeric>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+using namespace gsd;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+constexpr double kPi = std::numbers::pi;
+
+// ---- cases ---------------------------------------------------------------------------------
+
+struct Case {
+    std::string name;
+    PolygonMesh mesh;
+    SurfaceSources curves;
+    std::vector<int> truth;  // per face
+    bool on_edges = false;
+};
+
+Eigen::Vector3d vertex(const PolygonMesh& m, std::uint32_t v) { return m.vertices.row(v).transpose(); }
+const std::uint32_t* face(const PolygonMesh& m, std::size_t f) { return m.indices.data() + m.offsets[f]; }
+
+/// A random low-frequency function: three plane waves of wavelength about the shape's size.
+struct Waves {
+    std::array<Eigen::Vector3d, 3> k;
+    std::array<double, 3> phase{}, amplitude{};
+    double level = 0;
+    double operator()(const Eigen::Vector3d& x) const {
+        double s = 0;
+        for (std::size_t i = 0; i < 3; ++i) s += amplitude[i] * std::cos(k[i].dot(x) + phase[i]);
+        return s - level;
+    }
+};
+
+Waves random_waves(std::mt19937_64& rng, const PolygonMesh& m) {
+    std::normal_distribution<double> n(0, 1);
+    std::uniform_real_distribution<double> u(0, 1);
+    Waves w;
+    for (std::size_t i = 0; i < 3; ++i) {
+        Eigen::Vector3d d(n(rng), n(rng), n(rng));
+        w.k[i] = d.normalized() * (2.0 + 2.0 * u(rng));
+        w.phase[i] = 2 * kPi * u(rng);
+        w.amplitude[i] = 0.5 + u(rng);
+    }
+    // The level puts 20–45 % of the vertices below it.
+    std::vector<double> values;
+    for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) values.push_back(w(m.vertices.row(v).transpose()));
+    std::sort(values.begin(), values.end());
+    w.level = values[std::size_t((0.2 + 0.25 * u(rng)) * double(values.size() - 1))];
+    return w;
+}
+
+/// Per face: 1 where most of it lies below zero (f linear over the face, sampled).
+std::vector<int> truth_below(const PolygonMesh& m, const std::vector<double>& f) {
+    std::vector<int> t(m.face_count());
+    for (std::size_t i = 0; i < t.size(); ++i) {
+        const std::uint32_t* v = face(m, i);
+        int below = 0, total = 0;
+        for (int a = 0; a <= 6; ++a)
+            for (int b = 0; a + b <= 6; ++b) {
+                const double x = (a * f[v[0]] + b * f[v[1]] + (6 - a - b) * f[v[2]]) / 6.0;
+                below += x < 0;
+                ++total;
+            }
+        t[i] = 2 * below > total;
+    }
+    return t;
+}
+
+/// The boundary of a face region as curves along mesh edges, the region on their left, keeping
+/// the edges `keep` accepts (by midpoint). Pieces chained where one ends where the next starts.
+std::vector<SurfaceCurve> region_boundary(const PolygonMesh& m, const std::vector<int>& inside,
+                                          const std::function<bool(const Eigen::Vector3d&)>& keep) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> side;  // directed halfedge → face label
+    for (std::size_t f = 0; f < m.face_count(); ++f) {
+        const std::uint32_t* v = face(m, f);
+        for (int k = 0; k < 3; ++k) side[{v[k], v[(k + 1) % 3]}] = inside[f];
+    }
+    std::multimap<std::uint32_t, std::uint32_t> next;
+    for (const auto& [h, label] : side) {
+        if (!label) continue;
+        auto twin = side.find({h.second, h.first});
+        if (twin == side.end() || twin->second) continue;
+        if (keep(0.5 * (vertex(m, h.first) + vertex(m, h.second)))) next.insert({h.first, h.second});
+    }
+    std::vector<SurfaceCurve> out;
+    while (!next.empty()) {
+        SurfaceCurve c;
+        auto it = next.begin();
+        std::uint32_t a = it->first;
+        c.nodes.push_back(SurfacePoint::at_vertex(a));
+        while ((it = next.find(a)) != next.end()) {
+            a = it->second;
+            next.erase(it);
+            c.nodes.push_back(SurfacePoint::at_vertex(a));
+        }
+        out.push_back(std::move(c));
+    }
+    return out;
+}
+
+/// Whether every component of the faces with label `label` (joined through edges) is a disk
+/// (Euler characteristic 1): then every loop bounding them bounds on its own.
+bool all_disks(const PolygonMesh& m, const std::vector<int>& labels, int label) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<std::uint32_t>> edge_faces;
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        if (labels[f] == label)
+            for (int k = 0; k < 3; ++k) {
+                const std::uint32_t a = face(m, f)[k], b = face(m, f)[(k + 1) % 3];
+                edge_faces[{std::min(a, b), std::max(a, b)}].push_back(std::uint32_t(f));
+            }
+    std::vector<std::uint32_t> parent(m.face_count());
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto root = [&](std::uint32_t x) {
+        while (parent[x] != x) x = parent[x] = parent[parent[x]];
+        return x;
+    };
+    for (const auto& [e, fs] : edge_faces)
+        for (std::size_t i = 1; i < fs.size(); ++i) parent[root(fs[i])] = root(fs[0]);
+    std::map<std::uint32_t, long> chi;
+    std::map<std::uint32_t, std::map<std::uint32_t, int>> vertices;
+    for (const auto& [e, fs] : edge_faces) {
+        const std::uint32_t r = root(fs[0]);
+        chi[r] -= 1;
+        vertices[r][e.first] = vertices[r][e.second] = 1;
+    }
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        if (labels[f] == label) chi[root(std::uint32_t(f))] += 1;
+    for (auto& [r, c] : chi)
+        if (c + long(vertices[r].size()) != 1) return false;
+    return true;
+}
+
+/// A loop around a handle (it bounds nothing): where the half-plane through `axis_point`
+/// containing the z direction and direction (cos θ, sin θ, 0) meets the surface — one loop
+/// around the tube. On mesh edges: the part of the boundary of {n·(x − c) < 0} on that side.
+std::vector<SurfaceCurve> handle_loop(const SurfaceMesh& mesh, const PolygonMesh& m, const Eigen::Vector3d& c,
+                                      double theta, bool on_edges, bool reverse) {
+    const Eigen::Vector3d d(std::cos(theta), std::sin(theta), 0), n(-std::sin(theta), std::cos(theta), 0);
+    std::vector<SurfaceCurve> loops;
+    if (on_edges) {
+        std::vector<int> below(m.face_count());
+        for (std::size_t f = 0; f < m.face_count(); ++f) {
+            const std::uint32_t* v = face(m, f);
+            below[f] = n.dot((vertex(m, v[0]) + vertex(m, v[1]) + vertex(m, v[2])) / 3 - c) < 0;
+        }
+        loops = region_boundary(m, below, [&](const Eigen::Vector3d& x) {
+            return (x - c).dot(d) > 0 && (x - c).dot(d) < 0.75;
+        });
+    } else {
+        std::vector<double> g(mesh.vertex_count());
+        for (std::size_t v = 0; v < g.size(); ++v) g[v] = n.dot(vertex(m, std::uint32_t(v)) - c);
+        for (SurfaceCurve& k : level_set_curves(mesh, g, 0)) {
+            Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+            for (const SurfacePoint& p : k.nodes) mean += position(mesh, p);
+            mean /= double(k.nodes.size());
+            if ((mean - c).dot(d) > 0 && (mean - c).dot(d) < 0.75) loops.push_back(std::move(k));
+        }
+    }
+    if (reverse)
+        for (SurfaceCurve& k : loops) std::reverse(k.nodes.begin(), k.nodes.end());
+    return loops;
+}
+
+/// The benchmark: every mesh × curves on/off edges × clean / 30 % / 50 % cut, `per` random
+/// functions each (nonbounding handle loops on the torus and double torus).
+std::vector<Case> make_cases(int per) {
+    struct MeshKind {
+        std::string name;
+        PolygonMesh mesh;
+        std::vector<Eigen::Vector3d> holes;  // points on the axes of the handles
+    };
+    std::vector<MeshKind> meshes;
+    meshes.push_back({"sphere", shapes::icosphere(4), {}});
+    meshes.push_back({"torus", shapes::torus_mesh(72, 24), {Eigen::Vector3d::Zero()}});
+    meshes.push_back({"double-torus", shapes::double_torus_mesh(36), {{-0.425, 0, 0}, {0.425, 0, 0}}});
+    std::vector<Case> cases;
+    for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
+        const MeshKind& k = meshes[mi];
+        const SurfaceMesh mesh(k.mesh, k.name);
+        for (int i = 0; i < per; ++i) {
+            std::mt19937_64 rng(std::uint64_t(1000 * mi + 17 * i + 1));
+            std::uniform_real_distribution<double> u(0, 1);
+            // Region boundaries that bound nothing on their own (a band around a handle) would
+            // make the extra handle loops ambiguous (which loop of a homologous set is the extra
+            // one is a tie SWN cannot break): draw functions until the regions, or what lies
+            // outside them, are all disks.
+            Waves w;
+            for (int attempt = 0; attempt < 100; ++attempt) {
+                w = random_waves(rng, k.mesh);
+                std::vector<int> inside(k.mesh.face_count());
+                for (std::size_t t = 0; t < inside.size(); ++t) {
+                    const std::uint32_t* v = face(k.mesh, t);
+                    inside[t] = w((vertex(k.mesh, v[0]) + vertex(k.mesh, v[1]) + vertex(k.mesh, v[2])) / 3) < 0;
+                }
+                if (all_disks(k.mesh, inside, 1) || all_disks(k.mesh, inside, 0)) break;
+            }
+            std::vector<double> f(mesh.vertex_count());
+            for (std::size_t v = 0; v < f.size(); ++v) f[v] = w(vertex(k.mesh, std::uint32_t(v)));
+            for (bool on_edges : {true, false}) {
+                Case base;
+                base.mesh = k.mesh;
+                base.on_edges = on_edges;
+                SurfaceSources src;
+                if (on_edges) {
+                    base.truth.resize(k.mesh.face_count());
+                    for (std::size_t t = 0; t < base.truth.size(); ++t) {
+                        const std::uint32_t* v = face(k.mesh, t);
+                        base.truth[t] = w((vertex(k.mesh, v[0]) + vertex(k.mesh, v[1]) + vertex(k.mesh, v[2])) / 3) < 0;
+                    }
+                    src.curves = region_boundary(k.mesh, base.truth, [](const Eigen::Vector3d&) { return true; });
+                } else {
+                    base.truth = truth_below(k.mesh, f);
+                    src.curves = level_set_curves(mesh, f, 0);
+                }
+                // Handle loops (bound nothing): one per handle, random side and orientation. On
+                // mesh edges, one sharing an edge with a region's boundary would merge with it
+                // (the chain is their sum): such angles are skipped.
+                std::set<std::pair<std::uint32_t, std::uint32_t>> used;
+                if (on_edges)
+                    for (const SurfaceCurve& c : src.curves)
+                        for (std::size_t n = 0; n + 1 < c.nodes.size(); ++n)
+                            used.insert(std::minmax(c.nodes[n].index, c.nodes[n + 1].index));
+                for (const Eigen::Vector3d& hole : k.holes) {
+                    const bool reverse = u(rng) < 0.5;
+                    for (int attempt = 0; attempt < 50; ++attempt) {
+                        double theta = 2 * kPi * u(rng);
+                        if (k.holes.size() > 1 && std::cos(theta) * hole.x() < 0) theta = kPi - theta;  // outer side
+                        std::vector<SurfaceCurve> loops = handle_loop(mesh, k.mesh, hole, theta, on_edges, reverse);
+                        bool shares = false;
+                        for (const SurfaceCurve& c : loops)
+                            for (std::size_t n = 0; n + 1 < c.nodes.size(); ++n)
+                                shares = shares || used.count(std::minmax(c.nodes[n].index, c.nodes[n + 1].index));
+                        if (shares && attempt + 1 < 50) continue;
+                        for (SurfaceCurve& c : loops) src.curves.push_back(std::move(c));
+                        break;
+                    }
+                }
+                for (double cut : {0.0, 0.3, 0.5}) {
+                    Case c = base;
+                    char name[96];
+                    std::snprintf(name, sizeof(name), "%s/%d/%s/cut%.0f%%", k.name.c_str(), i,
+                                  on_edges ? "edges" : "faces", 100 * cut);
+                    c.name = name;
+                    c.curves = cut > 0 ? damage(src, {cut, 3, 0}, std::uint64_t(1000 * mi + 31 * i + (on_edges ? 7 : 9))) : src;
+                    cases.push_back(std::move(c));
+                }
+            }
+        }
+    }
+    return cases;
+}
+
+// ---- the reference program ------------------------------------------------------------------
+
+/// Labels per input face from a run of the reference, or nothing if it failed or refused.
+std::optional<std::vector<int>> run_reference(const std::string& program, const Case& c, const std::string& dir,
+                                              double& seconds) {
+    const std::string prefix = dir + "/ref";
+    io::write_mesh(prefix + "_in.obj", c.mesh);
+    write_surface_curves(prefix + "_in.txt", c.curves);
+    std::filesystem::remove(prefix + ".labels.npy");
+    std::filesystem::remove(prefix + ".mesh.obj");
+    const std::string cmd = "'" + program + "' '" + prefix + "_in.obj' '" + prefix + "_in.txt' -o '" + prefix +
+                            "' >'" + prefix + ".log' 2>&1";
+    const auto t0 = Clock::now();
+    const int rc = std::system(cmd.c_str());
+    seconds = since(t0);
+    if (rc != 0 || !std::filesystem::exists(prefix + ".labels.npy")) return std::nullopt;
+    const io::NpyArray a = io::read_npy(prefix + ".labels.npy");
+    std::vector<int> ref;
+    for (double x : a.data) ref.push_back(std::isfinite(x) ? int(std::lround(x)) : 0);
+    if (ref.size() == c.mesh.face_count()) return ref;
+    // The reference split edges: map its faces back to input faces (centroid inside), by area.
+    if (!std::filesystem::exists(prefix + ".mesh.obj")) return std::nullopt;
+    const PolygonMesh rm = io::read_mesh(prefix + ".mesh.obj");
+    if (rm.face_count() != ref.size()) return std::nullopt;
+    std::vector<std::vector<std::uint32_t>> incident(std::size_t(c.mesh.vertices.rows()));
+    for (std::size_t f = 0; f < c.mesh.face_count(); ++f)
+        for (int k = 0; k < 3; ++k) incident[face(c.mesh, f)[k]].push_back(std::uint32_t(f));
+    std::vector<std::map<int, double>> votes(c.mesh.face_count());
+    for (std::size_t g = 0; g < rm.face_count(); ++g) {
+        const std::uint32_t* v = face(rm, g);
+        const Eigen::Vector3d p = (vertex(rm, v[0]) + vertex(rm, v[1]) + vertex(rm, v[2])) / 3;
+        const double area = 0.5 * (vertex(rm, v[1]) - vertex(rm, v[0])).cross(vertex(rm, v[2]) - vertex(rm, v[0])).norm();
+        std::size_t best = SIZE_MAX;
+        double best_score = -INFINITY;
+        for (int k = 0; k < 3; ++k) {
+            if (v[k] >= incident.size()) continue;
+            for (std::uint32_t f : incident[v[k]]) {
+                const std::uint32_t* w = face(c.mesh, f);
+                const Eigen::Vector3d a = vertex(c.mesh, w[0]), b = vertex(c.mesh, w[1]), d = vertex(c.mesh, w[2]);
+                const Eigen::Vector3d n = (b - a).cross(d - a);
+                const double score = std::min({(b - a).cross(p - a).dot(n), (d - b).cross(p - b).dot(n), (a - d).cross(p - d).dot(n)});
+                if (score > best_score) {
+                    best_score = score;
+                    best = f;
+                }
+            }
+        }
+        if (best != SIZE_MAX) votes[best][ref[g]] += area;
+    }
+    std::vector<int> out(c.mesh.face_count(), 0);
+    for (std::size_t f = 0; f < out.size(); ++f)
+        if (!votes[f].empty())
+            out[f] = std::max_element(votes[f].begin(), votes[f].end(), [](auto& a, auto& b) { return a.second < b.second; })->first;
+    return out;
+}
+
+// ---- accuracy ------------------------------------------------------------------------------
+
+struct Stats {
+    std::vector<double> v;
+    void add(double x) { v.push_back(x); }
+    double mean() const {
+        double s = 0;
+        for (double x : v) s += x;
+        return v.empty() ? NAN : s / double(v.size());
+    }
+    double median() const {
+        if (v.empty()) return NAN;
+        std::vector<double> s = v;
+        std::sort(s.begin(), s.end());
+        return s[s.size() / 2];
+    }
+    double max() const { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
+};
+
+int accuracy(int argc, char** argv) {
+    int per = 3;
+    std::string reference, work;
+    bool quiet = false;
+    for (int i = 2; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--cases") && i + 1 < argc) per = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--reference") && i + 1 < argc) reference = argv[++i];
+        else if (!std::strcmp(argv[i], "--work") && i + 1 < argc) work = argv[++i];
+        else if (!std::strcmp(argv[i], "--quiet")) quiet = true;
+        else {
+            std::fprintf(stderr, "unknown argument %s\n", argv[i]);
+            return 2;
+        }
+    }
+    if (per < 1) per = 1;
+    if (work.empty()) work = std::filesystem::temp_directory_path().string() + "/gsd-swn-bench";
+    std::filesystem::create_directories(work);
+    const std::vector<Case> cases = make_cases(per);
+    const std::vector<std::string> methods = {"swn-full", "swn-reduced", "naive-u", "shm-sign", "reference"};
+    std::map<std::string, std::map<std::string, Stats>> by_group;  // group → method → mislabeled %
+    Stats full_vs_reduced, t_full, t_reduced, t_ref;
+    if (!quiet)
+        std::printf("%-34s %7s %9s %9s %9s %9s %9s   %7s %7s %7s\n", "case", "faces", "full %", "reduced %", "naive %",
+                    "shm %", "ref %", "full s", "red. s", "ref s");
+    for (const Case& c : cases) {
+        const SurfaceMesh mesh(c.mesh, c.name);
+        SurfaceWindingNumbers swn(mesh);
+        SwnOptions full, reduced;
+        reduced.residual = SwnResidual::Reduced;
+        const SwnResult rf = swn.solve(c.curves, full);
+        const SwnResult rr = swn.solve(c.curves, reduced);
+        SignedHeatSurface shm(mesh);
+        const std::vector<int> shm_l = shm_labels(mesh, shm.solve(c.curves).phi);
+        std::map<std::string, double> err;
+        err["swn-full"] = 100 * mislabeled_area(mesh, rf.labels, c.truth, true);
+        err["swn-reduced"] = 100 * mislabeled_area(mesh, rr.labels, c.truth, true);
+        err["naive-u"] = 100 * mislabeled_area(mesh, rf.naive_labels, c.truth, true);
+        err["shm-sign"] = 100 * mislabeled_area(mesh, shm_l, c.truth, true);
+        full_vs_reduced.add(100 * mislabeled_area(mesh, rr.labels, rf.labels, true));
+        t_full.add(rf.seconds_residual);
+        t_reduced.add(rr.seconds_residual);
+        double ref_seconds = NAN;
+        if (!reference.empty() && c.on_edges) {
+            if (const auto ref = run_reference(reference, c, work, ref_seconds)) {
+                err["reference"] = 100 * mislabeled_area(mesh, *ref, c.truth, true);
+                t_ref.add(ref_seconds);
+            }
+        }
+        const std::string mesh_name = c.name.substr(0, c.name.find('/'));
+        const std::string damage = c.name.substr(c.name.rfind('/') + 1);
+        const std::string where = c.on_edges ? "edges" : "faces";
+        for (const auto& [m, e] : err) {
+            by_group["all"][m].add(e);
+            by_group[mesh_name][m].add(e);
+            by_group[damage][m].add(e);
+            by_group["on " + where][m].add(e);
+        }
+        if (!quiet) {
+            auto cell = [&](const char* m) {
+                char s[16];
+                if (err.count(m)) std::snprintf(s, sizeof(s), "%9.2f", err[m]);
+                else std::snprintf(s, sizeof(s), "%9s", "-");
+                return std::string(s);
+            };
+            std::printf("%-34s %7zu %s %s %s %s %s   %7.3f %7.3f %7.2f\n", c.name.c_str(), mesh.face_count(),
+                        cell("swn-full").c_str(), cell("swn-reduced").c_str(), cell("naive-u").c_str(),
+                        cell("shm-sign").c_str(), cell("reference").c_str(), rf.seconds_residual, rr.seconds_residual,
+                        ref_seconds);
+            std::fflush(stdout);
+        }
+    }
+    std::printf("\nMislabeled area, %% of the surface (up to a global integer shift): mean / median / max over %zu cases\n",
+                cases.size());
+    std::printf("%-14s %6s", "group", "cases");
+    for (const std::string& m : methods) std::printf(" %22s", m.c_str());
+    std::printf("\n");
+    for (const char* g : {"all", "sphere", "torus", "double-torus", "on edges", "on faces", "cut0%", "cut30%", "cut50%"}) {
+        if (!by_group.count(g)) continue;
+        std::printf("%-14s %6zu", g, by_group[g]["swn-full"].v.size());
+        for (const std::string& m : methods) {
+            const Stats& s = by_group[g][m];
+            if (s.v.empty()) std::printf(" %22s", "-");
+            else std::printf("   %6.2f /%6.2f /%6.2f", s.mean(), s.median(), s.max());
+        }
+        std::printf("\n");
+    }
+    std::printf("\nfull vs reduced program: labels differ on %.3f %% of the area on average (max %.3f %%)\n",
+                full_vs_reduced.mean(), full_vs_reduced.max());
+    std::printf("residual step: full %.3f s, reduced %.4f s on average (%.0fx)", t_full.mean(), t_reduced.mean(),
+                t_full.mean() / t_reduced.mean());
+    if (!t_ref.v.empty()) std::printf("; reference whole run %.2f s on average", t_ref.mean());
+    std::printf("\n");
+    return 0;
+}
+
+// ---- timing --------------------------------------------------------------------------------
+
+std::vector<int> parse_list(const char* s) {
+    std::vector<int> out;
+    for (const char* p = s; *p;) {
+        out.push_back(std::atoi(p));
+        while (*p && *p != ',') ++p;
+        if (*p == ',') ++p;
+    }
+    return out;
+}
+
+int timing(int argc, char** argv) {
+    std::vector<int> sizes{32, 48, 64, 96, 128};
+    int clp_max = 48;
+    for (int i = 2; i < argc; ++i) {
+        if (!std::strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = parse_list(argv[++i]);
+        else if (!std::strcmp(argv[i], "--clp-max") && i + 1 < argc) clp_max = std::atoi(argv[++i]);
+        else {
+            std::fprintf(stderr, "unknown argument %s\n", argv[i]);
+            return 2;
+        }
+    }
+    std::printf("Double torus, a broken bounding loop (30 %% cut) and broken loops around both handles; seconds\n");
+    std::printf("%6s %8s %8s %8s %8s %9s %9s %7s %9s %9s %9s\n", "grid", "faces", "jump", "hodge", "full", "reduced",
+                "full/red", "labels", "total", "clp", "clp/net");
+    for (int n : sizes) {
+        const PolygonMesh m = shapes::double_torus_mesh(n);
+        const SurfaceMesh mesh(m, "double torus");
+        std::vector<double> f(mesh.vertex_count());
+        for (std::size_t v = 0; v < f.size(); ++v) f[v] = (vertex(m, std::uint32_t(v)) - Eigen::Vector3d(-0.85, 0.3, 0.1)).norm() - 0.45;
+        SurfaceSources src;
+        src.curves = level_set_curves(mesh, f, 0);
+        for (const Eigen::Vector3d& hole : {Eigen::Vector3d(-0.425, 0, 0), Eigen::Vector3d(0.425, 0, 0)})
+            for (SurfaceCurve& c : handle_loop(mesh, m, hole, hole.x() < 0 ? 2.6 : 0.4, false, false))
+                src.curves.push_back(std::move(c));
+        src = damage(src, {0.3, 3, 0}, 5);
+        SurfaceWindingNumbers swn(mesh);
+        SwnOptions full, reduced, clp;
+        reduced.residual = SwnResidual::Reduced;
+        clp.solver = SwnSolver::Clp;
+        const SwnResult rf = swn.solve(src, full);
+        const SwnResult rr = swn.solve(src, reduced);
+        const double agree = 100 * (1 - mislabeled_area(mesh, rr.labels, rf.labels, false));
+        char clp_s[32] = "-", ratio[32] = "-";
+        if (n <= clp_max) {
+            const SwnResult rc = swn.solve(src, clp);
+            std::snprintf(clp_s, sizeof(clp_s), "%9.2f", rc.seconds_residual);
+            std::snprintf(ratio, sizeof(ratio), "%8.0fx", rc.seconds_residual / rf.seconds_residual);
+        }
+        std::printf("%6d %8zu %8.3f %8.3f %8.3f %9.4f %8.0fx %6.2f%% %9.3f %9s %9s\n", n, mesh.face_count(), rf.seconds_jump,
+                    rf.seconds_hodge, rf.seconds_residual, rr.seconds_residual,
+                    rf.seconds_residual / rr.seconds_residual, agree, rf.seconds_total, clp_s, ratio);
+        std::fflush(stdout);
+    }
+    std::printf("(jump: the jump Laplace equation solved twice, first factorization included; labels: area where "
+                "full and reduced agree)\n");
+    return 0;
+}
+
+int write_case(int argc, char** argv) {
+    if (argc < 4) {
+        std::fprintf(stderr, "usage: gsd-swn-bench write CASE PREFIX   (CASE: a name from the accuracy table)\n");
+        return 2;
+    }
+    const std::string name = argv[2];
+    const int index = std::atoi(name.substr(name.find('/') + 1).c_str());
+    for (const Case& c : make_cases(index + 1)) {
+        if (c.name != name) continue;
+        io::write_mesh(std::string(argv[3]) + ".obj", c.mesh);
+        write_surface_curves(std::string(argv[3]) + ".txt", c.curves);
+        std::vector<std::int32_t> truth(c.truth.begin(), c.truth.end());
+        io::write_npy(std::string(argv[3]) + ".truth.npy", {truth.size()}, truth);
+        std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", argv[3], c.name.c_str());
+        return 0;
+    }
+    std::fprintf(stderr, "no case named %s\n", name.c_str());
+    return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    try {
+        if (argc >= 2 && !std::strcmp(argv[1], "accuracy")) return accuracy(argc, argv);
+        if (argc >= 2 && !std::strcmp(argv[1], "timing")) return timing(argc, argv);
+        if (argc >= 2 && !std::strcmp(argv[1], "write")) return write_case(argc, argv);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "gsd-swn-bench: %s\n", e.what());
+        return 1;
+    }
+    std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--reference PROGRAM] [--work DIR] [--quiet]\n"
+                         "       gsd-swn-bench timing [--sizes 32,48,64] [--clp-max 48]\n"
+                         "       gsd-swn-bench write CASE PREFIX\n");
+    return 2;
+}

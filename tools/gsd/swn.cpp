@@ -1,0 +1,214 @@
+// `gsd swn`: inside/outside of (broken) curves on a surface — Surface Winding Numbers, or the
+// sign of the surface Signed Heat Method for comparison.
+#include "cli.hpp"
+
+#include <gsd/io.hpp>
+#include <gsd/surface.hpp>
+#include <gsd/swn.hpp>
+#include <gsd/viz.hpp>
+
+#include <Eigen/Geometry>
+
+#include <filesystem>
+#include <functional>
+#include <map>
+
+namespace gsd::cli {
+
+namespace {
+
+struct SwnArgs {
+    std::string mesh, curves, output, w, loops, render;
+    std::string lp = "full", solver = "network", method = "swn";
+    SwnOptions options;
+};
+
+/// The bounding, nonbounding and completed curves as OBJ polylines, one group each.
+std::string loops_obj(const SwnResult& r) {
+    std::string out = "# curve decomposition written by gsd swn: bounding and nonbounding parts of the input curves,\n"
+                      "# and where the nonbounding ones were completed\n";
+    std::size_t vertices = 0;
+    for (const auto& [name, lines] : {std::pair<const char*, const Polylines*>{"bounding", &r.bounding},
+                                      {"nonbounding", &r.nonbounding},
+                                      {"completed", &r.completed}}) {
+        out.append("g ").append(name).append("\n");
+        for (const auto& line : *lines) {
+            std::string l = "l";
+            for (const Eigen::Vector3d& x : line) {
+                char v[128];
+                std::snprintf(v, sizeof(v), "v %.9g %.9g %.9g\n", x.x(), x.y(), x.z());
+                out += v;
+                l.append(" ").append(std::to_string(++vertices));
+            }
+            out.append(l).append("\n");
+        }
+    }
+    return out;
+}
+
+/// "3 regions: 0 (61.2 %), 1 (38.8 %)": the labels and their share of the area.
+std::string label_summary(const SurfaceMesh& mesh, const std::vector<int>& labels) {
+    const auto& polygons = mesh.polygons();
+    std::map<int, double> area;
+    double total = 0;
+    for (std::size_t f = 0; f < labels.size(); ++f) {
+        // Fan area of the polygon.
+        const std::uint32_t* v = polygons.indices.data() + polygons.offsets[f];
+        const Eigen::Vector3d p = polygons.vertices.row(v[0]).transpose();
+        double a = 0;
+        for (std::size_t k = 1; k + 1 < polygons.face_size(f); ++k)
+            a += 0.5 * (polygons.vertices.row(v[k]).transpose() - p).cross(polygons.vertices.row(v[k + 1]).transpose() - p).norm();
+        area[labels[f]] += a;
+        total += a;
+    }
+    std::string s;
+    for (const auto& [label, a] : area) {
+        if (!s.empty()) s += ", ";
+        s += std::to_string(label) + " (" + fmt("%.1f %%", total > 0 ? 100 * a / total : 0.0) + ")";
+    }
+    return s;
+}
+
+SurfaceSources load_curves(const SwnArgs& a, const SurfaceMesh& mesh) {
+    SurfaceSources src = !a.curves.empty() ? read_surface_curves(a.curves, mesh) : read_surface_curves(a.mesh, mesh);
+    if (src.curves.empty())
+        throw Error(a.curves.empty() ? a.mesh : a.curves, "no curves (give --curves, or `l` lines in the .obj)");
+    if (!src.points.empty())
+        note("note: " + std::to_string(src.points.size()) + " isolated points ignored (points bound no region)");
+    src.points.clear();
+    return src;
+}
+
+void run(const SwnArgs& a) {
+    if (a.curves.empty() && io::extension(a.mesh) != ".obj")
+        throw CLI::RequiredError("--curves (or an .obj mesh with `l` lines)");
+    if (io::extension(a.output) != ".npy") throw CLI::ValidationError("--output", "must be a .npy file");
+    if (!a.w.empty() && io::extension(a.w) != ".npy") throw CLI::ValidationError("--w", "must be a .npy file");
+    if (!a.loops.empty() && io::extension(a.loops) != ".obj") throw CLI::ValidationError("--loops", "must be an .obj file");
+    if (!a.render.empty() && io::extension(a.render) != ".png") throw CLI::ValidationError("--render", "must be a .png file");
+    const bool shm = a.method == "shm";
+    if (shm && (!a.w.empty() || !a.loops.empty()))
+        throw CLI::ValidationError("--method shm", "writes labels only (--w and --loops come from --method swn)");
+
+    const auto t0 = std::chrono::steady_clock::now();
+    SurfaceMesh mesh(io::read_mesh(a.mesh), a.mesh);
+    const SurfaceSources curves = load_curves(a, mesh);
+    const double load_seconds = seconds_since(t0);
+
+    std::vector<int> labels;
+    SwnResult r;
+    Progress progress(shm ? "swn (shm sign)" : "swn");
+    if (shm) {
+        SignedHeatSurface solver(mesh);
+        labels = shm_labels(mesh, solver.solve(curves, {}, progress.fn()).phi);
+    } else {
+        SwnOptions o = a.options;
+        o.residual = swn_residual_from_name(a.lp);
+        o.solver = swn_solver_from_name(a.solver);
+        SurfaceWindingNumbers solver(mesh);
+        r = solver.solve(curves, o, progress.fn());
+        labels = r.labels;
+    }
+    progress.finish();
+    if (globals().verbose) {
+        note("mesh: " + std::to_string(mesh.vertex_count()) + " vertices, " + std::to_string(mesh.face_count()) +
+             " faces; load " + fmt("%.3f s", load_seconds));
+        if (!shm) {
+            note(std::string(r.simply_connected ? "every component a disk or sphere: no residual step"
+                                                : "not simply connected: residual by the " + a.lp + " program") +
+                 (r.split ? "; curves off the edges: solved on a mesh cut along them" : ""));
+            note("jump solves " + fmt("%.3f s", r.seconds_jump) + ", Hodge " + fmt("%.3f s", r.seconds_hodge) +
+                 ", residual " + fmt("%.3f s", r.seconds_residual) + " (" + std::to_string(r.lp_variables) +
+                 " variables, " + std::to_string(r.lp_rows) + " rows, L1 cost " + fmt("%.6g", r.lp_objective) + ", bound violation " + fmt("%.2g", r.lp_violation) +
+                 ")" + (r.seconds_boundary > 0 ? ", boundary-aware " + fmt("%.3f s", r.seconds_boundary) : std::string()) +
+                 ", total " + fmt("%.3f s", r.seconds_total));
+            note(std::to_string(r.bounding.size()) + " bounding, " + std::to_string(r.nonbounding.size()) +
+                 " nonbounding, " + std::to_string(r.completed.size()) + " completing polylines");
+        }
+        note("peak memory: " + peak_memory());
+    }
+
+    // Everything in memory first, then write all outputs or none.
+    std::vector<std::int32_t> label32(labels.begin(), labels.end());
+    std::vector<float> w;
+    for (const auto& c : r.w) w.insert(w.end(), c.begin(), c.end());
+    const std::string loops = a.loops.empty() ? std::string() : loops_obj(r);
+    Image picture;
+    if (!a.render.empty()) {
+        SurfacePicture p;
+        p.mesh = &mesh.polygons();
+        p.face_labels = labels;
+        if (shm) {
+            p.curves.push_back({source_polylines(mesh, curves), {20, 20, 20}, 3.0});
+        } else {
+            p.curves.push_back({r.bounding, {20, 20, 20}, 3.0});
+            p.curves.push_back({r.nonbounding, {200, 30, 30}, 3.0});
+            p.curves.push_back({r.completed, {230, 150, 0}, 2.0});
+        }
+        picture = render_surface(p);
+    }
+    std::vector<std::pair<std::string, std::function<void()>>> outputs = {
+        {a.output, [&] { io::write_npy(a.output, {label32.size()}, label32); }},
+        {a.w, [&] { io::write_npy(a.w, {r.w.size(), 3}, w); }},
+        {a.loops, [&] { io::write_file_atomic(a.loops, loops); }},
+        {a.render, [&] { write_png(a.render, picture); }}};
+    std::vector<std::string> done;
+    try {
+        for (const auto& [path, write] : outputs) {
+            if (path.empty()) continue;
+            write();
+            done.push_back(path);
+        }
+    } catch (...) {
+        for (const std::string& p : done) std::filesystem::remove(p);
+        throw;
+    }
+    std::string written;
+    for (const std::string& p : done) written.append(written.empty() ? "" : ", ").append(p);
+    note("wrote " + written + "; labels: " + label_summary(mesh, labels));
+}
+
+}  // namespace
+
+void add_swn(CLI::App& app) {
+    auto* s = app.add_subcommand("swn", "Surface Winding Numbers (thesis ch. 6): inside/outside of broken curves on a "
+                                        "surface of any topology, as integer labels per face");
+    auto a = std::make_shared<SwnArgs>();
+    s->add_option("MESH", a->mesh, "Triangle or polygon mesh (.obj .ply .off .stl); manifold and oriented for --method swn")
+        ->required();
+    s->add_option("--curves", a->curves,
+                  "Oriented curves on the mesh: the curve text format (v/e/f points, l lines) or an .obj's l lines "
+                  "(default: the mesh's own l lines)");
+    s->add_option("-o,--output", a->output,
+                  "Output .npy: int32 label per input face (+1 left of a counter-clockwise loop, 0 outside)")
+        ->required();
+    s->add_option("--w", a->w, "Also write w per triangle corner, float32 (T, 3) (T = faces for a triangle mesh)");
+    s->add_option("--method", a->method,
+                  "swn: winding numbers; shm: the sign of the surface Signed Heat Method (1 where φ < 0), often "
+                  "better on badly corrupted curves (docs/swn.md)")
+        ->check(CLI::IsMember({"swn", "shm"}))
+        ->capture_default_str();
+    s->add_option("--lp", a->lp,
+                  "Residual step on surfaces that are not simply connected: full (linear program over every face), "
+                  "reduced (over the pieces of a cut, much faster), none (naive rounding of u)")
+        ->check(CLI::IsMember({"full", "reduced", "none"}))
+        ->capture_default_str();
+    s->add_option("--lp-solver", a->solver,
+                  "network: network simplex on the program's dual (exact, fast); clp: COIN-OR CLP on the program itself")
+        ->check(CLI::IsMember({"network", "clp"}))
+        ->capture_default_str();
+    s->add_option("--curve-weight", a->options.curve_weight,
+                  "Cost of a residual jump along an input curve relative to elsewhere (ε of the linear program)")
+        ->check(CLI::Range(1e-9, 1.0))
+        ->capture_default_str();
+    s->add_flag("--boundary-aware", a->options.boundary_aware,
+                "On meshes with boundary: labels near the boundary like free-space winding numbers (thesis §6.2)");
+    s->add_option("--loops", a->loops, "Also write the curve decomposition as .obj polylines (groups bounding, "
+                                       "nonbounding, completed)");
+    s->add_option("--render", a->render,
+                  "Also render a picture (.png): regions colored by label, bounding curves black, nonbounding red, "
+                  "completions orange");
+    s->callback([a] { run(*a); });
+}
+
+}  // namespace gsd::cli
