@@ -8,12 +8,18 @@
 #   scripts/bench.sh surface    SHM on surfaces: accuracy vs exact distances (and vs a reference
 #                               program when one is there), setup/solve times and memory vs mesh
 #                               size, first vs repeated solves, whole runs side by side
+#   scripts/bench.sh swn        Surface Winding Numbers: mislabeled area on a synthetic benchmark
+#                               (SWN full and reduced, naive rounding, SHM sign, a reference program
+#                               when one is there), time per step vs mesh size, whole runs
 # Environment: GSD_BENCH_PAT_ARGS (extra gsd-bench arguments), GSD_BENCH_SHM_MAX (largest grid,
 # default 256; 512 needs a big GPU), GSD_BENCH_NET_SIZES (TorusNet cloud sizes, default
 # 10000,100000; 1000000 and up want a real GPU: lavapipe fits ~2·10³ points/s),
 # GSD_BENCH_SURFACE_LEVELS (icosphere levels for the surface timing, default 4,5,6,7,8: 5k to
 # 1.3M faces), GSD_SURFACE_REFERENCE (a program `REF MESH.obj CURVES.txt -o OUT.npy` to compare
-# with, e.g. geometry-central's signed heat solver; default: ../shared/anchors/gc_shm if present).
+# with, e.g. geometry-central's signed heat solver; default: ../shared/anchors/gc_shm if present),
+# GSD_BENCH_SWN_CASES (random functions per mesh, default 3), GSD_BENCH_SWN_SIZES (double-torus grid
+# sizes for the SWN timing), GSD_SWN_REFERENCE (a program `REF MESH.obj CURVES.txt -o PREFIX` writing
+# PREFIX.labels.npy, e.g. the SWN reference code; default: ../shared/anchors/swn_clp if present).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh
@@ -118,6 +124,38 @@ if [ "$what" = all ] || [ "$what" = surface ]; then
       gm=$(printf "%s\n" "${g[@]}" | median); cm=$(printf "%s\n" "${c[@]}" | median)
       faces=$(grep -c '^f ' "$1")
       printf "%-26s %9s %9.3f %9.3f %8.2f\n" "$(basename "$1" .obj)/$(basename "$2")" "$faces" "$gm" "$cm" "$(awk "BEGIN{print $gm / $cm}")"
+    done
+  fi
+fi
+
+if [ "$what" = all ] || [ "$what" = swn ]; then
+  ref=${GSD_SWN_REFERENCE:-}
+  [ -z "$ref" ] && [ -x ../shared/anchors/swn_clp ] && ref=$(cd ../shared/anchors && pwd)/swn_clp
+  echo
+  echo "== Surface Winding Numbers: mislabeled area on a synthetic benchmark (thesis §6.3 style)"
+  # shellcheck disable=SC2086
+  build/bin/gsd-swn-bench accuracy --cases "${GSD_BENCH_SWN_CASES:-3}" ${ref:+--reference "$ref"} --work "$work/swn"
+  echo
+  echo "== Surface Winding Numbers: time per step, full vs reduced program, vs mesh size"
+  build/bin/gsd-swn-bench timing --sizes "${GSD_BENCH_SWN_SIZES:-32,48,64,96,128}"
+  if [ -d ../shared/data/surface-curves ]; then
+    d=../shared/data/surface-curves
+    echo
+    echo "== Whole runs on the shared double tori (seconds; the reference's full program only with GSD_BENCH_SWN_SLOW=1)"
+    printf "%-34s %9s %9s %12s %12s\n" input "gsd full" "gsd red." "ref approx" "ref full"
+    for m in DoubleTorusWithLoops DoubleTorusWithBrokenLoops; do
+      t0=$(date +%s.%N); "$gsd" -q swn "$d/$m.obj" -o "$work/f.npy"; t1=$(date +%s.%N)
+      "$gsd" -q swn "$d/$m.obj" --lp reduced -o "$work/r.npy"; t2=$(date +%s.%N)
+      ra=-; rf=-
+      if [ -n "$ref" ]; then
+        "$ref" "$d/$m.obj" -o "$work/ra" --approx >/dev/null 2>&1; t3=$(date +%s.%N)
+        ra=$(awk "BEGIN{printf \"%.2f\", $t3 - $t2}")
+        if [ "${GSD_BENCH_SWN_SLOW:-0}" = 1 ]; then
+          "$ref" "$d/$m.obj" -o "$work/rf" >/dev/null 2>&1; t4=$(date +%s.%N)
+          rf=$(awk "BEGIN{printf \"%.1f\", $t4 - $t3}")
+        fi
+      fi
+      printf "%-34s %9.2f %9.2f %12s %12s\n" "$m" "$(awk "BEGIN{print $t1 - $t0}")" "$(awk "BEGIN{print $t2 - $t1}")" "$ra" "$rf"
     done
   fi
 fi

@@ -8,7 +8,11 @@
 #     → a closed zero-level surface → a slice;
 #  3. the Signed Heat Method on a surface: a torus mesh (`gsd mesh`) and a closed curve on it with
 #     40% cut away in three gaps (`gsd curve`) → geodesic signed distance per vertex → a picture,
-#     isolines and a colored mesh.
+#     isolines and a colored mesh;
+#  4. Surface Winding Numbers on a double torus (`gsd mesh double-torus`): a loop around a region
+#     and loops around both handles, each with 30% cut away (`gsd curve`) → inside/outside labels
+#     per face, the loops that bound nothing found and completed → pictures, beside the labels
+#     from the sign of the surface Signed Heat Method.
 # Usage: scripts/demo.sh [OUTPUT_DIR]   (default: out/demo)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -48,6 +52,16 @@ surf_mesh="$out/torus-mesh.ply"
 "$gsd" -v shm surface "$surf_mesh" --curves "$out/torus-cut.txt" -o "$out/surface-phi.npy" \
   --render "$out/surface-phi.png" --isolines "$out/surface-isolines.obj" --colored "$out/surface-phi.ply"
 
+swn_mesh="$out/double-torus.ply"
+"$gsd" mesh double-torus -r 72 -o "$swn_mesh"
+"$gsd" curve "$swn_mesh" --sphere -0.95 0.35 0.1 0.4 --break 0.3 --seed 2 -o "$out/dt-region.txt"
+"$gsd" curve "$swn_mesh" --plane 0 1 0 0 --near 1.2 0 0 --break 0.3 --seed 3 -o "$out/dt-handle-1.txt"
+"$gsd" curve "$swn_mesh" --plane 1 1 0 -0.6 --near -0.2 -0.9 0 --break 0.3 --seed 5 -o "$out/dt-handle-2.txt"
+dt_curves=("$out/dt-region.txt" "$out/dt-handle-1.txt" "$out/dt-handle-2.txt")
+"$gsd" -v swn "$swn_mesh" --curves "${dt_curves[@]}" -o "$out/swn-labels.npy" --w "$out/swn-w.npy" \
+  --loops "$out/swn-loops.obj" --render "$out/swn.png"
+"$gsd" swn "$swn_mesh" --curves "${dt_curves[@]}" --method shm -o "$out/swn-shm-labels.npy" --render "$out/swn-shm.png"
+
 cat <<MSG
 
 demo outputs (input: $cloud, $(head -c 300 "$cloud" | grep -a 'element vertex' | cut -d' ' -f3) points):
@@ -68,4 +82,10 @@ SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 
   picture              $out/surface-phi.png
   isolines             $out/surface-isolines.obj
   colored mesh         $out/surface-phi.ply
+
+SWN on a double torus (input: $swn_mesh; a region's boundary and a loop around each handle, 30% cut):
+  labels per face      $out/swn-labels.npy    (int32: 1 inside the region, 0 outside)
+  w per corner         $out/swn-w.npy
+  curve decomposition  $out/swn-loops.obj     (groups bounding, nonbounding, completed)
+  pictures             $out/swn.png (SWN)  $out/swn-shm.png (the sign of the surface SHM)
 MSG

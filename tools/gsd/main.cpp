@@ -418,8 +418,9 @@ void add_mesh(CLI::App& app) {
     auto resolution = std::make_shared<int>(48);
     auto seed = std::make_shared<std::uint64_t>(1);
     auto c = std::make_shared<shapes::MeshCorruption>();
-    auto* s = m->add_option("SHAPE", *shape, "sphere | torus | capsule | rounded-box")
-                  ->check(CLI::IsMember({"sphere", "torus", "capsule", "rounded-box"}));
+    auto* s = m->add_option("SHAPE", *shape, "sphere | torus | capsule | rounded-box | double-torus (genus 2, for "
+                                             "curves that bound nothing)")
+                  ->check(CLI::IsMember({"sphere", "torus", "capsule", "rounded-box", "double-torus"}));
     auto* f = m->add_option("--from", *from, "Damage this mesh instead of making one");
     s->excludes(f);
     m->add_option("-r,--resolution", *resolution, "Contouring grid nodes per axis")->check(CLI::Range(8, 1024))->capture_default_str();
@@ -431,7 +432,9 @@ void add_mesh(CLI::App& app) {
     m->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required();
     m->callback([=] {
         if (shape->empty() && from->empty()) throw CLI::RequiredError("SHAPE or --from");
-        const PolygonMesh base = from->empty() ? shapes::mesh(*shapes::by_name(*shape), *resolution) : io::read_mesh(*from);
+        const PolygonMesh base = !from->empty()             ? io::read_mesh(*from)
+                                 : *shape == "double-torus" ? shapes::double_torus_mesh(std::max(*resolution, 16))
+                                                            : shapes::mesh(*shapes::by_name(*shape), *resolution);
         const PolygonMesh out = shapes::corrupt(base, *c, *seed);
         io::write_mesh(*output, out);
         note("wrote " + std::to_string(out.face_count()) + " faces to " + *output);

@@ -16,7 +16,8 @@ namespace gsd::cli {
 namespace {
 
 struct SurfaceArgs {
-    std::string mesh, curves, points, output, colored, isolines, render;
+    std::string mesh, points, output, colored, isolines, render;
+    std::vector<std::string> curves;
     bool is_unsigned = false;
     std::string level_set = "zero";
     double isoline_spacing = 0;
@@ -73,8 +74,11 @@ std::string isolines_obj(const SurfaceMesh& mesh, const std::vector<double>& phi
 /// points from --points.
 SurfaceSources load_sources(const SurfaceArgs& a, const SurfaceMesh& mesh) {
     SurfaceSources src;
-    if (!a.curves.empty()) src = read_surface_curves(a.curves, mesh);
-    else if (io::extension(a.mesh) == ".obj" && a.points.empty()) src = read_surface_curves(a.mesh, mesh);
+    for (const std::string& file : a.curves) {
+        SurfaceSources more = read_surface_curves(file, mesh);
+        src.curves.insert(src.curves.end(), more.curves.begin(), more.curves.end());
+    }
+    if (a.curves.empty() && io::extension(a.mesh) == ".obj" && a.points.empty()) src = read_surface_curves(a.mesh, mesh);
     if (!a.points.empty()) src.points = read_surface_points(a.points, mesh);
     for (SurfaceCurve& c : src.curves) c.is_signed = !a.is_unsigned;
     return src;
@@ -213,6 +217,9 @@ void add_curve(CLI::App& app) {
     c->add_option("--reverse", harm->reversed, "Reverse this many single pieces, picked at random among the surviving ones")
         ->check(CLI::Range(0, 1000000))
         ->capture_default_str();
+    auto near = std::make_shared<std::vector<double>>();
+    c->add_option("--near", *near, "Keep only the curve passing closest to this point x y z (one loop of several)")
+        ->expected(3);
     c->add_option("--seed", *seed, "Random seed for --break")->capture_default_str();
     c->add_option("-o,--output", *output, "Output curve file (the curve text format, 0-based)")->required();
     c->callback([=] {
@@ -228,6 +235,20 @@ void add_curve(CLI::App& app) {
         SurfaceSources src;
         src.curves = level_set_curves(mesh, f, 0);
         if (src.curves.empty()) throw Error(*mesh_path, "the plane or sphere does not cross the mesh");
+        if (!near->empty()) {
+            const Eigen::Vector3d p((*near)[0], (*near)[1], (*near)[2]);
+            std::size_t best = 0;
+            double best_distance = INFINITY;
+            for (std::size_t i = 0; i < src.curves.size(); ++i)
+                for (const SurfacePoint& q : src.curves[i].nodes) {
+                    const double d = (position(mesh, q) - p).norm();
+                    if (d < best_distance) {
+                        best_distance = d;
+                        best = i;
+                    }
+                }
+            src.curves = {src.curves[best]};
+        }
         src = damage(src, *harm, *seed);
         std::size_t pieces = 0;
         for (const SurfaceCurve& k : src.curves) pieces += k.nodes.size() - 1;
@@ -243,8 +264,8 @@ void add_shm_surface(CLI::App& shm) {
     auto a = std::make_shared<SurfaceArgs>();
     s->add_option("MESH", a->mesh, "Triangle or polygon mesh (.obj .ply .off .stl)")->required();
     s->add_option("--curves", a->curves,
-                  "Curves on the mesh: the curve text format (v/e/f points, l lines) or an .obj's l lines "
-                  "(default: the mesh's own l lines)");
+                  "Curves on the mesh, one or more files: the curve text format (v/e/f points, l lines) or an "
+                  ".obj's l lines (default: the mesh's own l lines)");
     s->add_option("--points", a->points, "Isolated points (unsigned distance): v/e/f records of a curve text file");
     s->add_flag("--unsigned", a->is_unsigned, "Treat the curves as unsigned (distance without a side)");
     s->add_option("--level-set", a->level_set,

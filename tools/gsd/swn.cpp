@@ -18,7 +18,8 @@ namespace gsd::cli {
 namespace {
 
 struct SwnArgs {
-    std::string mesh, curves, output, w, loops, render;
+    std::string mesh, output, w, loops, render;
+    std::vector<std::string> curves;
     std::string lp = "full", solver = "network", method = "swn";
     SwnOptions options;
 };
@@ -70,9 +71,14 @@ std::string label_summary(const SurfaceMesh& mesh, const std::vector<int>& label
 }
 
 SurfaceSources load_curves(const SwnArgs& a, const SurfaceMesh& mesh) {
-    SurfaceSources src = !a.curves.empty() ? read_surface_curves(a.curves, mesh) : read_surface_curves(a.mesh, mesh);
+    SurfaceSources src;
+    for (const std::string& file : a.curves.empty() ? std::vector<std::string>{a.mesh} : a.curves) {
+        SurfaceSources more = read_surface_curves(file, mesh);
+        src.curves.insert(src.curves.end(), more.curves.begin(), more.curves.end());
+        src.points.insert(src.points.end(), more.points.begin(), more.points.end());
+    }
     if (src.curves.empty())
-        throw Error(a.curves.empty() ? a.mesh : a.curves, "no curves (give --curves, or `l` lines in the .obj)");
+        throw Error(a.curves.empty() ? a.mesh : a.curves.front(), "no curves (give --curves, or `l` lines in the .obj)");
     if (!src.points.empty())
         note("note: " + std::to_string(src.points.size()) + " isolated points ignored (points bound no region)");
     src.points.clear();
@@ -177,8 +183,8 @@ void add_swn(CLI::App& app) {
     s->add_option("MESH", a->mesh, "Triangle or polygon mesh (.obj .ply .off .stl); manifold and oriented for --method swn")
         ->required();
     s->add_option("--curves", a->curves,
-                  "Oriented curves on the mesh: the curve text format (v/e/f points, l lines) or an .obj's l lines "
-                  "(default: the mesh's own l lines)");
+                  "Oriented curves on the mesh, one or more files: the curve text format (v/e/f points, l lines) "
+                  "or an .obj's l lines (default: the mesh's own l lines)");
     s->add_option("-o,--output", a->output,
                   "Output .npy: int32 label per input face (+1 left of a counter-clockwise loop, 0 outside)")
         ->required();
