@@ -48,9 +48,10 @@ struct SwnOptions {
     /// anywhere else (ε of the linear program): small, so nonbounding curves are read off the
     /// input where they run and completed elsewhere only across gaps.
     double curve_weight = 1e-3;
-    /// Thesis §6.2: on meshes with boundary, replace the jump solution's derivative near the
-    /// boundary by the vector-diffused one, so labels near the boundary behave like free-space
-    /// winding numbers instead of bending to meet it at right angles.
+    /// Thesis §6.2's goal, by a different means: on meshes with boundary, make labels near the
+    /// boundary behave like free-space winding numbers instead of bending to meet it at right
+    /// angles. gsd solves the final jump equation with an absorbing (Robin) condition on each
+    /// component's outer boundary loop; docs/swn.md says why, with measurements.
     bool boundary_aware = false;
 };
 
