@@ -530,7 +530,7 @@ TEST_CASE("CLI: --fitter net, --model, and their usage errors") {
     const auto missing = test::run_cli("pat fit " + cloud + " --fitter net --model " + dir.file("missing.safetensors") +
                                        " -o " + dir.file("b.tori"));
     CHECK(missing.exit_code == 1);
-    CHECK(missing.output.find("gsd: error: " + dir.file("missing.safetensors") + ": no such file") != std::string::npos);
+    CHECK(missing.output.find("gsd: error: " + dir.file("missing.safetensors") + ": file not found") != std::string::npos);
     CHECK_FALSE(test::file_exists(dir.file("b.tori")));
 
     const std::string tiny = dir.file("tiny.xyz");

@@ -79,9 +79,32 @@ struct GridSpec {
     Eigen::Vector3d node(int i, int j, int k) const;
     /// All node positions in storage order.
     Points nodes() const;
-    /// Throws gsd::Error unless every dimension is ≥ 2 and the box is finite and non-empty.
+    /// Throws gsd::Error unless every dimension is ≥ 2 and the box passes validate_box.
     void validate() const;
 };
+
+/// Coordinates (of points, vertices, queries and bounds) must lie within ±kMaxCoordinate.
+/// Beyond it, squared distances and products of extents overflow double precision in the
+/// methods' intermediate sums (1e30² = 1e60, far from the 1.8e308 limit, leaves room for the
+/// sums of millions of terms), so such input is refused with the element named.
+inline constexpr double kMaxCoordinate = 1e30;
+
+/// Inputs whose extent exceeds kMaxExtentRatio times their typical spacing (median nearest
+/// neighbor distance or median edge length) are refused: one stray coordinate that far out
+/// makes every grid, tree and quadrature built over the whole input meaningless.
+inline constexpr double kMaxExtentRatio = 1e12;
+
+/// The memory, in bytes, that one computation may plan to allocate: $GSD_MEMORY_LIMIT (bytes,
+/// or with a suffix K, M, G, T: "8G"), else three quarters of the machine's physical memory.
+std::size_t memory_budget();
+
+/// Throws Error(where, …) when `bytes`, an estimate made before allocating, exceeds
+/// memory_budget(); `what` names the work ("a 1024³ grid", "splitting 7 large faces").
+void check_memory(double bytes, const std::string& where, const std::string& what);
+
+/// Throws Error(where, …) unless the box is finite, non-empty on every axis, within
+/// ±kMaxCoordinate, and hi − lo is finite.
+void validate_box(const Box& box, const std::string& where);
 
 /// Bounding box of a set of points (throws on an empty set).
 Box bounding_box(const Points& p);
@@ -95,12 +118,13 @@ Box padded_cube(const Box& b, double margin = 0.1);
 using ProgressFn = std::function<void(std::string_view stage, double fraction)>;
 
 /// Checks a point cloud once at the boundary: non-empty, equal row counts, finite
-/// coordinates, finite non-zero normals; normalizes the normals in place.
+/// coordinates within ±kMaxCoordinate, finite non-zero normals, an extent within
+/// kMaxExtentRatio of the median spacing; normalizes the normals in place.
 /// `where` names the source (usually a file) for the error message.
 void validate(PointCloud& cloud, const std::string& where = {});
 
-/// Checks a mesh: at least one face, finite vertices, indices in range, faces with ≥ 3
-/// vertices. Degenerate (zero-area) faces are allowed here; algorithms that cannot use
+/// Checks a mesh: at least one face, finite vertices within ±kMaxCoordinate, indices in
+/// range, faces with ≥ 3 vertices, an extent within kMaxExtentRatio of the median edge length. Degenerate (zero-area) faces are allowed here; algorithms that cannot use
 /// them say so.
 void validate(const PolygonMesh& mesh, const std::string& where = {});
 

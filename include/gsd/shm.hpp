@@ -14,6 +14,8 @@
 
 #include <gsd/core.hpp>
 
+#include <optional>
+
 #include <memory>
 #include <string>
 #include <vector>
@@ -35,9 +37,12 @@ ShmSource shm_source(const PointCloud& cloud);
 /// Mesh in any state (holes, self-intersections, nonmanifold or duplicate faces, inconsistent
 /// orientation: all kept as they are) → sources: each face's vector area at its centroid;
 /// faces larger than `max_element` (default: the mean edge length h) are split into smaller
-/// triangles first so the quadrature resolves them. Polygons are fanned. Degenerate faces
-/// contribute nothing; a mesh whose faces are all degenerate is an error.
-ShmSource shm_source(const PolygonMesh& mesh, double max_element = 0);
+/// triangles first so the quadrature resolves them. With a `focus` box (the grid's), pieces
+/// farther from it than 4× their size are left that coarse: they are summed from afar, and a
+/// large mesh cropped by tight bounds then costs pieces near the box only. The number of
+/// pieces is checked against memory_budget() before any is stored. Polygons are fanned.
+/// Degenerate faces contribute nothing; a mesh whose faces are all degenerate is an error.
+ShmSource shm_source(const PolygonMesh& mesh, double max_element = 0, const std::optional<Box>& focus = std::nullopt);
 
 /// Mesh and cloud together (bonus): their sources concatenated; h is the larger spacing.
 ShmSource combine(const ShmSource& a, const ShmSource& b);

@@ -24,7 +24,7 @@ enum class Axis { X = 0, Y = 1, Z = 2 };
 struct SliceOptions {
     Axis axis = Axis::Z;
     double at = 0.0;          ///< world coordinate of the slice plane (trilinear in between nodes)
-    int width = 0;            ///< output pixels along the slice's first axis (0: 512, or the grid size if larger)
+    int width = 0;            ///< output pixels along the slice's first axis (0: 512, or the grid size if larger, at most 4096 per side)
     double range = 0.0;       ///< color scale saturates at ±range (0: max |value| on the slice)
     int isolines = 16;        ///< number of isolines each side of zero over ±range (0: none)
     bool zero_contour = true; ///< draw the zero level as a thick dark line

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
+
+#include <unistd.h>
 
 namespace gsd {
 
@@ -38,12 +41,7 @@ void GridSpec::validate() const {
     // 2^31 nodes is 8 GiB of float32: far past what one .npy grid on this library's path can hold.
     if (double(nx) * double(ny) * double(nz) > double(1u << 31))
         throw Error("--grid", "grid has more than 2^31 nodes");
-    for (int a = 0; a < 3; ++a) {
-        if (!std::isfinite(box.lo[a]) || !std::isfinite(box.hi[a]))
-            throw Error("--bounds", "bounds must be finite numbers");
-        if (!(box.hi[a] > box.lo[a]))
-            throw Error("--bounds", "bounds must satisfy x0 < x1, y0 < y1, z0 < z1");
-    }
+    validate_box(box, "--bounds");
 }
 
 Box bounding_box(const Points& p) {
@@ -66,7 +64,92 @@ std::string at_row(const char* what, Eigen::Index i) {
     s << what << " (element " << i << ")";
     return s.str();
 }
+
+std::string gib(double bytes) {
+    std::ostringstream s;
+    s.precision(3);
+    s << bytes / double(1ull << 30) << " GiB";
+    return s.str();
+}
+
+/// Coordinates within ±kMaxCoordinate, and the whole extent within kMaxExtentRatio of the bulk's
+/// size (the largest interquartile range over the axes): a stray element far out is named.
+void check_coordinates(const Points& p, const std::string& where, const char* element) {
+    for (Eigen::Index i = 0; i < p.rows(); ++i)
+        if (!(p.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate))
+            throw Error(where, at_row((std::string(element) + " coordinate beyond ±1e30").c_str(), i));
+    if (p.rows() < 4) return;
+    Eigen::Vector3d median, iqr;
+    std::vector<double> v(std::size_t(p.rows()));
+    for (int a = 0; a < 3; ++a) {
+        for (Eigen::Index i = 0; i < p.rows(); ++i) v[std::size_t(i)] = p(i, a);
+        const auto at = [&](double q) {
+            auto it = v.begin() + std::ptrdiff_t(q * double(v.size() - 1));
+            std::nth_element(v.begin(), it, v.end());
+            return *it;
+        };
+        const double q1 = at(0.25), q2 = at(0.5), q3 = at(0.75);
+        median[a] = q2;
+        iqr[a] = q3 - q1;
+    }
+    const double bulk = iqr.maxCoeff();
+    if (!(bulk > 0)) return;  // most elements coincide: no scale to compare with
+    Eigen::Index far = 0;
+    double farthest = 0;
+    for (Eigen::Index i = 0; i < p.rows(); ++i) {
+        const double d = (p.row(i).transpose() - median).cwiseAbs().maxCoeff();
+        if (d > farthest) farthest = d, far = i;
+    }
+    if (farthest > kMaxExtentRatio * bulk) {
+        std::ostringstream s;
+        s.precision(3);
+        s << element << " " << far << " lies " << farthest / bulk
+          << "x the size of the bulk (interquartile range) away from it: the input's extent makes a grid, "
+             "tree or quadrature over it meaningless (limit 1e12x); remove the stray element";
+        throw Error(where, s.str());
+    }
+}
 }  // namespace
+
+std::size_t memory_budget() {
+    if (const char* env = std::getenv("GSD_MEMORY_LIMIT"); env && *env) {
+        char* end = nullptr;
+        const double v = std::strtod(env, &end);
+        double scale = 1;
+        switch (end && *end ? std::toupper(static_cast<unsigned char>(*end)) : 0) {
+            case 0: break;
+            case 'K': scale = 1024.0; break;
+            case 'M': scale = 1024.0 * 1024; break;
+            case 'G': scale = 1024.0 * 1024 * 1024; break;
+            case 'T': scale = 1024.0 * 1024 * 1024 * 1024; break;
+            default: throw Error("GSD_MEMORY_LIMIT", "expects bytes or a number with K, M, G or T, not '" + std::string(env) + "'");
+        }
+        if (!(v > 0) || !std::isfinite(v * scale))
+            throw Error("GSD_MEMORY_LIMIT", "expects a positive size, not '" + std::string(env) + "'");
+        return std::size_t(std::min(v * scale, 1e18));
+    }
+    const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || page <= 0) return std::size_t(8) << 30;  // unknown: 8 GiB
+    return std::size_t(double(pages) * double(page) * 0.75);
+}
+
+void check_memory(double bytes, const std::string& where, const std::string& what) {
+    const std::size_t budget = memory_budget();
+    if (!(bytes <= double(budget)))
+        throw Error(where, what + " needs about " + gib(bytes) + ", over the memory budget of " + gib(double(budget)) +
+                               (std::getenv("GSD_MEMORY_LIMIT") ? " (GSD_MEMORY_LIMIT)"
+                                                                : " (3/4 of this machine's memory; GSD_MEMORY_LIMIT changes it)"));
+}
+
+void validate_box(const Box& box, const std::string& where) {
+    for (int a = 0; a < 3; ++a) {
+        if (!std::isfinite(box.lo[a]) || !std::isfinite(box.hi[a])) throw Error(where, "bounds must be finite numbers");
+        if (!(box.hi[a] > box.lo[a])) throw Error(where, "bounds must satisfy x0 < x1, y0 < y1, z0 < z1");
+        if (std::abs(box.lo[a]) > kMaxCoordinate || std::abs(box.hi[a]) > kMaxCoordinate)
+            throw Error(where, "bounds must lie within ±1e30");
+        if (!std::isfinite(box.hi[a] - box.lo[a])) throw Error(where, "bounds are too far apart (x1 − x0 overflows)");
+    }
+}
 
 void validate(PointCloud& cloud, const std::string& where) {
     if (cloud.points.rows() == 0) throw Error(where, "point cloud is empty");
@@ -83,6 +166,7 @@ void validate(PointCloud& cloud, const std::string& where) {
         if (!(len > 1e-30)) throw Error(where, at_row("zero-length normal", i));
         cloud.normals.row(i) /= len;
     }
+    check_coordinates(cloud.points, where, "point");
     const Box b = bounding_box(cloud.points);
     if (!(b.diagonal() > 0)) throw Error(where, "all points coincide");
 }
@@ -95,6 +179,7 @@ void validate(const PolygonMesh& mesh, const std::string& where) {
     for (Eigen::Index i = 0; i < mesh.vertices.rows(); ++i)
         if (!mesh.vertices.row(i).allFinite())
             throw Error(where, at_row("non-finite vertex coordinate", i));
+    check_coordinates(mesh.vertices, where, "vertex");
     const auto nv = static_cast<std::uint32_t>(mesh.vertices.rows());
     for (std::size_t f = 0; f < mesh.face_count(); ++f) {
         if (mesh.offsets[f + 1] < mesh.offsets[f] + 3)

@@ -224,10 +224,33 @@ bool write_all(int fd, const std::string& bytes) {
     return true;
 }
 
+/// Writes straight into an existing character device or FIFO (`-o /dev/null`, `-o /dev/stdout`
+/// into a pipe): such a target cannot be replaced by a rename, and must never be replaced by a
+/// regular file.
+void write_special_file(const std::string& path, const std::string& bytes) {
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+    if (fd < 0) throw Error(path, "cannot open output for writing: " + detail::errno_text(errno));
+    const bool written = write_all(fd, bytes);
+    const int err = errno;
+    ::close(fd);
+    if (!written) throw Error(path, "cannot write output: " + detail::errno_text(err));
+}
+
 }  // namespace
 
-void write_file_atomic(const std::string& path, const std::string& bytes) {
-    if (path.empty()) throw Error(path, "empty output path");
+void write_file_atomic(const std::string& path_in, const std::string& bytes) {
+    if (path_in.empty()) throw Error(path_in, "empty output path");
+    std::string path = path_in;
+    struct stat st {};
+    if (::stat(path.c_str(), &st) == 0) {
+        if (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)) return write_special_file(path, bytes);
+        if (S_ISDIR(st.st_mode)) throw Error(path, "is a directory, not a file");
+        if (!S_ISREG(st.st_mode)) throw Error(path, "is not a regular file; gsd will not replace it");
+        // A symlink to a file: replace the file it points to, not the link.
+        std::error_code ec;
+        const fs::path real = fs::canonical(path, ec);
+        if (!ec) path = real.string();
+    }
     const std::string temp = temp_name_beside(path);
     // O_EXCL: never clobber someone else's file; mode 0666 so the umask decides, as for any
     // ordinary output file (mkstemp would leave 0600).

@@ -165,6 +165,8 @@ Points read_queries(const std::string& path) {
     for (std::size_t i = 0; i < a.data.size(); ++i)
         if (!std::isfinite(a.data[i]))
             throw Error(path, "non-finite query coordinate (query " + std::to_string(i / 3) + ")");
+        else if (std::abs(a.data[i]) > kMaxCoordinate)
+            throw Error(path, "query coordinate beyond ±1e30 (query " + std::to_string(i / 3) + ")");
     return Eigen::Map<const Points>(a.data.data(), Eigen::Index(a.shape[0]), 3);
 }
 

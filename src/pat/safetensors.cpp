@@ -3,6 +3,8 @@
 
 #include <gsd/core.hpp>
 
+#include "io/io_internal.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -159,15 +161,9 @@ std::vector<double> tensor_as_double(const SafeTensor& t, const std::string& whe
 }
 
 std::vector<std::uint8_t> read_binary_file(const std::string& path) {
-    std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) throw Error(path, "no such file");
-    // Not a FIFO or device: reading those could block or never end.
-    if (!std::filesystem::is_regular_file(path, ec)) throw Error(path, "not a regular file");
-    std::ifstream f(path, std::ios::binary);
-    if (!f) throw Error(path, "cannot open file");
-    std::vector<std::uint8_t> bytes(std::istreambuf_iterator<char>(f), {});
-    if (f.bad()) throw Error(path, "read error");
-    return bytes;
+    // The shared reader: regular files only (a FIFO or device could block or never end).
+    const std::string bytes = io::detail::read_whole_file(path);
+    return std::vector<std::uint8_t>(bytes.begin(), bytes.end());
 }
 
 }  // namespace gsd::detail

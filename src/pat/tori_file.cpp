@@ -9,6 +9,8 @@
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
 
+#include "io/io_internal.hpp"
+
 #include <bit>
 #include <cmath>
 #include <cstring>
@@ -67,11 +69,8 @@ void save_tori(const std::string& path, const FittedTori& t) {
 }
 
 FittedTori load_tori(const std::string& path) {
-    std::ifstream f(path, std::ios::binary);
-    if (!f) throw Error(path, "cannot open file");
-    std::ostringstream ss;
-    ss << f.rdbuf();
-    const std::string in = ss.str();
+    // The shared reader: regular files only (a FIFO or /dev/zero would block or never end).
+    const std::string in = io::detail::read_whole_file(path);
     if (in.size() < kHeaderBytes || std::memcmp(in.data(), kMagic, 8) != 0)
         throw Error(path, "not a .tori file (bad magic)");
     if (get<std::uint32_t>(in, 8) != kVersion)

@@ -137,6 +137,9 @@ void torusnet_neighbors(const KdTree& tree, std::uint32_t i, int k, std::vector<
         if (tokens.size() == std::size_t(k)) break;
         if (nb.index != i) tokens.push_back(nb.index);
     }
+    // The search returns fewer than k only if distances overflow, which validated clouds
+    // (coordinates within ±kMaxCoordinate) rule out; never read past what came back: pad with p.
+    while (tokens.size() < std::size_t(k)) tokens.push_back(i);
 }
 
 void torusnet_features(const TorusNetModel& model, const Eigen::Vector3d* nb_points,

@@ -37,9 +37,11 @@ double area(const PolygonMesh& m) {
 
 PolygonMesh mesh(const Shape& shape, int n) {
     if (n < 8) throw Error("a shape mesh needs a grid of at least 8³");
-    // The shape's extent from a dense sampling, padded by 4 cells.
+    // The shape's extent from a dense sampling, padded by c cells: c = 4 on fine grids, 1 on
+    // coarse ones (a cell is (extent + 2·pad)/(n − 1), so pad = c·extent/(n − 1 − 2c)).
     const Box b = bounding_box(shape.sample(4096, 0).points);
-    const double pad = 4.0 * b.extent().maxCoeff() / (n - 9);
+    const double cells = n >= 24 ? 4.0 : 1.0;
+    const double pad = cells * b.extent().maxCoeff() / (n - 1 - 2 * cells);
     GridSpec g = GridSpec::cube(n, Box{b.lo.array() - pad, b.hi.array() + pad});
     std::vector<float> v(g.node_count());
     const Points nodes = g.nodes();

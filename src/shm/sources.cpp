@@ -5,7 +5,10 @@
 #include <Eigen/Geometry>
 
 #include <algorithm>
+#include <array>
+#include <optional>
 #include <cmath>
+#include <cstdio>
 
 namespace gsd {
 
@@ -13,24 +16,53 @@ namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-// Appends a triangle's vector area, split into 4^levels congruent pieces so that each piece's
-// longest edge is at most max_element (midpoint subdivision).
-void add_triangle(const Vec3& a, const Vec3& b, const Vec3& c, double max_element,
-                  std::vector<Vec3>& pos, std::vector<Vec3>& vec) {
-    const Vec3 area = 0.5 * (b - a).cross(c - a);
-    if (!(area.norm() > 0)) return;  // degenerate: no orientation, no area
-    const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
-    if (longest <= max_element) {
-        pos.push_back((a + b + c) / 3);
-        vec.push_back(area);
-        return;
-    }
-    const Vec3 ab = 0.5 * (a + b), bc = 0.5 * (b + c), ca = 0.5 * (c + a);
-    add_triangle(a, ab, ca, max_element, pos, vec);
-    add_triangle(ab, b, bc, max_element, pos, vec);
-    add_triangle(ca, bc, c, max_element, pos, vec);
-    add_triangle(ab, bc, ca, max_element, pos, vec);
+/// Distance from x to a box (0 inside).
+double box_distance(const Vec3& x, const Box& box) {
+    return (x.cwiseMax(box.lo).cwiseMin(box.hi) - x).norm();
 }
+
+/// Splits faces into pieces by midpoint subdivision and emits each piece's vector area at its
+/// centroid. A piece is split while its longest edge exceeds max_element — or, away from the
+/// focus box (the grid), a quarter of its distance to the box: far pieces are summed from
+/// afar, where a coarse piece is as good as its parts, so cropping a large mesh with tight
+/// bounds costs pieces near the box only. Iterative (an explicit stack), so no recursion
+/// depth depends on the data; `emit` returns false to stop early.
+class FaceSplitter {
+public:
+    FaceSplitter(double max_element, const std::optional<Box>& focus)
+        : max_element_(max_element), has_focus_(focus.has_value()), focus_(focus.value_or(Box{})) {}
+
+    template <class Emit>
+    bool split(const Vec3& a, const Vec3& b, const Vec3& c, Emit&& emit) {
+        stack_.clear();
+        stack_.push_back({a, b, c});
+        while (!stack_.empty()) {
+            const std::array<Vec3, 3> t = stack_.back();
+            stack_.pop_back();
+            const Vec3 area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]);
+            if (!(area.norm() > 0)) continue;  // degenerate: no orientation, no area
+            const Vec3 centroid = (t[0] + t[1] + t[2]) / 3;
+            const double longest = std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
+            const double far = has_focus_ ? std::max(0.0, box_distance(centroid, focus_) - longest) : 0.0;
+            if (longest <= std::max(max_element_, 0.25 * far)) {
+                if (!emit(centroid, area)) return false;
+                continue;
+            }
+            const Vec3 ab = 0.5 * (t[0] + t[1]), bc = 0.5 * (t[1] + t[2]), ca = 0.5 * (t[2] + t[0]);
+            stack_.push_back({t[0], ab, ca});
+            stack_.push_back({ab, t[1], bc});
+            stack_.push_back({ca, bc, t[2]});
+            stack_.push_back({ab, bc, ca});
+        }
+        return true;
+    }
+
+private:
+    double max_element_;
+    bool has_focus_;
+    Box focus_;  // (a plain Box: GCC 12 misreads an optional here as maybe uninitialized)
+    std::vector<std::array<Vec3, 3>> stack_;
+};
 
 ShmSource pack(const std::vector<Vec3>& pos, const std::vector<Vec3>& vec, double spacing) {
     ShmSource s;
@@ -60,7 +92,7 @@ ShmSource shm_source(const PointCloud& cloud) {
     return s;
 }
 
-ShmSource shm_source(const PolygonMesh& mesh, double max_element) {
+ShmSource shm_source(const PolygonMesh& mesh, double max_element, const std::optional<Box>& focus) {
     validate(mesh);
     // h = mean edge length over all face edges (each shared edge counted per face: the mean
     // is what matters).
@@ -76,15 +108,36 @@ ShmSource shm_source(const PolygonMesh& mesh, double max_element) {
     if (!(h > 0)) throw Error("mesh", "all faces are degenerate (zero area)");
     const double limit = max_element > 0 ? max_element : h;
 
-    std::vector<Vec3> pos, vec;
-    pos.reserve(mesh.face_count());
-    vec.reserve(mesh.face_count());
-    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-        const Vec3 a = mesh.vertices.row(mesh.indices[mesh.offsets[f]]).transpose();
-        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1]; ++k)
-            add_triangle(a, mesh.vertices.row(mesh.indices[k]).transpose(),
-                         mesh.vertices.row(mesh.indices[k + 1]).transpose(), limit, pos, vec);
+    // Count the pieces first (a dry run): their number depends on coordinates, so it is checked
+    // against the memory budget before anything is stored.
+    constexpr double kBytesPerPiece = 2 * sizeof(Vec3) * 2;  // positions and vectors, then packed
+    const double cap = double(memory_budget()) / kBytesPerPiece;
+    auto corner = [&](std::uint32_t k) -> Vec3 { return mesh.vertices.row(mesh.indices[k]).transpose(); };
+    FaceSplitter splitter(limit, focus);
+    double pieces = 0;
+    for (std::size_t f = 0; f < mesh.face_count() && pieces <= cap; ++f)
+        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1] && pieces <= cap; ++k)
+            splitter.split(corner(mesh.offsets[f]), corner(k), corner(k + 1), [&](const Vec3&, const Vec3&) {
+                return ++pieces <= cap;
+            });
+    if (pieces > cap) {
+        char what[256];
+        std::snprintf(what, sizeof what,
+                      "splitting the faces into pieces no longer than %.3g (more than %.3g pieces: the grid cell is "
+                      "small next to the faces)",
+                      limit, cap);
+        check_memory(pieces * kBytesPerPiece, "mesh", what);
     }
+    std::vector<Vec3> pos, vec;
+    pos.reserve(std::size_t(pieces));
+    vec.reserve(std::size_t(pieces));
+    for (std::size_t f = 0; f < mesh.face_count(); ++f)
+        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1]; ++k)
+            splitter.split(corner(mesh.offsets[f]), corner(k), corner(k + 1), [&](const Vec3& p, const Vec3& v) {
+                pos.push_back(p);
+                vec.push_back(v);
+                return true;
+            });
     if (pos.empty()) throw Error("mesh", "all faces are degenerate (zero area)");
     return pack(pos, vec, h);
 }

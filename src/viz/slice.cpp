@@ -19,6 +19,7 @@ namespace {
 
 constexpr int kDefaultWidth = 512;
 constexpr int kMaxSide = 16384;  // pixels per side; far beyond any screen, keeps memory sane
+constexpr int kMaxDefaultSide = 4096;  // the default image's longest side, however fine the grid
 
 // The slice plane and the two image axes: u to the right, v up, both in increasing world axis
 // order (Z: x, y; Y: x, z; X: y, z).
@@ -175,10 +176,17 @@ void check_slice_input(const GridSpec& grid, const std::vector<float>& values, c
 Image render_slice(const GridSpec& grid, const std::vector<float>& values, const SliceOptions& opt) {
     const SliceAxes ax = slice_axes(opt.axis);
     check_slice_input(grid, values, opt, ax);
-    const int width = opt.width > 0 ? opt.width : std::max(kDefaultWidth, grid_size(grid, ax.u));
     const Eigen::Vector3d extent = grid.box.extent();
-    const double height_real = std::round(width * extent[ax.v] / extent[ax.u]);  // square pixels
-    if (height_real > kMaxSide)
+    const double aspect = extent[ax.v] / extent[ax.u];  // square pixels
+    int width = opt.width;
+    if (width <= 0) {
+        // Default: the grid's resolution along the slice (at least 512), but never an image
+        // whose sides pass kMaxDefaultSide, however thin or long the grid is.
+        const double fit = std::min<double>(kMaxDefaultSide, kMaxDefaultSide / std::max(aspect, 1e-300));
+        width = int(std::clamp<double>(std::max(kDefaultWidth, grid_size(grid, ax.u)), 1, std::max(1.0, std::floor(fit))));
+    }
+    const double height_real = std::round(width * aspect);
+    if (!(height_real <= kMaxSide))
         throw Error("width", "slice image would be taller than 16384 pixels; give a smaller width");
     const int height = std::max(1, int(height_real));
     const PlaneField plane(grid, values, ax, opt.at);

@@ -1,5 +1,7 @@
 #include "cli.hpp"
 
+#include <sys/stat.h>
+
 #include <gsd/io.hpp>
 
 #include <cmath>
@@ -13,6 +15,21 @@ namespace gsd::cli {
 Globals& globals() {
     static Globals g;
     return g;
+}
+
+CLI::Validator output_file(std::vector<std::string> extensions) {
+    std::string names;
+    for (const std::string& e : extensions) names += (names.empty() ? "" : " ") + e;
+    return CLI::Validator(
+        [extensions, names](std::string& path) -> std::string {
+            struct stat st {};
+            if (::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode))) return {};
+            const std::string ext = io::extension(path);
+            for (const std::string& e : extensions)
+                if (ext == e) return {};
+            return "'" + path + "' must end in " + names;
+        },
+        names);
 }
 
 void note(const std::string& message) {
@@ -108,6 +125,14 @@ Box bounds_from(const std::vector<double>& v, const std::string& option) {
 
 Box default_bounds(const Box& b) { return padded_cube(b); }
 
+void check_grid_memory(const GridSpec& g) {
+    // Node positions (24 B), values and gradients in double while computing and in float32 to
+    // write (56 B), and the solvers' work arrays (the SHM multigrid keeps about 8 doubles per
+    // node over its levels): 160 bytes per node covers every grid command.
+    const double bytes = 160.0 * double(g.node_count());
+    check_memory(bytes, "--grid", "a " + std::to_string(g.nx) + "³ grid");
+}
+
 GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     Box box;
     if (!bounds.empty()) box = bounds_from(bounds, "--bounds");
@@ -118,6 +143,7 @@ GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     else throw Error("--bounds", "a grid needs --bounds");
     GridSpec g = GridSpec::cube(grid, box);
     g.validate();
+    check_grid_memory(g);
     return g;
 }
 

@@ -51,6 +51,9 @@ struct Domain {
     GridSpec grid_spec(const std::optional<Box>& fallback) const;
 };
 
+/// Refuses (gsd::Error naming --grid) a grid whose estimated memory passes memory_budget().
+void check_grid_memory(const GridSpec& g);
+
 /// The input's bounding cube, centered on its box, enlarged by 10%.
 Box default_bounds(const Box& b);
 Box bounds_from(const std::vector<double>& v, const std::string& option);
@@ -60,6 +63,11 @@ std::string bounds_text(const Box& b);
 /// Writes a float32 result for a domain: (N,N,N[,3]) for a grid, (M[,3]) for queries.
 void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,
                   const std::vector<float>& values, int components);
+
+/// A check for an output option: its extension must be one of `extensions` (".npy", …;
+/// case-insensitive), so a run never computes for minutes and then writes the wrong format or
+/// nothing. An existing character device or FIFO (`-o /dev/null`) is accepted as it is.
+CLI::Validator output_file(std::vector<std::string> extensions);
 
 /// Prints "gsd: <message>" unless --quiet.
 void note(const std::string& message);

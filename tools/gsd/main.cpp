@@ -149,7 +149,7 @@ void add_pat(CLI::App& app) {
         auto output = std::make_shared<std::string>();
         auto args = std::make_shared<FitArgs>();
         fit->add_option("INPUT", *input, "Point cloud with normals (.ply .xyz .xyzn .txt .pc .obj .npy)")->required();
-        fit->add_option("-o,--output", *output, "Output .tori file")->required();
+        fit->add_option("-o,--output", *output, "Output .tori file")->required()->check(output_file({".tori"}));
         args->add_to(*fit, true);
         fit->callback([=] {
             args->check();
@@ -171,8 +171,8 @@ void add_pat(CLI::App& app) {
         auto* in = eval->add_option("INPUT", *input, "Point cloud with normals (or a .tori file)");
         auto* tin = eval->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
         in->excludes(tin);
-        eval->add_option("-o,--output", *output, "Output .npy: (N,N,N) for a grid, (M,) for queries")->required();
-        eval->add_option("--gradient", *gradient, "Also write ∇φ: (N,N,N,3) or (M,3) .npy");
+        eval->add_option("-o,--output", *output, "Output .npy: (N,N,N) for a grid, (M,) for queries")->required()->check(output_file({".npy"}));
+        eval->add_option("--gradient", *gradient, "Also write ∇φ: (N,N,N,3) or (M,3) .npy")->check(output_file({".npy"}));
         domain->add_to(*eval, true);
         fit->add_to(*eval, false);
         blend->add_to(*eval);
@@ -205,7 +205,7 @@ void add_baseline(CLI::App& app) {
     auto blend = std::make_shared<BlendArgs>();
     base->add_option("METHOD", *kind, "sspd | shc")->required()->check(CLI::IsMember({"sspd", "shc"}));
     base->add_option("INPUT", *input, "Point cloud with normals")->required();
-    base->add_option("-o,--output", *output, "Output .npy")->required();
+    base->add_option("-o,--output", *output, "Output .npy")->required()->check(output_file({".npy"}));
     domain->add_to(*base, true);
     blend->add_to(*base);
     base->callback([=] {
@@ -237,7 +237,7 @@ void add_contour(CLI::App& app) {
     c->add_option("GRID", *input, "(N,N,N) float .npy grid")->required();
     c->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1")->required()->expected(6);
     c->add_option("--iso", *iso, "Level to extract")->capture_default_str();
-    c->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required();
+    c->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required()->check(output_file({".obj", ".ply", ".off", ".stl"}));
     c->callback([=] {
         const io::NpyArray a = io::read_grid(*input);
         const GridSpec g = grid_of(a, *bounds);
@@ -262,7 +262,7 @@ void add_slice(CLI::App& app) {
     s->add_option("--width", opt->width, "Image width in pixels (default 512, or the grid size if larger)")->check(CLI::Range(0, 16384));
     s->add_option("--range", opt->range, "Colors saturate at ±range (default: max |value| on the slice)")->check(CLI::NonNegativeNumber);
     s->add_option("--isolines", opt->isolines, "Isolines on each side of zero")->check(CLI::Range(0, 1000))->capture_default_str();
-    s->add_option("-o,--output", *output, "Output .png")->required();
+    s->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
     s->callback([=] {
         const io::NpyArray a = io::read_grid(*input);
         const GridSpec g = grid_of(a, *bounds);
@@ -290,7 +290,9 @@ void add_sample(CLI::App& app) {
     s->add_option("--outliers", c->outlier_fraction, "Fraction of points replaced by outliers")->check(CLI::Range(0.0, 1.0));
     s->add_option("--holes", c->holes, "Number of holes cut out")->check(CLI::Range(0, 1000));
     s->add_option("--hole-radius", c->hole_radius, "Hole radius (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0))->capture_default_str();
-    s->add_option("-o,--output", *output, "Output point cloud (.ply .xyz .pc .obj .npy)")->required();
+    s->add_option("-o,--output", *output, "Output point cloud (.ply .xyz .pc .obj .npy)")
+        ->required()
+        ->check(output_file({".ply", ".xyz", ".xyzn", ".txt", ".pc", ".obj", ".npy"}));
     s->callback([=] {
         const PointCloud clean = shapes::by_name(*shape)->sample(*n, *seed);
         const PointCloud cloud = shapes::corrupt(clean, *c, *seed + 1);
@@ -313,7 +315,7 @@ void add_shm(CLI::App& app) {
     grid->add_option("INPUT", *inputs, "Mesh(es) and/or point cloud(s); several are combined into one source")->required();
     grid->add_option("--grid", *n, "Grid nodes per axis")->required()->check(CLI::Range(4, 2048));
     grid->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)")->expected(6);
-    grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy")->required();
+    grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy")->required()->check(output_file({".npy"}));
     grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
         ->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--solver", *solver, "Poisson solver: mg (multigrid), cg, direct (CHOLMOD, small grids)")
@@ -323,7 +325,7 @@ void add_shm(CLI::App& app) {
     grid->add_option("--fit-zero-set", opt->fit_zero_set, "Fit φ = 0 on the source softly with this weight (0: shift by the mean)")
         ->check(CLI::NonNegativeNumber)->capture_default_str();
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
-    grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)");
+    grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     grid->callback([=] {
         // Sources: each input by its kind; meshes get quadrature at the grid spacing.
         ShmSource src;
@@ -349,6 +351,7 @@ void add_shm(CLI::App& app) {
         }
         const GridSpec g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
         g.validate();
+        check_grid_memory(g);
         if (bounds->empty()) note("grid bounds (pass them to contour/slice): " + bounds_text(g.box));
         const double cell = g.box.extent().maxCoeff() / (*n - 1);
         bool first = true;
@@ -356,7 +359,7 @@ void add_shm(CLI::App& app) {
         for (const auto& m : meshes) {
             ShmSource s;
             try {
-                s = shm_source(m, cell);
+                s = shm_source(m, cell, g.box);
             } catch (const Error& e) {
                 // Name the file: sources don't know where their mesh came from.
                 std::size_t k = 0;
@@ -429,7 +432,7 @@ void add_mesh(CLI::App& app) {
     m->add_option("--flip", c->flip_fraction, "Fraction of faces flipped")->check(CLI::Range(0.0, 1.0));
     m->add_option("--noise", c->vertex_noise, "Gaussian noise on vertices (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0));
     m->add_option("--seed", *seed, "Random seed")->capture_default_str();
-    m->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required();
+    m->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required()->check(output_file({".obj", ".ply", ".off", ".stl"}));
     m->callback([=] {
         if (shape->empty() && from->empty()) throw CLI::RequiredError("SHAPE or --from");
         const PolygonMesh base = !from->empty()             ? io::read_mesh(*from)

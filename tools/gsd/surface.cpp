@@ -290,12 +290,12 @@ void add_shm_surface(CLI::App& shm) {
     s->add_option("--min-angle", a->setup.refine_min_angle, "Smallest angle --refine aims for, degrees")
         ->check(CLI::Range(1.0, 33.0))
         ->capture_default_str();
-    s->add_option("-o,--output", a->output, "Output .npy: φ per vertex, float32 (V,), in the mesh's vertex order")->required();
-    s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex)");
-    s->add_option("--isolines", a->isolines, "Also write isolines of φ as .obj polylines (one group per level)");
+    s->add_option("-o,--output", a->output, "Output .npy: φ per vertex, float32 (V,), in the mesh's vertex order")->required()->check(output_file({".npy"}));
+    s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex)")->check(output_file({".ply"}));
+    s->add_option("--isolines", a->isolines, "Also write isolines of φ as .obj polylines (one group per level)")->check(output_file({".obj"}));
     s->add_option("--isoline-spacing", a->isoline_spacing, "Spacing of isolines (default: a round number, ~20 levels)")
         ->check(CLI::PositiveNumber);
-    s->add_option("--render", a->render, "Also render a picture (.png): the mesh shaded and colored by φ, isolines, the curves");
+    s->add_option("--render", a->render, "Also render a picture (.png): the mesh shaded and colored by φ, isolines, the curves")->check(output_file({".png"}));
     s->callback([a] { run(*a); });
 }
 

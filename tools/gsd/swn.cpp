@@ -187,8 +187,10 @@ void add_swn(CLI::App& app) {
                   "or an .obj's l lines (default: the mesh's own l lines)");
     s->add_option("-o,--output", a->output,
                   "Output .npy: int32 label per input face (+1 left of a counter-clockwise loop, 0 outside)")
-        ->required();
-    s->add_option("--w", a->w, "Also write w per triangle corner, float32 (T, 3) (T = faces for a triangle mesh)");
+        ->required()
+        ->check(output_file({".npy"}));
+    s->add_option("--w", a->w, "Also write w per triangle corner, float32 (T, 3) (T = faces for a triangle mesh)")
+        ->check(output_file({".npy"}));
     s->add_option("--method", a->method,
                   "swn: winding numbers; shm: the sign of the surface Signed Heat Method (1 where φ < 0), often "
                   "better on badly corrupted curves (docs/swn.md)")
@@ -210,10 +212,12 @@ void add_swn(CLI::App& app) {
     s->add_flag("--boundary-aware", a->options.boundary_aware,
                 "On meshes with boundary: labels near the boundary like free-space winding numbers (thesis §6.2)");
     s->add_option("--loops", a->loops, "Also write the curve decomposition as .obj polylines (groups bounding, "
-                                       "nonbounding, completed)");
+                                       "nonbounding, completed)")
+        ->check(output_file({".obj"}));
     s->add_option("--render", a->render,
                   "Also render a picture (.png): regions colored by label, bounding curves black, nonbounding red, "
-                  "completions orange");
+                  "completions orange")
+        ->check(output_file({".png"}));
     s->callback([a] { run(*a); });
 }
 

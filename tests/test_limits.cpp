@@ -1,0 +1,217 @@
+// Work whose size depends on coordinate values is bounded, extreme coordinates are refused
+// with the element named, outputs never replace special files: the hardening issue's findings
+// (hangs, overflows, unbounded memory) as regression tests, at the API and at the CLI.
+#include <doctest/doctest.h>
+
+#include <gsd/io.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/shm.hpp>
+
+#include "support.hpp"
+
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <thread>
+
+using namespace gsd;
+using test::run_cli;
+using test::run_shell;
+using test::ScratchDir;
+
+namespace {
+
+PolygonMesh unit_triangle() {
+    PolygonMesh m;
+    m.vertices.resize(3, 3);
+    m.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 0;
+    m.add_face({0, 1, 2});
+    return m;
+}
+
+Eigen::Vector3d total_vector_area(const ShmSource& s) { return s.vectors.colwise().sum().transpose(); }
+
+std::string cloud_text(double far) {
+    std::string s;
+    for (int i = 0; i < 40; ++i) s += std::to_string(0.1 * (i % 7)) + " " + std::to_string(0.1 * (i / 7)) + " 0 0 0 1\n";
+    s += std::to_string(far) + " 0 0 0 0 1\n";
+    return s;
+}
+
+}  // namespace
+
+TEST_CASE("mesh sources: faces far larger than a tight grid are split near it only, and area is kept") {
+    const PolygonMesh tri = unit_triangle();
+    const Eigen::Vector3d exact(0, 0, 0.5);
+    // Without a focus box, every piece gets to the element size: 4^k pieces.
+    const ShmSource plain = shm_source(tri, 0.1);
+    CHECK(plain.size() == 256);
+    CHECK((total_vector_area(plain) - exact).norm() < 1e-12);
+    // A box holding the whole face changes nothing.
+    const ShmSource around = shm_source(tri, 0.1, Box{{-1, -1, -1}, {2, 2, 1}});
+    CHECK(around.size() == plain.size());
+    // A box of 1e-3 (or 1e-9) at a corner: the old uniform split needed 4^10 (4^30) pieces; now
+    // the pieces grow with the distance from the box, and the vector area is still exact.
+    for (double side : {1e-3, 1e-9}) {
+        CAPTURE(side);
+        const ShmSource s = shm_source(tri, side / 7, Box{{0.2, 0.2, -side}, {0.2 + side, 0.2 + side, side}});
+        CHECK(s.size() < 50000);
+        CHECK((total_vector_area(s) - exact).norm() < 1e-12);
+        // Pieces inside the box are at the element size.
+        for (Eigen::Index i = 0; i < s.positions.rows(); ++i) {
+            const Eigen::Vector3d p = s.positions.row(i).transpose();
+            if ((p.array() >= 0.2).all() && (p.array() <= 0.2 + side).all())
+                CHECK(std::sqrt(2 * s.vectors.row(i).norm()) <= 1.5 * side / 7);
+        }
+    }
+}
+
+TEST_CASE("memory budget: GSD_MEMORY_LIMIT is read, and work past it is refused before allocating") {
+    ::setenv("GSD_MEMORY_LIMIT", "1M", 1);
+    CHECK(memory_budget() == (std::size_t(1) << 20));
+    CHECK_THROWS_WITH_AS(check_memory(2e6, "x", "a test"), doctest::Contains("memory budget"), Error);
+    CHECK_NOTHROW(check_memory(1e5, "x", "a test"));
+    // 4^12 pieces of a unit triangle do not fit in 1 MiB.
+    CHECK_THROWS_WITH_AS(shm_source(unit_triangle(), 1e-3), doctest::Contains("memory budget"), Error);
+    ::setenv("GSD_MEMORY_LIMIT", "lots", 1);
+    CHECK_THROWS_AS(memory_budget(), Error);
+    ::unsetenv("GSD_MEMORY_LIMIT");
+    CHECK(memory_budget() > (std::size_t(1) << 26));
+}
+
+TEST_CASE("coordinates: beyond ±1e30, or one element 1e12× the bulk's size away, are refused with the element named") {
+    PointCloud c;
+    c.points = Points::Random(50, 3);
+    c.normals = Points::Constant(50, 3, 1.0);
+    PointCloud huge = c;
+    huge.points(7, 1) = 1e200;
+    CHECK_THROWS_WITH_AS(validate(huge, "f.ply"), doctest::Contains("element 7"), Error);
+    PointCloud stray = c;
+    stray.points(11, 0) = 1e15;
+    CHECK_THROWS_WITH_AS(validate(stray, "f.ply"), doctest::Contains("point 11"), Error);
+    PointCloud fine = c;
+    fine.points(11, 0) = 1e9;  // far, but a grid over it still resolves the bulk in double
+    CHECK_NOTHROW(validate(fine, "f.ply"));
+    PolygonMesh m = unit_triangle();
+    m.vertices(2, 2) = -1e31;
+    CHECK_THROWS_WITH_AS(validate(m, "m.obj"), doctest::Contains("element 2"), Error);
+    // Bounds: finite numbers whose difference overflows, or beyond the limit.
+    CHECK_THROWS_AS(validate_box(Box{{-1e308, -1, -1}, {1e308, 1, 1}}, "--bounds"), Error);
+    CHECK_THROWS_AS(validate_box(Box{{0, 0, 0}, {1e31, 1, 1}}, "--bounds"), Error);
+    CHECK_NOTHROW(validate_box(Box{{-1e29, -1, -1}, {1e29, 1, 1}}, "--bounds"));
+}
+
+TEST_CASE("CLI: extreme inputs are clear errors with no output; thin grids give bounded pictures") {
+    ScratchDir dir("limits");
+    const std::string d = dir.path().string() + "/";
+    // A mesh at 1e200: an error naming the file and vertex, not a hang.
+    test::write_bytes(d + "big.obj", "v 0 0 0\nv 1e200 0 0\nv 0 1e200 0\nf 1 2 3\n");
+    auto r = run_cli("shm grid " + d + "big.obj --grid 8 -o " + d + "big.npy");
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("big.obj") != std::string::npos);
+    CHECK_FALSE(test::file_exists(d + "big.npy"));
+    // A unit triangle on a grid of 1e-3: quick, finite.
+    test::write_bytes(d + "tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    r = run_cli("shm grid " + d + "tri.obj --grid 8 --bounds 0 0 0 1e-3 1e-3 1e-3 -o " + d + "tri.npy");
+    CHECK(r.exit_code == 0);
+    const io::NpyArray phi = io::read_grid(d + "tri.npy");
+    for (double v : phi.data) CHECK(std::isfinite(v));
+    // A cloud near 1e200 (the TorusNet overflow) and one stray point: errors, no output.
+    std::string cloud;
+    for (int i = 0; i < 40; ++i) cloud += "1e200 " + std::to_string(1e198 * i) + " 0 0 0 1\n";
+    test::write_bytes(d + "far.xyz", cloud);
+    r = run_cli("pat fit " + d + "far.xyz -o " + d + "far.tori");
+    CHECK(r.exit_code == 1);
+    CHECK_FALSE(test::file_exists(d + "far.tori"));
+    test::write_bytes(d + "stray.xyz", cloud_text(1e14));
+    r = run_cli("pat fit " + d + "stray.xyz -o " + d + "stray.tori");
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("point 40") != std::string::npos);
+    // Queries at 1e200: an error, not NaN with exit 0.
+    test::write_bytes(d + "ok.xyz", cloud_text(0.3));
+    io::write_npy(d + "q.npy", {1, 3}, std::vector<float>{0, 0, 0});
+    REQUIRE(run_cli("pat eval " + d + "ok.xyz --fitter jet --queries " + d + "q.npy -o " + d + "q-phi.npy").exit_code == 0);
+    io::write_npy(d + "qbig.npy", {1, 3}, std::vector<float>{0, 1e30f * 100, 0});
+    r = run_cli("pat eval " + d + "ok.xyz --fitter jet --queries " + d + "qbig.npy -o " + d + "qbig-phi.npy");
+    CHECK(r.exit_code == 1);
+    CHECK_FALSE(test::file_exists(d + "qbig-phi.npy"));
+    // Bounds whose difference overflows: errors in every command, no output.
+    const std::string wide = " --bounds -1e308 -1 -1 1e308 1 1 ";
+    r = run_cli("slice " + d + "tri.npy" + wide + "--at 0 -o " + d + "s.png");
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("--bounds") != std::string::npos);
+    CHECK_FALSE(test::file_exists(d + "s.png"));
+    CHECK(run_cli("pat eval " + d + "ok.xyz --fitter jet --grid 8" + wide + "-o " + d + "w.npy").exit_code == 1);
+    CHECK(run_cli("baseline sspd " + d + "ok.xyz --grid 8" + wide + "-o " + d + "w.npy").exit_code == 1);
+    CHECK_FALSE(test::file_exists(d + "w.npy"));
+    // A thin (100000, 2, 2) grid: the default picture is capped, not 18 GB.
+    io::write_npy(d + "thin.npy", {100000, 2, 2}, std::vector<float>(400000, 0.5f));
+    r = run_cli("slice " + d + "thin.npy --bounds 0 0 0 1 1 1 --axis z --at 0.5 -o " + d + "thin.png");
+    CHECK(r.exit_code == 0);
+    std::ifstream png(d + "thin.png", std::ios::binary);
+    std::string head(24, '\0');
+    png.read(head.data(), 24);
+    const auto be32 = [&](int at) {
+        return (unsigned(std::uint8_t(head[at])) << 24) | (unsigned(std::uint8_t(head[at + 1])) << 16) |
+               (unsigned(std::uint8_t(head[at + 2])) << 8) | unsigned(std::uint8_t(head[at + 3]));
+    };
+    CHECK(be32(16) <= 4096);
+    CHECK(be32(20) <= 4096);
+    // A grid past the memory budget is refused up front.
+    r = run_shell("GSD_MEMORY_LIMIT=1M " GSD_CLI " pat eval " + d + "ok.xyz --fitter jet --grid 64 --bounds -1 -1 -1 1 1 1 -o " +
+                  d + "m.npy");
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("memory budget") != std::string::npos);
+    CHECK_FALSE(test::file_exists(d + "m.npy"));
+    // The smallest shape mesh the option accepts.
+    r = run_cli("mesh sphere -r 8 -o " + d + "s8.obj");
+    CHECK(r.exit_code == 0);
+    CHECK(io::read_mesh(d + "s8.obj").face_count() > 0);
+}
+
+TEST_CASE("CLI: .tori from a FIFO or /dev/zero is refused; outputs go into FIFOs without replacing them; "
+          "a wrong output extension is a usage error") {
+    ScratchDir dir("special");
+    const std::string d = dir.path().string() + "/";
+    std::string cloud;
+    for (int i = 0; i < 60; ++i)
+        cloud += std::to_string(std::cos(0.1 * i)) + " " + std::to_string(std::sin(0.1 * i)) + " " + std::to_string(0.01 * (i % 5)) +
+                 " " + std::to_string(std::cos(0.1 * i)) + " " + std::to_string(std::sin(0.1 * i)) + " 0\n";
+    test::write_bytes(d + "c.xyz", cloud);
+    REQUIRE(::mkfifo((d + "in.tori").c_str(), 0600) == 0);
+    auto r = run_cli("pat eval --tori " + d + "in.tori --grid 8 --bounds -1 -1 -1 1 1 1 -o " + d + "e.npy");
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("not a regular file") != std::string::npos);
+    std::filesystem::create_symlink("/dev/zero", d + "zero.tori");
+    r = run_cli("pat eval --tori " + d + "zero.tori --grid 8 --bounds -1 -1 -1 1 1 1 -o " + d + "e.npy");
+    CHECK(r.exit_code == 1);
+    CHECK_FALSE(test::file_exists(d + "e.npy"));
+    // -o into a FIFO: the bytes arrive through it, and it is still a FIFO afterwards.
+    REQUIRE(::mkfifo((d + "out.tori").c_str(), 0600) == 0);
+    std::string received;
+    std::thread reader([&] {
+        std::ifstream f(d + "out.tori", std::ios::binary);
+        received.assign(std::istreambuf_iterator<char>(f), {});
+    });
+    r = run_cli("pat fit " + d + "c.xyz --fitter jet -o " + d + "out.tori");
+    reader.join();
+    CHECK(r.exit_code == 0);
+    struct stat st {};
+    REQUIRE(::stat((d + "out.tori").c_str(), &st) == 0);
+    CHECK(S_ISFIFO(st.st_mode));
+    CHECK(received.size() > 64);
+    CHECK(received.compare(0, 8, "GSDTORI1") == 0);
+    test::write_bytes(d + "copy.tori", received);
+    CHECK(load_tori(d + "copy.tori").size() == 60);
+    // A wrong extension: exit 2 before any work, nothing written.
+    r = run_cli("pat fit " + d + "c.xyz --fitter jet -o " + d + "out.txt");
+    CHECK(r.exit_code == 2);
+    CHECK_FALSE(test::file_exists(d + "out.txt"));
+    r = run_cli("pat eval " + d + "c.xyz --fitter jet --grid 8 -o " + d + "phi.txt");
+    CHECK(r.exit_code == 2);
+    CHECK_FALSE(test::file_exists(d + "phi.txt"));
+}
