@@ -5,6 +5,7 @@
 #include <gsd/io.hpp>
 
 #include <cmath>
+#include <filesystem>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -30,6 +31,25 @@ CLI::Validator output_file(std::vector<std::string> extensions) {
             return "'" + path + "' must end in " + names;
         },
         names);
+}
+
+void remove_output(const std::string& path) {
+    std::error_code ec;
+    if (std::filesystem::is_regular_file(path, ec)) std::filesystem::remove(path, ec);
+}
+
+void write_all(const std::vector<std::pair<std::string, std::function<void()>>>& outputs) {
+    std::vector<std::string> done;
+    try {
+        for (const auto& [path, write] : outputs) {
+            if (path.empty()) continue;
+            write();
+            done.push_back(path);
+        }
+    } catch (...) {
+        for (const std::string& p : done) remove_output(p);
+        throw;
+    }
 }
 
 void note(const std::string& message) {

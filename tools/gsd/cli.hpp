@@ -6,8 +6,10 @@
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace gsd::cli {
@@ -68,6 +70,14 @@ void write_values(const std::string& path, const Domain& d, const GridSpec& g, s
 /// case-insensitive), so a run never computes for minutes and then writes the wrong format or
 /// nothing. An existing character device or FIFO (`-o /dev/null`) is accepted as it is.
 CLI::Validator output_file(std::vector<std::string> extensions);
+
+/// Undoes an output already written when a later one fails (all outputs or none). Only a
+/// regular file is removed: `-o /dev/null` or a FIFO was written into, not created.
+void remove_output(const std::string& path);
+
+/// Writes every requested output (pairs of path and writer; an empty path is skipped), or
+/// none: a failure removes what was already written.
+void write_all(const std::vector<std::pair<std::string, std::function<void()>>>& outputs);
 
 /// Prints "gsd: <message>" unless --quiet.
 void note(const std::string& message);

@@ -130,7 +130,7 @@ void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_bo
         try {
             write_values(gradient_out, domain, grid, count, v.gradient, 3);
         } catch (...) {
-            std::filesystem::remove(out);  // all outputs or none
+            remove_output(out);  // all outputs or none
             throw;
         }
     }
@@ -404,7 +404,7 @@ void add_shm(CLI::App& app) {
             try {
                 io::write_mesh(*contour_out, zero);
             } catch (...) {
-                std::filesystem::remove(*output);
+                remove_output(*output);
                 throw;
             }
         }

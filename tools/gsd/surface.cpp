@@ -113,20 +113,6 @@ void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurfa
     if (unreferenced) note("note: " + std::to_string(unreferenced) + " vertices are on no face: φ is NaN there");
 }
 
-/// Writes every requested output, or none: a failure removes what was already written.
-void write_all(const std::vector<std::pair<std::string, std::function<void()>>>& outputs) {
-    std::vector<std::string> done;
-    try {
-        for (const auto& [path, write] : outputs) {
-            if (path.empty()) continue;
-            write();
-            done.push_back(path);
-        }
-    } catch (...) {
-        for (const std::string& p : done) std::filesystem::remove(p);
-        throw;
-    }
-}
 
 void run(const SurfaceArgs& a) {
     if (a.curves.empty() && a.points.empty() && io::extension(a.mesh) != ".obj")

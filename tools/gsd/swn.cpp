@@ -158,19 +158,10 @@ void run(const SwnArgs& a) {
         {a.w, [&] { io::write_npy(a.w, {r.w.size(), 3}, w); }},
         {a.loops, [&] { io::write_file_atomic(a.loops, loops); }},
         {a.render, [&] { write_png(a.render, picture); }}};
-    std::vector<std::string> done;
-    try {
-        for (const auto& [path, write] : outputs) {
-            if (path.empty()) continue;
-            write();
-            done.push_back(path);
-        }
-    } catch (...) {
-        for (const std::string& p : done) std::filesystem::remove(p);
-        throw;
-    }
+    write_all(outputs);
     std::string written;
-    for (const std::string& p : done) written.append(written.empty() ? "" : ", ").append(p);
+    for (const auto& [p, write] : outputs)
+        if (!p.empty()) written.append(written.empty() ? "" : ", ").append(p);
     note("wrote " + written + "; labels: " + label_summary(mesh, labels));
 }
 
