@@ -8,6 +8,9 @@
 #   scripts/bench.sh surface    SHM on surfaces: accuracy vs exact distances (and vs a reference
 #                               program when one is there), setup/solve times and memory vs mesh
 #                               size, first vs repeated solves, whole runs side by side
+#   scripts/bench.sh sums       the fast summation engine: winding numbers (treecode vs exact sum:
+#                               time, terms per query, max error; CPU and GPU) and SHM step 1 on
+#                               broken meshes with coarse faces (step 1 / step 3 seconds, terms)
 #   scripts/bench.sh swn        Surface Winding Numbers: mislabeled area on a synthetic benchmark
 #                               (SWN full and reduced, naive rounding, SHM sign, a reference program
 #                               when one is there), time per step vs mesh size, whole runs
@@ -126,6 +129,45 @@ if [ "$what" = all ] || [ "$what" = surface ]; then
       printf "%-26s %9s %9.3f %9.3f %8.2f\n" "$(basename "$1" .obj)/$(basename "$2")" "$faces" "$gm" "$cm" "$(awk "BEGIN{print $gm / $cm}")"
     done
   fi
+fi
+
+if [ "$what" = all ] || [ "$what" = sums ]; then
+  echo "## Fast winding numbers: broken double torus (10% of the area in 3 holes, 5% flipped)"
+  "$gsd" -q mesh double-torus -r 110 -o "$work/dt.obj"
+  "$gsd" -q mesh --from "$work/dt.obj" --holes 3 --hole-area 0.1 --flip 0.05 -o "$work/dtb.obj"
+  printf "%-28s %10s %14s %12s\n" "run" "seconds" "queries/s" "terms/query"
+  wn_row() {  # label, grid, extra args
+    local t0 t1 line
+    t0=$(date +%s.%N)
+    line=$("$gsd" -v winding "$work/dtb.obj" --grid "$2" -o "$work/w_$1.npy" $3 2>&1 | grep "terms per query" | sed 's/.*, \([0-9.e+]*\) terms per query/\1/')
+    t1=$(date +%s.%N)
+    awk -v l="$1" -v a="$t0" -v b="$t1" -v n="$2" -v t="$line" 'BEGIN { printf "%-28s %10.2f %14.3g %12s\n", l, b - a, n^3 / (b - a), t }'
+  }
+  wn_row "fast cpu (beta 3) 100^3" 100 "--device cpu"
+  wn_row "fast cpu (beta 2) 100^3" 100 "--device cpu --beta 2"
+  wn_row "fast gpu (beta 3) 100^3" 100 "--device gpu"
+  wn_row "exact cpu 24^3" 24 "--device cpu --exact"
+  wn_row "fast cpu (beta 3) 24^3" 24 "--device cpu"
+  echo "(max |fast − exact| on the 24^3 grid: compare $work/w_fast*24*.npy with the exact run; docs/sums.md)"
+  echo
+  echo "## SHM step 1 on broken meshes with coarse faces (whole runs, default bounds)"
+  "$gsd" -q mesh capsule -r 16 -o "$work/cap.obj"
+  "$gsd" -q mesh --from "$work/cap.obj" --holes 3 --hole-area 0.15 --flip 0.05 -o "$work/capb.obj"
+  inputs="$work/capb.obj"
+  [ -f ../shared/data/meshes/chair.obj ] && inputs="$inputs ../shared/data/meshes/chair.obj"
+  printf "%-12s %5s %6s %10s %10s %14s\n" "mesh" "grid" "device" "step 1 s" "step 3 s" "kernel terms"
+  for m in $inputs; do
+    for n in 64 96; do
+      for dev in cpu gpu; do
+        out=$("$gsd" -v shm grid "$m" --grid "$n" -o "$work/s.npy" --device "$dev" 2>&1)
+        s1=$(echo "$out" | sed -n 's/.*step 1 (diffuse): \([0-9.]*\) s, .*/\1/p')
+        s3=$(echo "$out" | sed -n 's/.*step 3 (solve): \([0-9.]*\) s.*/\1/p')
+        terms=$(echo "$out" | sed -n 's/.*exactly, \([0-9]*\) kernel terms/\1/p')
+        printf "%-12s %5s %6s %10s %10s %14s\n" "$(basename "$m" .obj)" "$n" "$dev" "$s1" "$s3" "$terms"
+      done
+    done
+  done
+  echo
 fi
 
 if [ "$what" = all ] || [ "$what" = swn ]; then

@@ -1,19 +1,21 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// SHM step 1–2 at a batch of points (mirrors CpuEvaluator in src/shm/diffuse.cpp): find the
-// nearest source (r_min), then sum A_j N_j exp(−λ(r_j − r_min)) / max(r_j, r_floor) over the
-// sources with r_j ≤ r_min + cutoff/λ, and normalize.
+// SHM step 1–2 at a batch of points (mirrors SumTree::screened in src/sums/sum_tree.cpp): the
+// distance r_min to the nearest element, then X = Σ_j v_j ∫ e^(−λ(r − r_min))/r dA_j / A_j over
+// what lies within r_min + cutoff/λ — nodes by their second-order expansion where
+// accept() allows it, triangles refined adaptively elsewhere — and Y = X/|X|.
 #include "box_tree.glsl"
 
 layout(local_size_x_id = 0) in;
 
-const int STACK = 48;
+const int STACK = 64;
+const int PIECES = 68;
 
-layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };    // source positions, tree order
-layout(std430, binding = 1) readonly buffer Vectors { vec4 vecs[]; };  // A_j N_j, tree order
-layout(std430, binding = 2) readonly buffer Nodes { Node nodes[]; };
+layout(std430, binding = 0) readonly buffer Nodes { Node nodes[]; };
+layout(std430, binding = 1) readonly buffer Moments { vec4 moments[]; };
+layout(std430, binding = 2) readonly buffer Elems { vec4 elems[]; };
 layout(std430, binding = 3) readonly buffer Queries { vec4 qs[]; };
-layout(std430, binding = 4) writeonly buffer Out { vec4 outv[]; };     // (Y, r_min), (terms, 0, 0, 0)
+layout(std430, binding = 4) writeonly buffer Out { vec4 outv[]; };  // (Y, r_min), (terms, 0, 0, 0)
 
 layout(push_constant) uniform Push {
     uint count;
@@ -21,23 +23,29 @@ layout(push_constant) uniform Push {
     float lambda;
     float cutoff;
     float r_floor;
+    float budget;  // tolerance · 2π/λ
+    uint lane_cap; // loop iterations one lane may run (0: no limit), see sums_tree.glsl
 } pc;
+
+#include "sums_tree.glsl"
+
+uint iters = 0u;
 
 float nearest_distance(vec3 x) {
     float best2 = 3.0e38;
     uint stack[STACK];
     int top = 0;
-    stack[top++] = 0;
+    stack[top++] = 0u;
     while (top > 0) {
         uint i = stack[--top];
+        ++iters;
         if (box_distance2(x, nodes[i].lo, nodes[i].hi) >= best2) continue;
         if (i >= pc.first_leaf) {
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-                vec3 d = x - pts[j].xyz;
-                best2 = min(best2, dot(d, d));
-            }
+            iters += nodes[i].end - nodes[i].begin;
+            for (uint j = nodes[i].begin; j < nodes[i].end; ++j)
+                best2 = min(best2, triangle_distance2(x, elems[3u * j].xyz, elems[3u * j + 1u].xyz, elems[3u * j + 2u].xyz));
         } else {
-            uint l = 2 * i + 1, r = 2 * i + 2;
+            uint l = 2u * i + 1u, r = 2u * i + 2u;
             bool left_first = box_distance2(x, nodes[l].lo, nodes[l].hi) <= box_distance2(x, nodes[r].lo, nodes[r].hi);
             stack[top++] = left_first ? r : l;
             stack[top++] = left_first ? l : r;
@@ -46,36 +54,110 @@ float nearest_distance(vec3 x) {
     return sqrt(best2);
 }
 
+// sums::accept_screened (src/sums/sum_tree.hpp).
+bool accept(float rho, float d, float area, float r_min) {
+    if (!(d > 2.0 * rho)) return false;
+    if (rho == 0.0) return true;
+    float gap = d - rho;
+    float q = rho * (pc.lambda + 2.0 / gap);
+    return area * exp(-pc.lambda * (gap - r_min)) / gap * q * q * q <= 6.0 * pc.budget;
+}
+
+// e^(−λ(r − r_min))/r and its first two radial derivatives.
+vec3 radial(float r, float r_min) {
+    float E = exp(-pc.lambda * (r - r_min)), ir = 1.0 / r, l = pc.lambda;
+    return vec3(E * ir, -E * (l * ir + ir * ir), E * (l * l * ir + 2.0 * l * ir * ir + 2.0 * ir * ir * ir));
+}
+
+// A node's second-order expansion: X_a += M0_a f − f1 (M1_a·u) + ½ (A uᵀM2_a u + B tr M2_a).
+vec3 node_expansion(uint i, vec3 d, float r_min) {
+    float r = length(d);
+    vec3 u = d / r;
+    vec3 f = radial(r, r_min);
+    float A = f.z - f.y / r, B = f.y / r;
+    vec3 X = mom3(i, 4u) * f.x;
+    for (uint a = 0u; a < 3u; ++a) {
+        uint k2 = 17u + 6u * a;
+        X[a] += -f.y * dot(mom3(i, 8u + 3u * a), u) + 0.5 * (A * sym_quad(i, k2, u) + B * sym_trace(i, k2));
+    }
+    return X;
+}
+
 void main() {
     uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
     if (q >= pc.count) return;
     vec3 x = qs[q].xyz;
     float rmin = nearest_distance(x);
     float R = rmin + pc.cutoff / pc.lambda;
-    float R2 = R * R;
     vec3 X = vec3(0.0);
-    uint terms = 0;
+    uint terms = 0u;
     uint stack[STACK];
+    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
     int top = 0;
-    stack[top++] = 0;
+    stack[top++] = 0u;
     while (top > 0) {
         uint i = stack[--top];
-        if (box_distance2(x, nodes[i].lo, nodes[i].hi) > R2) continue;
-        if (i >= pc.first_leaf) {
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-                vec3 d = x - pts[j].xyz;
-                float r2 = dot(d, d);
-                if (r2 > R2) continue;
-                float r = sqrt(r2);
-                X += vecs[j].xyz * (exp(-pc.lambda * (r - rmin)) / max(r, pc.r_floor));
+        ++iters;
+        if (box_distance2(x, nodes[i].lo, nodes[i].hi) > R * R) continue;
+        vec3 d = x - mom3(i, 0u);
+        if (accept(mom(i, 3u), length(d), mom(i, 7u), rmin)) {
+            X += node_expansion(i, d, rmin);
+            ++terms;
+            continue;
+        }
+        if (i < pc.first_leaf) {
+            stack[top++] = 2u * i + 1u;
+            stack[top++] = 2u * i + 2u;
+            continue;
+        }
+        for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+            ++iters;
+            vec4 ea = elems[3u * j], eb = elems[3u * j + 1u], ec = elems[3u * j + 2u];
+            vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w);
+            float area = length(v);
+            // Covariance of the triangle: (1/12) Σ (p − g)(p − g)ᵀ as (xx yy zz xy xz yz).
+            vec3 g0 = (ab + ac) / 3.0, pa = -g0, pb = ab - g0, pc3 = ac - g0;
+            vec3 cd = (pa * pa + pb * pb + pc3 * pc3) / 12.0;
+            vec3 co = vec3(pa.x * pa.y + pb.x * pb.y + pc3.x * pc3.y, pa.x * pa.z + pb.x * pb.z + pc3.x * pc3.z,
+                           pa.y * pa.z + pb.y * pb.z + pc3.y * pc3.z) / 12.0;
+            int np = 0;
+            pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
+            while (np > 0) {
+                vec4 pq = pieces[--np];
+                ++iters;
+                float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
+                vec3 p0 = a + pq.x * ab + pq.y * ac, e1 = sigma * pq.z * ab, e2 = sigma * pq.z * ac;
+                vec3 g = p0 + (e1 + e2) / 3.0;
+                float rho = max(length(p0 - g), max(length(p0 + e1 - g), length(p0 + e2 - g)));
+                vec3 dg = x - g;
+                float dist = length(dg);
+                if (dist - rho > R) continue;
+                float share = pq.z * pq.z;
+                vec3 m0 = v * share;
+                if (accept(rho, dist, area * share, rmin)) {
+                    // A piece about its own centroid: M1 = 0, M2_a = m0_a · share · C.
+                    vec3 u = dg / dist;
+                    vec3 f = radial(dist, rmin);
+                    float A = f.z - f.y / dist, B = f.y / dist;
+                    float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
+                               2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
+                    float ct = cd.x + cd.y + cd.z;
+                    X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
+                } else if (rho <= pc.r_floor || level >= 20.0) {
+                    X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+                } else {
+                    float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
+                    pieces[np++] = vec4(pq.x, pq.y, h, w);
+                    pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
+                    pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
+                    pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
+                    continue;
+                }
                 ++terms;
             }
-        } else {
-            stack[top++] = 2 * i + 1;
-            stack[top++] = 2 * i + 2;
         }
     }
     float len = length(X);
-    outv[2 * q] = vec4(len > 0.0 ? X / len : vec3(0.0), rmin);
-    outv[2 * q + 1] = vec4(float(terms), 0.0, 0.0, 0.0);
+    outv[2u * q] = vec4(len > 0.0 ? X / len : vec3(0.0), rmin);
+    outv[2u * q + 1u] = vec4(float(terms), pc.lane_cap > 0u && iters >= pc.lane_cap ? 1.0 : 0.0, 0.0, 0.0);
 }

@@ -33,7 +33,7 @@ PolygonMesh unit_triangle() {
     return m;
 }
 
-Eigen::Vector3d total_vector_area(const ShmSource& s) { return s.vectors.colwise().sum().transpose(); }
+Eigen::Vector3d total_vector_area(const ShmSource& s) { return s.elements.vectors.colwise().sum().transpose(); }
 
 std::string cloud_text(double far) {
     std::string s;
@@ -44,29 +44,29 @@ std::string cloud_text(double far) {
 
 }  // namespace
 
-TEST_CASE("mesh sources: faces far larger than a tight grid are split near it only, and area is kept") {
+TEST_CASE("mesh sources: a face far larger than a tight grid costs work near the grid only, and is signed right") {
+    // The old sources split every face to the grid spacing: 4^10 (4^30) pieces for a unit
+    // triangle under a 1e-3 (1e-9) box. Now the triangle is one element, refined adaptively
+    // near each node only, so the work per node is bounded by the depth of that refinement.
     const PolygonMesh tri = unit_triangle();
-    const Eigen::Vector3d exact(0, 0, 0.5);
-    // Without a focus box, every piece gets to the element size: 4^k pieces.
-    const ShmSource plain = shm_source(tri, 0.1);
-    CHECK(plain.size() == 256);
-    CHECK((total_vector_area(plain) - exact).norm() < 1e-12);
-    // A box holding the whole face changes nothing.
-    const ShmSource around = shm_source(tri, 0.1, Box{{-1, -1, -1}, {2, 2, 1}});
-    CHECK(around.size() == plain.size());
-    // A box of 1e-3 (or 1e-9) at a corner: the old uniform split needed 4^10 (4^30) pieces; now
-    // the pieces grow with the distance from the box, and the vector area is still exact.
+    const ShmSource src = shm_source(tri);
+    CHECK(src.size() == 1);
+    CHECK((total_vector_area(src) - Eigen::Vector3d(0, 0, 0.5)).norm() < 1e-15);
     for (double side : {1e-3, 1e-9}) {
         CAPTURE(side);
-        const ShmSource s = shm_source(tri, side / 7, Box{{0.2, 0.2, -side}, {0.2 + side, 0.2 + side, side}});
-        CHECK(s.size() < 50000);
-        CHECK((total_vector_area(s) - exact).norm() < 1e-12);
-        // Pieces inside the box are at the element size.
-        for (Eigen::Index i = 0; i < s.positions.rows(); ++i) {
-            const Eigen::Vector3d p = s.positions.row(i).transpose();
-            if ((p.array() >= 0.2).all() && (p.array() <= 0.2 + side).all())
-                CHECK(std::sqrt(2 * s.vectors.row(i).norm()) <= 1.5 * side / 7);
-        }
+        const GridSpec g = GridSpec::cube(12, Box{{0.2, 0.2, -side}, {0.2 + side, 0.2 + side, side}});
+        ShmOptions o;
+        o.device = "cpu";
+        const ShmResult r = SignedHeatGrid(src, g, o).solve();
+        // Refinement stops at r_floor (1e-3 h): ~10 levels of a few dozen pieces per node.
+        CHECK(r.kernel_terms < g.node_count() * 2000);
+        // The face's normal is +z: φ > 0 above it, < 0 below.
+        for (int i = 0; i < g.nx; ++i)
+            for (int k = 0; k < g.nz; ++k) {
+                const float phi = r.phi[std::size_t((i * g.ny + 5) * g.nz + k)];
+                if (k < 5) CHECK(phi < 0);
+                if (k > 6) CHECK(phi > 0);
+            }
     }
 }
 
@@ -75,8 +75,6 @@ TEST_CASE("memory budget: GSD_MEMORY_LIMIT is read, and work past it is refused 
     CHECK(memory_budget() == (std::size_t(1) << 20));
     CHECK_THROWS_WITH_AS(check_memory(2e6, "x", "a test"), doctest::Contains("memory budget"), Error);
     CHECK_NOTHROW(check_memory(1e5, "x", "a test"));
-    // 4^12 pieces of a unit triangle do not fit in 1 MiB.
-    CHECK_THROWS_WITH_AS(shm_source(unit_triangle(), 1e-3), doctest::Contains("memory budget"), Error);
     ::setenv("GSD_MEMORY_LIMIT", "lots", 1);
     CHECK_THROWS_AS(memory_budget(), Error);
     ::unsetenv("GSD_MEMORY_LIMIT");

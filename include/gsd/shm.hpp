@@ -13,6 +13,7 @@
 #pragma once
 
 #include <gsd/core.hpp>
+#include <gsd/sums.hpp>
 
 #include <optional>
 
@@ -22,12 +23,12 @@
 
 namespace gsd {
 
-/// Oriented area elements: a sum of point sources y_j carrying vector area A_j·N_j.
+/// The source of the grid SHM: oriented area elements (gsd/sums.hpp) — a mesh's triangles,
+/// integrated exactly to second order, and/or a cloud's points — and its spacing h.
 struct ShmSource {
-    Points positions;   ///< y_j
-    Points vectors;     ///< A_j·N_j (not unit)
+    OrientedElements elements;
     double spacing = 0; ///< h: mean neighbor spacing (clouds) or mean edge length (meshes)
-    std::size_t size() const { return std::size_t(positions.rows()); }
+    std::size_t size() const { return elements.size(); }
 };
 
 /// Point cloud → sources: each point with its unit normal times the area π d_8²/8 it
@@ -35,14 +36,11 @@ struct ShmSource {
 ShmSource shm_source(const PointCloud& cloud);
 
 /// Mesh in any state (holes, self-intersections, nonmanifold or duplicate faces, inconsistent
-/// orientation: all kept as they are) → sources: each face's vector area at its centroid;
-/// faces larger than `max_element` (default: the mean edge length h) are split into smaller
-/// triangles first so the quadrature resolves them. With a `focus` box (the grid's), pieces
-/// farther from it than 4× their size are left that coarse: they are summed from afar, and a
-/// large mesh cropped by tight bounds then costs pieces near the box only. The number of
-/// pieces is checked against memory_budget() before any is stored. Polygons are fanned.
+/// orientation: all kept as they are) → sources: its (fanned) triangles with their vector
+/// areas. However coarse the faces, step 1 integrates the kernel over each triangle (expansions
+/// far away, adaptive refinement near it), so nothing is split up front. h = mean edge length.
 /// Degenerate faces contribute nothing; a mesh whose faces are all degenerate is an error.
-ShmSource shm_source(const PolygonMesh& mesh, double max_element = 0, const std::optional<Box>& focus = std::nullopt);
+ShmSource shm_source(const PolygonMesh& mesh);
 
 /// Mesh and cloud together (bonus): their sources concatenated; h is the larger spacing.
 ShmSource combine(const ShmSource& a, const ShmSource& b);
@@ -63,6 +61,11 @@ struct ShmOptions {
     /// Step 1 evaluates the field exactly at nodes closer than this many cells (of a level)
     /// to the source and interpolates it from a coarser level farther out. 0: exact everywhere.
     double interpolation_cells = 6.0;
+    /// Step 1's accuracy: a cluster of elements (or a piece of a triangle) is summed by its
+    /// second-order expansion when a bound on its truncation error is below this fraction of
+    /// 2π/λ, the magnitude of the diffused field of a sheet (docs/shm.md). Smaller is slower
+    /// and closer to the exact integral.
+    double sum_tolerance = 1e-2;
     PoissonSolver solver = PoissonSolver::Multigrid;
     /// Stop when ‖b − Lφ‖ ≤ tolerance·‖b‖.
     double tolerance = 1e-6;

@@ -1,6 +1,6 @@
 #include "shm/diffuse.hpp"
 
-#include "spatial/box_tree.hpp"
+#include "sums/sum_tree.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,7 +11,12 @@ namespace {
 
 class CpuEvaluator final : public DirectionEvaluator {
 public:
-    CpuEvaluator(const ShmSource& src, const KernelParams& k) : src_(src), k_(k), tree_(src.positions) {}
+    CpuEvaluator(const ShmSource& src, const KernelParams& k) : tree_(src.elements) {
+        k_.lambda = k.lambda;
+        k_.cutoff = k.cutoff;
+        k_.r_floor = k.r_floor;
+        k_.tolerance = k.sum_tolerance;
+    }
 
     std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
                          const ProgressFn& progress) override {
@@ -22,11 +27,12 @@ public:
         const std::size_t block = 32768;
         for (std::size_t first = 0; first < n; first += block) {
             const std::size_t last = std::min(n, first + block);
-#pragma omp parallel reduction(+ : terms)
-            {
-                std::vector<Neighbor> nb;
-#pragma omp for schedule(dynamic, 64)
-                for (std::size_t i = first; i < last; ++i) terms += one(x.row(Eigen::Index(i)).transpose(), &y[3 * i], r_min[i], nb);
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : terms)
+            for (std::size_t i = first; i < last; ++i) {
+                const Eigen::Vector3d X = tree_.screened(x.row(Eigen::Index(i)).transpose(), k_, r_min[i], terms);
+                const double len = X.norm();
+                if (len > 0)
+                    for (int a = 0; a < 3; ++a) y[3 * i + std::size_t(a)] = float(X[a] / len);
             }
             if (progress) progress("diffuse", double(last) / double(n));
         }
@@ -35,25 +41,8 @@ public:
     std::string device() const override { return "cpu"; }
 
 private:
-    std::size_t one(const Eigen::Vector3d& x, float* y, double& rmin, std::vector<Neighbor>& nb) const {
-        tree_.knn(x, 1, nb);
-        rmin = nb[0].distance;
-        // Everything with exp(−λ(r − r_min)) ≥ e^(−cutoff).
-        tree_.radius(x, rmin + k_.cutoff / k_.lambda, nb);
-        Eigen::Vector3d X = Eigen::Vector3d::Zero();
-        for (const Neighbor& s : nb) {
-            const double r = std::max(s.distance, k_.r_floor);
-            X += src_.vectors.row(s.index).transpose() * (std::exp(-k_.lambda * (s.distance - rmin)) / r);
-        }
-        const double len = X.norm();
-        if (len > 0)
-            for (int a = 0; a < 3; ++a) y[a] = float(X[a] / len);
-        return nb.size();
-    }
-
-    const ShmSource& src_;
-    KernelParams k_;
-    detail::BoxTree tree_;
+    detail::SumTree::Screened k_;
+    detail::SumTree tree_;
 };
 
 // The grids of the hierarchy: the same box, about half the nodes per axis each level.

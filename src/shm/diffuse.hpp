@@ -11,6 +11,7 @@
 
 #include <gsd/shm.hpp>
 
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,6 +24,7 @@ struct KernelParams {
     double lambda = 0;  ///< 1/√t
     double cutoff = 12; ///< drop sources with weight < e^(−cutoff) of the nearest
     double r_floor = 0; ///< distances below this count as r_floor (1/r is singular at a source)
+    double sum_tolerance = 1e-2; ///< expansion accuracy (ShmOptions::sum_tolerance)
 };
 
 /// Exact Y and r_min at a batch of points.
@@ -40,6 +42,11 @@ std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, con
 /// Null (and a reason) when the device cannot take the source.
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
                                                        const KernelParams& k, std::size_t chunk_size, std::string& why_not);
+
+/// Area samples of the source for the zero-set shift: points as they are, triangles split
+/// until no longer than max_element near `focus` (coarser away from it). emit(position, area).
+void for_each_sample(const ShmSource& source, double max_element, const Box& focus,
+                     const std::function<void(const Eigen::Vector3d&, double)>& emit);
 
 struct DiffuseStats {
     std::size_t exact_nodes = 0, kernel_terms = 0;

@@ -1,11 +1,11 @@
-// SHM step 1–2 on a Vulkan device: the sources live on the device in kd-tree order; query
-// points stream through shm_diffuse.comp in chunks (gpu::stream).
+// SHM step 1–2 on a Vulkan device: the SumTree of the source lives on the device
+// (sums_gpu.hpp); query points stream through shm_diffuse.comp in chunks (gpu::stream).
 #include "shm/diffuse.hpp"
 
-#include "gpu/device_tree.hpp"
 #include "gpu/runtime.hpp"
 #include "gpu/stream.hpp"
-#include "spatial/box_tree.hpp"
+#include "sums/sum_tree.hpp"
+#include "sums/sums_gpu.hpp"
 
 namespace gsd::shm_detail {
 
@@ -13,29 +13,14 @@ namespace {
 
 struct DiffusePush {
     std::uint32_t count, first_leaf;
-    float lambda, cutoff, r_floor;
+    float lambda, cutoff, r_floor, budget;
+    std::uint32_t lane_cap;
 };
 
 class GpuEvaluator final : public DirectionEvaluator {
 public:
-    GpuEvaluator(std::shared_ptr<gpu::Context> ctx, const ShmSource& src, const KernelParams& k, std::size_t chunk)
-        : ctx_(std::move(ctx)), k_(k), chunk_(chunk) {
-        const detail::BoxTree tree(src.positions);
-        const auto n = src.size();
-        std::vector<float> p(4 * n), v(4 * n);
-        for (std::size_t m = 0; m < n; ++m) {
-            const auto i = Eigen::Index(tree.order()[m]);
-            for (int a = 0; a < 3; ++a) {
-                p[4 * m + std::size_t(a)] = float(src.positions(i, a));
-                v[4 * m + std::size_t(a)] = float(src.vectors(i, a));
-            }
-        }
-        points_ = gpu::upload(*ctx_, p.data(), p.size() * 4);
-        vectors_ = gpu::upload(*ctx_, v.data(), v.size() * 4);
-        const std::vector<gpu::DeviceNode> nodes = gpu::device_nodes(tree);
-        nodes_ = gpu::upload(*ctx_, nodes.data(), nodes.size() * sizeof(gpu::DeviceNode));
-        first_leaf_ = tree.first_leaf();
-    }
+    GpuEvaluator(std::shared_ptr<gpu::Context> ctx, detail::SumTree tree, const KernelParams& k, std::size_t chunk)
+        : ctx_(std::move(ctx)), k_(k), chunk_(chunk), host_(std::move(tree)), tree_(sums_detail::upload(*ctx_, host_)) {}
 
     std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
                          const ProgressFn& progress) override {
@@ -44,6 +29,8 @@ public:
         r_min.assign(n, 0.0);
         std::size_t terms = 0;
         const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush));
+        const std::uint32_t cap = sums_detail::lane_cap(*ctx_), lanes = sums_detail::lanes_per_group(*ctx_);
+        std::vector<char> redo(n, 0);
         gpu::StreamJob job;
         job.count = n;
         job.in_bytes = 16;
@@ -58,9 +45,10 @@ public:
             }
         };
         job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& out, std::size_t m) {
-            const DiffusePush push{std::uint32_t(m), first_leaf_, float(k_.lambda), float(k_.cutoff), float(k_.r_floor)};
-            rec.dispatch(k, {{&points_}, {&vectors_}, {&nodes_}, {&in, 0, m * 16}, {&out, 0, m * 32}}, &push, sizeof(push),
-                         std::uint32_t((m + k.workgroup - 1) / k.workgroup));
+            const DiffusePush push{std::uint32_t(m), tree_.first_leaf, float(k_.lambda), float(k_.cutoff), float(k_.r_floor),
+                                   float(k_.sum_tolerance * 2 * M_PI / k_.lambda), cap};
+            rec.dispatch(k, {{&tree_.nodes}, {&tree_.moments}, {&tree_.elements}, {&in, 0, m * 16}, {&out, 0, m * 32}}, &push,
+                         sizeof(push), std::uint32_t((m + k.workgroup - 1) / k.workgroup));
         };
         job.drain = [&](std::size_t first, std::size_t m, const void* src) {
             const float* r = static_cast<const float*>(src);
@@ -68,9 +56,26 @@ public:
                 for (int a = 0; a < 3; ++a) y[3 * (first + i) + std::size_t(a)] = r[8 * i + std::size_t(a)];
                 r_min[first + i] = r[8 * i + 3];
                 terms += std::size_t(r[8 * i + 4]);
+                if (r[8 * i + 5] != 0) sums_detail::mark_group(redo, first, first + i, lanes, first + m);
             }
         };
         gpu::stream(*ctx_, job, progress);
+        // Queries a software device may have cut short: the CPU reference, in double.
+        detail::SumTree::Screened s;
+        s.lambda = k_.lambda;
+        s.cutoff = k_.cutoff;
+        s.r_floor = k_.r_floor;
+        s.tolerance = k_.sum_tolerance;
+        std::size_t redone = 0;
+#pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms, redone)
+        for (std::size_t q = 0; q < n; ++q) {
+            if (!redo[q]) continue;
+            const Eigen::Vector3d X = host_.screened(x.row(Eigen::Index(q)).transpose(), s, r_min[q], terms);
+            const double len = X.norm();
+            for (int a = 0; a < 3; ++a) y[3 * q + std::size_t(a)] = len > 0 ? float(X[a] / len) : 0.0f;
+            ++redone;
+        }
+        if (redone) log_once("step 1: queries that " + ctx_->info().name + "'s loop limit may have cut short were redone on the CPU");
         return terms;
     }
 
@@ -80,20 +85,18 @@ private:
     std::shared_ptr<gpu::Context> ctx_;
     KernelParams k_;
     std::size_t chunk_ = 0;
-    gpu::Buffer points_, vectors_, nodes_;
-    std::uint32_t first_leaf_ = 0;
+    detail::SumTree host_;
+    sums_detail::DeviceSumTree tree_;
 };
 
 }  // namespace
 
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
                                                        const KernelParams& k, std::size_t chunk_size, std::string& why_not) {
-    if (src.size() * 16 > ctx->max_binding_bytes() || src.size() >= (1ull << 31)) {
-        why_not = "the source (" + std::to_string(src.size()) + " elements) exceeds " + ctx->info().name +
-                  "'s storage buffer range; step 1 runs on the CPU";
-        return nullptr;
-    }
-    return std::make_unique<GpuEvaluator>(ctx, src, k, chunk_size);
+    detail::SumTree tree(src.elements);
+    why_not = sums_detail::gpu_unfit(*ctx, tree);
+    if (!why_not.empty()) return nullptr;
+    return std::make_unique<GpuEvaluator>(ctx, std::move(tree), k, chunk_size);
 }
 
 }  // namespace gsd::shm_detail

@@ -4,6 +4,7 @@
 
 #include "shm/diffuse.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numeric>
@@ -54,6 +55,7 @@ struct SignedHeatGrid::Impl {
         k.lambda = 1 / std::sqrt(t);
         k.cutoff = opt.cutoff;
         k.r_floor = 1e-3 * source.spacing;
+        k.sum_tolerance = opt.sum_tolerance;
         return k;
     }
 
@@ -71,19 +73,26 @@ struct SignedHeatGrid::Impl {
         return shm_detail::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
     }
 
-    // Area-weighted mean of φ over the sources inside the box.
-    double mean_on_source(const std::vector<double>& phi) const {
-        double sum = 0, weight = 0;
-        for (Eigen::Index j = 0; j < source.positions.rows(); ++j) {
+    // Area samples of the source inside the box: triangles split to the grid spacing.
+    template <class Emit>
+    void samples(Emit&& emit) const {
+        const double cell = grid.box.extent().maxCoeff() / double(std::max({grid.nx, grid.ny, grid.nz}) - 1);
+        shm_detail::for_each_sample(source, cell, grid.box, [&](const Eigen::Vector3d& p, double area) {
             std::size_t node[8];
             double w[8];
-            if (!trilinear(grid, source.positions.row(j).transpose(), node, w)) continue;
-            const double a = source.vectors.row(j).norm();
+            if (trilinear(grid, p, node, w)) emit(node, w, area);
+        });
+    }
+
+    // Area-weighted mean of φ over the source inside the box.
+    double mean_on_source(const std::vector<double>& phi) const {
+        double sum = 0, weight = 0;
+        samples([&](const std::size_t (&node)[8], const double (&w)[8], double a) {
             double v = 0;
             for (int c = 0; c < 8; ++c) v += w[c] * phi[node[c]];
             sum += a * v;
             weight += a;
-        }
+        });
         if (!(weight > 0)) throw Error("the source lies outside the grid's bounds");
         return sum / weight;
     }
@@ -94,12 +103,13 @@ struct SignedHeatGrid::Impl {
                                      std::vector<double>& history) const {
         struct Sample { std::size_t node[8]; double w[8]; double area; };
         std::vector<Sample> samples;
-        for (Eigen::Index j = 0; j < source.positions.rows(); ++j) {
+        this->samples([&](const std::size_t (&node)[8], const double (&w)[8], double a) {
             Sample s;
-            if (!trilinear(grid, source.positions.row(j).transpose(), s.node, s.w)) continue;
-            s.area = source.vectors.row(j).norm();
+            std::copy(std::begin(node), std::end(node), s.node);
+            std::copy(std::begin(w), std::end(w), s.w);
+            s.area = a;
             samples.push_back(s);
-        }
+        });
         if (samples.empty()) throw Error("the source lies outside the grid's bounds");
         const Eigen::Vector3d step = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
         const double mu = opt.fit_zero_set / (step.maxCoeff() * step.prod());
@@ -157,7 +167,9 @@ SignedHeatGrid::SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions optio
     if (!(options.cutoff > 0)) throw Error("cutoff", "the kernel cutoff must be > 0");
     if (options.interpolation_cells < 0) throw Error("interpolation_cells", "must be ≥ 0");
     if (options.fit_zero_set < 0) throw Error("--fit-zero-set", "the zero-set weight must be ≥ 0");
-    if (!source.positions.allFinite() || !source.vectors.allFinite()) throw Error("the source has non-finite values");
+    if (!(options.sum_tolerance > 0) || !(options.sum_tolerance <= 1))
+        throw Error("sum_tolerance", "the step 1 sum tolerance must be in (0, 1]");
+    source.elements.validate();
     impl_ = std::make_unique<Impl>(Impl{std::move(source), grid, std::move(options)});
 }
 

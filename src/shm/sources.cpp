@@ -2,6 +2,8 @@
 #include <gsd/shm.hpp>
 #include <gsd/spatial.hpp>
 
+#include "shm/diffuse.hpp"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -64,35 +66,18 @@ private:
     std::vector<std::array<Vec3, 3>> stack_;
 };
 
-ShmSource pack(const std::vector<Vec3>& pos, const std::vector<Vec3>& vec, double spacing) {
-    ShmSource s;
-    s.positions.resize(Eigen::Index(pos.size()), 3);
-    s.vectors.resize(Eigen::Index(pos.size()), 3);
-    for (std::size_t i = 0; i < pos.size(); ++i) {
-        s.positions.row(Eigen::Index(i)) = pos[i].transpose();
-        s.vectors.row(Eigen::Index(i)) = vec[i].transpose();
-    }
-    s.spacing = spacing;
-    return s;
-}
-
 }  // namespace
 
 ShmSource shm_source(const PointCloud& cloud) {
     if (cloud.size() < 2) throw Error("the signed heat method needs at least 2 points");
-    KdTree tree(cloud.points);
-    const std::vector<double> area = point_areas(tree);
     ShmSource s;
-    s.positions = cloud.points;
-    s.vectors.resize(cloud.size(), 3);
-    for (Eigen::Index i = 0; i < cloud.size(); ++i)
-        s.vectors.row(i) = area[std::size_t(i)] * cloud.normals.row(i).normalized();
-    s.spacing = mean_spacing(tree);
+    s.elements = OrientedElements::from_cloud(cloud);
+    s.spacing = mean_spacing(cloud.points);
     if (!(s.spacing > 0)) throw Error("all points of the cloud coincide");
     return s;
 }
 
-ShmSource shm_source(const PolygonMesh& mesh, double max_element, const std::optional<Box>& focus) {
+ShmSource shm_source(const PolygonMesh& mesh) {
     validate(mesh);
     // h = mean edge length over all face edges (each shared edge counted per face: the mean
     // is what matters).
@@ -106,53 +91,23 @@ ShmSource shm_source(const PolygonMesh& mesh, double max_element, const std::opt
         }
     const double h = length / double(edges);
     if (!(h > 0)) throw Error("mesh", "all faces are degenerate (zero area)");
-    const double limit = max_element > 0 ? max_element : h;
-
-    // Count the pieces first (a dry run): their number depends on coordinates, so it is checked
-    // against the memory budget before anything is stored.
-    constexpr double kBytesPerPiece = 2 * sizeof(Vec3) * 2;  // positions and vectors, then packed
-    const double cap = double(memory_budget()) / kBytesPerPiece;
-    auto corner = [&](std::uint32_t k) -> Vec3 { return mesh.vertices.row(mesh.indices[k]).transpose(); };
-    FaceSplitter splitter(limit, focus);
-    double pieces = 0;
-    for (std::size_t f = 0; f < mesh.face_count() && pieces <= cap; ++f)
-        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1] && pieces <= cap; ++k)
-            splitter.split(corner(mesh.offsets[f]), corner(k), corner(k + 1), [&](const Vec3&, const Vec3&) {
-                return ++pieces <= cap;
-            });
-    if (pieces > cap) {
-        char what[256];
-        std::snprintf(what, sizeof what,
-                      "splitting the faces into pieces no longer than %.3g (more than %.3g pieces: the grid cell is "
-                      "small next to the faces)",
-                      limit, cap);
-        check_memory(pieces * kBytesPerPiece, "mesh", what);
-    }
-    std::vector<Vec3> pos, vec;
-    pos.reserve(std::size_t(pieces));
-    vec.reserve(std::size_t(pieces));
-    for (std::size_t f = 0; f < mesh.face_count(); ++f)
-        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1]; ++k)
-            splitter.split(corner(mesh.offsets[f]), corner(k), corner(k + 1), [&](const Vec3& p, const Vec3& v) {
-                pos.push_back(p);
-                vec.push_back(v);
-                return true;
-            });
-    if (pos.empty()) throw Error("mesh", "all faces are degenerate (zero area)");
-    return pack(pos, vec, h);
+    ShmSource s;
+    s.elements = OrientedElements::from_mesh(mesh);
+    s.spacing = h;
+    return s;
 }
 
 ShmSource combine(const ShmSource& a, const ShmSource& b) {
     ShmSource s;
-    s.positions.resize(a.positions.rows() + b.positions.rows(), 3);
-    s.vectors.resize(s.positions.rows(), 3);
-    s.positions << a.positions, b.positions;
-    s.vectors << a.vectors, b.vectors;
+    s.elements.corners.resize(a.elements.corners.rows() + b.elements.corners.rows(), 3);
+    s.elements.vectors.resize(a.elements.vectors.rows() + b.elements.vectors.rows(), 3);
+    s.elements.corners << a.elements.corners, b.elements.corners;
+    s.elements.vectors << a.elements.vectors, b.elements.vectors;
     s.spacing = std::max(a.spacing, b.spacing);
     return s;
 }
 
-Box shm_default_bounds(const ShmSource& source) { return padded_cube(bounding_box(source.positions)); }
+Box shm_default_bounds(const ShmSource& source) { return padded_cube(bounding_box(source.elements.corners)); }
 
 PoissonSolver poisson_solver_from_name(const std::string& name) {
     if (name == "mg") return PoissonSolver::Multigrid;
@@ -160,5 +115,27 @@ PoissonSolver poisson_solver_from_name(const std::string& name) {
     if (name == "direct") return PoissonSolver::Direct;
     throw Error("--solver", "unknown solver '" + name + "' (mg, cg, direct)");
 }
+
+namespace shm_detail {
+
+void for_each_sample(const ShmSource& source, double max_element, const Box& focus,
+                     const std::function<void(const Eigen::Vector3d&, double)>& emit) {
+    const OrientedElements& e = source.elements;
+    FaceSplitter splitter(max_element, focus);
+    for (Eigen::Index j = 0; j < e.vectors.rows(); ++j) {
+        const Vec3 a = e.corners.row(3 * j).transpose(), b = e.corners.row(3 * j + 1).transpose(),
+                   c = e.corners.row(3 * j + 2).transpose();
+        if (a == b && a == c) {
+            emit(a, e.vectors.row(j).norm());
+            continue;
+        }
+        splitter.split(a, b, c, [&](const Vec3& p, const Vec3& v) {
+            emit(p, v.norm());
+            return true;
+        });
+    }
+}
+
+}  // namespace shm_detail
 
 }  // namespace gsd

@@ -6,12 +6,12 @@
 
 namespace gsd::detail {
 
-BoxTree::BoxTree(const Points& p) {
+BoxTree::BoxTree(const Points& p, std::uint32_t leaf_size) {
     const auto n = std::uint32_t(p.rows());
     if (n == 0) throw Error("cannot build a spatial index over an empty point set");
-    // The smallest depth with ≤ kLeafSize points per leaf: every leaf then holds > kLeafSize/2.
+    // The smallest depth with ≤ leaf_size points per leaf: every leaf then holds > leaf_size/2.
     int depth = 0;
-    while ((std::uint64_t(n) >> depth) > kLeafSize) ++depth;
+    while ((std::uint64_t(n) >> depth) > std::max<std::uint32_t>(leaf_size, 1)) ++depth;
     order_.resize(n);
     std::iota(order_.begin(), order_.end(), 0u);
     nodes_.resize((std::size_t(1) << (depth + 1)) - 1);

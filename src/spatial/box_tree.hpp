@@ -23,7 +23,8 @@ public:
     };
     static constexpr std::uint32_t kLeafSize = 8;
 
-    explicit BoxTree(const Points& points);
+    /// leaf_size: the most points per leaf (every leaf then holds more than half of it).
+    explicit BoxTree(const Points& points, std::uint32_t leaf_size = kLeafSize);
 
     /// The k nearest points to x, nearest first; indices are the caller's (not tree order).
     void knn(const Eigen::Vector3d& x, std::size_t k, std::vector<Neighbor>& out) const;

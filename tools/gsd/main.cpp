@@ -11,6 +11,7 @@
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
+#include <gsd/sums.hpp>
 #include <gsd/viz.hpp>
 
 #include <chrono>
@@ -318,6 +319,8 @@ void add_shm(CLI::App& app) {
     grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy")->required()->check(output_file({".npy"}));
     grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
         ->check(CLI::PositiveNumber)->capture_default_str();
+    grid->add_option("--sum-tolerance", opt->sum_tolerance, "Step 1 accuracy: error bound of each expansion, as a fraction of a sheet's field (smaller: slower, closer to the exact integral)")
+        ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
     grid->add_option("--solver", *solver, "Poisson solver: mg (multigrid), cg, direct (CHOLMOD, small grids)")
         ->check(CLI::IsMember({"mg", "cg", "direct"}))->capture_default_str();
     grid->add_flag("--f-cycle", opt->f_cycle, "Multigrid F-cycles instead of V-cycles");
@@ -327,7 +330,7 @@ void add_shm(CLI::App& app) {
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     grid->callback([=] {
-        // Sources: each input by its kind; meshes get quadrature at the grid spacing.
+        // Sources: each input by its kind (a mesh's triangles, a cloud's points).
         ShmSource src;
         std::vector<std::pair<std::string, bool>> kinds;
         for (const std::string& in : *inputs) kinds.push_back({in, io::file_has_faces(in)});
@@ -353,13 +356,12 @@ void add_shm(CLI::App& app) {
         g.validate();
         check_grid_memory(g);
         if (bounds->empty()) note("grid bounds (pass them to contour/slice): " + bounds_text(g.box));
-        const double cell = g.box.extent().maxCoeff() / (*n - 1);
         bool first = true;
         std::size_t which = 0;
         for (const auto& m : meshes) {
             ShmSource s;
             try {
-                s = shm_source(m, cell, g.box);
+                s = shm_source(m);
             } catch (const Error& e) {
                 // Name the file: sources don't know where their mesh came from.
                 std::size_t k = 0;
@@ -444,6 +446,47 @@ void add_mesh(CLI::App& app) {
     });
 }
 
+void add_winding(CLI::App& app) {
+    auto* wn = app.add_subcommand("winding", "Generalized winding number (≈1 inside, 0 outside) of a mesh in any state or an oriented cloud: fast (treecode) or exact");
+    auto input = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto domain = std::make_shared<Domain>();
+    auto opt = std::make_shared<WindingOptions>();
+    wn->add_option("INPUT", *input, "Mesh (a file with faces: any holes, flips, self-intersections) or point cloud with normals")->required();
+    wn->add_option("-o,--output", *output, "Output float32 .npy: (N,N,N) for a grid, (M,) for queries")->required()->check(output_file({".npy"}));
+    domain->add_to(*wn, true);
+    wn->add_flag("--exact", opt->exact, "Sum every element exactly (O(queries × elements)): the reference");
+    wn->add_option("--beta", opt->beta, "Opening criterion: a cluster farther than β × its radius is summed by its expansion")
+        ->check(CLI::Range(1.01, 100.0))->capture_default_str();
+    wn->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
+    wn->callback([=] {
+        if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
+        OrientedElements elements;
+        if (io::file_has_faces(*input)) {
+            elements = OrientedElements::from_mesh(io::read_mesh(*input));
+        } else {
+            try {
+                elements = OrientedElements::from_cloud(io::read_point_cloud(*input));
+            } catch (const Error& e) {
+                throw Error(*input, e.what());
+            }
+        }
+        auto eval = [&](const Points& q, const ProgressFn& p) {
+            WindingResult r = fast_winding_numbers(elements, q, *opt, p);
+            FieldValues v;
+            v.phi.assign(r.w.begin(), r.w.end());
+            v.device = r.device;
+            if (globals().verbose)
+                note(std::to_string(elements.size()) + " elements, " + fmt("%.4g", double(r.terms) / std::max<double>(1, double(q.rows()))) +
+                     " terms per query");
+            return v;
+        };
+        evaluate_and_write(
+            *domain, bounding_box(elements.corners), *output, "", eval,
+            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding");
+    });
+}
+
 void add_info(CLI::App& app) {
     auto* info = app.add_subcommand("info", "Version, the Vulkan devices seen, and what --device auto picks");
     info->callback([] {
@@ -478,6 +521,7 @@ int main(int argc, char** argv) {
     add_shm(app);
     add_sample(app);
     add_mesh(app);
+    add_winding(app);
     add_curve(app);
     add_swn(app);
     add_info(app);

@@ -1,0 +1,379 @@
+#include "sums/sum_tree.hpp"
+
+#include "spatial/box_tree.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <cmath>
+
+namespace gsd::detail {
+
+namespace {
+
+using Vec3 = Eigen::Vector3d;
+
+constexpr double kFourPi = 4 * M_PI;
+constexpr int kStack = 64;
+// Elements per leaf: small, so that clusters of a few elements get their own (cheap)
+// expansion instead of exact per-element sums.
+constexpr std::uint32_t kLeafSize = 8;
+
+Vec3 vec(const double* p) { return {p[0], p[1], p[2]}; }
+
+/// Covariance of the uniform density on a triangle: (1/12) Σ_k (p_k − g)(p_k − g)ᵀ, as
+/// (xx yy zz xy xz yz).
+void triangle_covariance(const double* p, double (&cov)[6]) {
+    const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6), g = (a + b + c) / 3;
+    Eigen::Matrix3d s = Eigen::Matrix3d::Zero();
+    for (const Vec3& q : {a, b, c}) s += (q - g) * (q - g).transpose();
+    s /= 12;
+    cov[0] = s(0, 0); cov[1] = s(1, 1); cov[2] = s(2, 2);
+    cov[3] = s(0, 1); cov[4] = s(0, 2); cov[5] = s(1, 2);
+}
+
+/// uᵀ S u and tr S for a symmetric S stored as (xx yy zz xy xz yz).
+double quad(const double* s, const Vec3& u) {
+    return s[0] * u[0] * u[0] + s[1] * u[1] * u[1] + s[2] * u[2] * u[2] +
+           2 * (s[3] * u[0] * u[1] + s[4] * u[0] * u[2] + s[5] * u[1] * u[2]);
+}
+double trace(const double* s) { return s[0] + s[1] + s[2]; }
+/// (S u)_a: row a of S times u.
+double row_dot(const double* s, int a, const Vec3& u) {
+    switch (a) {
+        case 0: return s[0] * u[0] + s[3] * u[1] + s[4] * u[2];
+        case 1: return s[3] * u[0] + s[1] * u[1] + s[5] * u[2];
+        default: return s[4] * u[0] + s[5] * u[1] + s[2] * u[2];
+    }
+}
+
+/// Second-order expansion of Σ v·∇Φ(x − y), Φ = 1/(4πr), about c, d = x − c. With radial
+/// derivatives f1..f3 of Φ: ∂_aΦ = f1 u_a, ∂_aiΦ = A u_a u_i + B δ_ai,
+/// ∂_aijΦ = C u_a u_i u_j + D (u_a δ_ij + u_i δ_aj + u_j δ_ai).
+double winding_expansion(const SumTree::Node& n, const Vec3& d) {
+    const double r = d.norm(), ir = 1 / r;
+    const Vec3 u = d * ir;
+    const double f1 = -ir * ir / kFourPi, f2 = 2 * ir * ir * ir / kFourPi, f3 = -6 * ir * ir * ir * ir / kFourPi;
+    const double A = f2 - f1 * ir, B = f1 * ir, C = f3 - 3 * f2 * ir + 3 * f1 * ir * ir, D = A * ir;
+    const Vec3 m0 = vec(n.m0);
+    const double t0 = f1 * m0.dot(u);
+    double uMu = 0, trM1 = 0, t2c = 0, t2d = 0;
+    for (int a = 0; a < 3; ++a) {
+        const double* m1 = n.m1 + 3 * a;
+        uMu += u[a] * (m1[0] * u[0] + m1[1] * u[1] + m1[2] * u[2]);
+        trM1 += m1[a];
+        const double* m2 = n.m2 + 6 * a;
+        t2c += u[a] * quad(m2, u);
+        t2d += u[a] * trace(m2) + 2 * row_dot(m2, a, u);
+    }
+    return t0 - (A * uMu + B * trM1) + 0.5 * (C * t2c + D * t2d);
+}
+
+/// The screened kernel f(r) = e^(−λ(r − r_min))/r and its first two radial derivatives.
+struct Radial {
+    double f, f1, f2;
+};
+Radial screened_radial(double r, double lambda, double r_min) {
+    const double E = std::exp(-lambda * (r - r_min)), ir = 1 / r;
+    return {E * ir, -E * (lambda * ir + ir * ir), E * (lambda * lambda * ir + 2 * lambda * ir * ir + 2 * ir * ir * ir)};
+}
+
+/// Second-order expansion of Σ v_j K(x − y) about c (vector result), d = x − c:
+/// X_a = M0_a f − f1 (M1_a·u) + ½ (A uᵀM2_a u + B tr M2_a), A = f2 − f1/r, B = f1/r.
+void screened_expansion(const double* m0, const double* m1, const double* m2, const Vec3& d, const SumTree::Screened& k,
+                        double r_min, Vec3& X) {
+    const double r = d.norm();
+    const Vec3 u = d / r;
+    const Radial f = screened_radial(r, k.lambda, r_min);
+    const double A = f.f2 - f.f1 / r, B = f.f1 / r;
+    for (int a = 0; a < 3; ++a) {
+        const double* m1a = m1 + 3 * a;
+        const double* m2a = m2 + 6 * a;
+        X[a] += m0[a] * f.f - f.f1 * (m1a[0] * u[0] + m1a[1] * u[1] + m1a[2] * u[2]) + 0.5 * (A * quad(m2a, u) + B * trace(m2a));
+    }
+}
+
+}  // namespace
+
+namespace sums {
+
+double point_triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
+    // Closest point by Voronoi regions of the triangle (vertices, edges, face); degenerate
+    // triangles (zero area) fall back to their three segments.
+    const Vec3 ab = b - a, ac = c - a, ap = x - a;
+    auto segment = [&](const Vec3& p, const Vec3& q) {
+        const Vec3 e = q - p;
+        const double l2 = e.squaredNorm();
+        const double t = l2 > 0 ? std::clamp((x - p).dot(e) / l2, 0.0, 1.0) : 0.0;
+        return (x - (p + t * e)).squaredNorm();
+    };
+    const Vec3 n = ab.cross(ac);
+    if (!(n.squaredNorm() > 1e-30 * ab.squaredNorm() * ac.squaredNorm()))
+        return std::min({segment(a, b), segment(b, c), segment(c, a)});
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
+    const Vec3 bp = x - b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return (x - (a + d1 / (d1 - d3) * ab)).squaredNorm();
+    const Vec3 cp = x - c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return (x - (a + d2 / (d2 - d6) * ac)).squaredNorm();
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) return (x - (b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b))).squaredNorm();
+    const double s = n.dot(ap);
+    return s * s / n.squaredNorm();
+}
+
+double triangle_winding(const Vec3& x, const Vec3& a0, const Vec3& b0, const Vec3& c0) {
+    // tan(Ω/2) = a·(b×c) / (|a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|).
+    const Vec3 a = a0 - x, b = b0 - x, c = c0 - x;
+    const double la = a.norm(), lb = b.norm(), lc = c.norm();
+    const double num = a.dot(b.cross(c));
+    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+    return 2 * std::atan2(num, den) / kFourPi;
+}
+
+}  // namespace sums
+
+SumTree::SumTree(const OrientedElements& e) {
+    e.validate();
+    const std::size_t n = e.size();
+    Points centroids(Eigen::Index(n), 3);
+    for (std::size_t j = 0; j < n; ++j) {
+        const auto J = Eigen::Index(j);
+        centroids.row(J) = (e.corners.row(3 * J) + e.corners.row(3 * J + 1) + e.corners.row(3 * J + 2)) / 3;
+    }
+    const BoxTree tree(centroids, kLeafSize);
+    order_ = tree.order();
+    first_leaf_ = tree.first_leaf();
+    p_.resize(9 * n);
+    v_.resize(3 * n);
+    cov_.resize(6 * n);
+    for (std::size_t j = 0; j < n; ++j) {
+        const auto J = Eigen::Index(order_[j]);
+        for (int k = 0; k < 3; ++k)
+            for (int a = 0; a < 3; ++a) p_[9 * j + std::size_t(3 * k + a)] = e.corners(3 * J + k, a);
+        for (int a = 0; a < 3; ++a) v_[3 * j + std::size_t(a)] = e.vectors(J, a);
+        double cov[6];
+        triangle_covariance(&p_[9 * j], cov);
+        std::copy(cov, cov + 6, &cov_[6 * j]);
+        triangles_ = triangles_ || e.corners.row(3 * J) != e.corners.row(3 * J + 1) || e.corners.row(3 * J) != e.corners.row(3 * J + 2);
+    }
+    nodes_.resize(tree.nodes().size());
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+        nodes_[i].begin = tree.nodes()[i].begin;
+        nodes_[i].end = tree.nodes()[i].end;
+    }
+    // Each node from its own elements: O(n log n), and no error accumulates by translating
+    // moments up the tree.
+#pragma omp parallel for schedule(dynamic, 16)
+    for (std::size_t i = 0; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
+}
+
+void SumTree::compute_node(std::uint32_t i) {
+    Node& nd = nodes_[i];
+    Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY), weighted = Vec3::Zero();
+    double area = 0;
+    for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
+        const double* p = corners(j);
+        for (int k = 0; k < 3; ++k) {
+            lo = lo.cwiseMin(vec(p + 3 * k));
+            hi = hi.cwiseMax(vec(p + 3 * k));
+        }
+        const double a = vec(vector(j)).norm();
+        weighted += a * (vec(p) + vec(p + 3) + vec(p + 6)) / 3;
+        area += a;
+    }
+    // Center: the area-weighted centroid (it makes M1 small); the box center if no area.
+    const Vec3 c = area > 0 ? Vec3(weighted / area) : Vec3(0.5 * (lo + hi));
+    double rho = 0;
+    for (int a = 0; a < 3; ++a) { nd.m0[a] = 0; }
+    std::fill(std::begin(nd.m1), std::end(nd.m1), 0.0);
+    std::fill(std::begin(nd.m2), std::end(nd.m2), 0.0);
+    for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
+        const double* p = corners(j);
+        for (int k = 0; k < 3; ++k) rho = std::max(rho, (vec(p + 3 * k) - c).norm());
+        const Vec3 s = (vec(p) + vec(p + 3) + vec(p + 6)) / 3 - c;
+        const double* cov = covariance(j);
+        const double second[6] = {s[0] * s[0] + cov[0], s[1] * s[1] + cov[1], s[2] * s[2] + cov[2],
+                                  s[0] * s[1] + cov[3], s[0] * s[2] + cov[4], s[1] * s[2] + cov[5]};
+        const double* v = vector(j);
+        for (int a = 0; a < 3; ++a) {
+            nd.m0[a] += v[a];
+            for (int b = 0; b < 3; ++b) nd.m1[3 * a + b] += v[a] * s[b];
+            for (int b = 0; b < 6; ++b) nd.m2[6 * a + b] += v[a] * second[b];
+        }
+    }
+    for (int a = 0; a < 3; ++a) {
+        nd.lo[a] = lo[a];
+        nd.hi[a] = hi[a];
+        nd.c[a] = c[a];
+    }
+    nd.rho = rho;
+    nd.area = area;
+}
+
+double SumTree::winding(const Vec3& x, double beta, std::size_t& terms) const {
+    double w = 0;
+    std::uint32_t stack[kStack];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const Node& nd = nodes_[stack[--top]];
+        const std::uint32_t i = std::uint32_t(&nd - nodes_.data());
+        const Vec3 d = x - vec(nd.c);
+        if (d.squaredNorm() > beta * beta * nd.rho * nd.rho) {
+            w += winding_expansion(nd, d);
+            ++terms;
+        } else if (i >= first_leaf_) {
+            for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
+                const double* p = corners(j);
+                const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
+                if (a == b && a == c) {
+                    const Vec3 y = a - x;
+                    const double r2 = y.squaredNorm();
+                    if (r2 > 0) w += vec(vector(j)).dot(y) / (kFourPi * r2 * std::sqrt(r2));
+                } else {
+                    w += sums::triangle_winding(x, a, b, c);
+                }
+                ++terms;
+            }
+        } else {
+            stack[top++] = 2 * i + 1;
+            stack[top++] = 2 * i + 2;
+        }
+    }
+    return w;
+}
+
+double SumTree::winding_exact(const Vec3& x) const {
+    double w = 0;
+    for (std::size_t j = 0; j < size(); ++j) {
+        const double* p = corners(j);
+        const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
+        if (a == b && a == c) {
+            const Vec3 y = a - x;
+            const double r2 = y.squaredNorm();
+            if (r2 > 0) w += vec(vector(j)).dot(y) / (kFourPi * r2 * std::sqrt(r2));
+        } else {
+            w += sums::triangle_winding(x, a, b, c);
+        }
+    }
+    return w;
+}
+
+double SumTree::nearest_distance(const Vec3& x) const {
+    double best2 = INFINITY;
+    std::uint32_t stack[kStack];
+    int top = 0;
+    stack[top++] = 0;
+    auto box2 = [&](std::uint32_t i) {
+        double s = 0;
+        for (int a = 0; a < 3; ++a) {
+            const double e = std::max({nodes_[i].lo[a] - x[a], x[a] - nodes_[i].hi[a], 0.0});
+            s += e * e;
+        }
+        return s;
+    };
+    while (top > 0) {
+        const std::uint32_t i = stack[--top];
+        if (box2(i) >= best2) continue;
+        if (i >= first_leaf_) {
+            for (std::uint32_t j = nodes_[i].begin; j < nodes_[i].end; ++j) {
+                const double* p = corners(j);
+                best2 = std::min(best2, sums::point_triangle_distance2(x, vec(p), vec(p + 3), vec(p + 6)));
+            }
+        } else {
+            const std::uint32_t l = 2 * i + 1, r = 2 * i + 2;
+            const bool left_first = box2(l) <= box2(r);
+            stack[top++] = left_first ? r : l;
+            stack[top++] = left_first ? l : r;
+        }
+    }
+    return std::sqrt(best2);
+}
+
+Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms) const {
+    r_min = nearest_distance(x);
+    const double R = r_min + k.cutoff / k.lambda;
+    const double budget = k.tolerance * 2 * M_PI / k.lambda;
+    Vec3 X = Vec3::Zero();
+    std::uint32_t stack[kStack];
+    int top = 0;
+    stack[top++] = 0;
+    // One sub-triangle of an element being refined: barycentric origin (s, t), scale h and
+    // orientation σ; its corners are o, o + σh e1, o + σh e2 in the (s, t) parameters of the
+    // element (a + s (b − a) + t (c − a)). Children: the three corner triangles at h/2 and the
+    // middle one, flipped.
+    struct Piece { double s, t, h, sigma; int level; };
+    Piece pieces[3 * 20 + 8];
+    const double zero[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
+    while (top > 0) {
+        const std::uint32_t i = stack[--top];
+        const Node& nd = nodes_[i];
+        double box2 = 0;
+        for (int a = 0; a < 3; ++a) {
+            const double e = std::max({nd.lo[a] - x[a], x[a] - nd.hi[a], 0.0});
+            box2 += e * e;
+        }
+        if (box2 > R * R) continue;  // every element weighs < e^(−cutoff) of the nearest
+        const Vec3 d = x - vec(nd.c);
+        if (sums::accept_screened(nd.rho, d.norm(), nd.area, k.lambda, r_min, budget)) {
+            screened_expansion(nd.m0, nd.m1, nd.m2, d, k, r_min, X);
+            ++terms;
+            continue;
+        }
+        if (i < first_leaf_) {
+            stack[top++] = 2 * i + 1;
+            stack[top++] = 2 * i + 2;
+            continue;
+        }
+        for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
+            const double* p = corners(j);
+            const double* v = vector(j);
+            const Vec3 a = vec(p), ab = vec(p + 3) - a, ac = vec(p + 6) - a;
+            const double* cov = covariance(j);
+            const double area = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            int np = 0;
+            pieces[np++] = {0, 0, 1, 1, 0};
+            while (np > 0) {
+                const Piece q = pieces[--np];
+                const Vec3 p0 = a + q.s * ab + q.t * ac, e1 = q.sigma * q.h * ab, e2 = q.sigma * q.h * ac;
+                const Vec3 g = p0 + (e1 + e2) / 3;
+                const double rho = std::max({(p0 - g).norm(), (p0 + e1 - g).norm(), (p0 + e2 - g).norm()});
+                const Vec3 dg = x - g;
+                const double dist = dg.norm();
+                if (dist - rho > R) continue;
+                const double share = q.h * q.h;  // of the element's area
+                const double m0[3] = {v[0] * share, v[1] * share, v[2] * share};
+                if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget)) {
+                    double m2[18];
+                    for (int c = 0; c < 3; ++c)
+                        for (int b = 0; b < 6; ++b) m2[6 * c + b] = m0[c] * cov[b] * share;
+                    screened_expansion(m0, zero, m2, dg, k, r_min, X);
+                } else if (rho <= k.r_floor || q.level >= 20) {
+                    // Small enough that 1/r no longer resolves it (or at the depth limit):
+                    // its centroid, at no closer than r_floor.
+                    const double r = std::max(dist, k.r_floor);
+                    const double w = std::exp(-k.lambda * (dist - r_min)) / r;
+                    for (int c = 0; c < 3; ++c) X[c] += m0[c] * w;
+                } else {
+                    const double h = q.h / 2, sh = q.sigma * h;
+                    pieces[np++] = {q.s, q.t, h, q.sigma, q.level + 1};
+                    pieces[np++] = {q.s + sh, q.t, h, q.sigma, q.level + 1};
+                    pieces[np++] = {q.s, q.t + sh, h, q.sigma, q.level + 1};
+                    pieces[np++] = {q.s + sh, q.t + sh, h, -q.sigma, q.level + 1};
+                    continue;
+                }
+                ++terms;
+            }
+        }
+    }
+    return X;
+}
+
+}  // namespace gsd::detail

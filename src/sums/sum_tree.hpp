@@ -1,0 +1,113 @@
+// SumTree: the hierarchy behind every fast sum over oriented area elements (src/sums/README
+// in docs/sums.md). Elements are flat triangles of uniform density or points, each carrying a
+// vector area v_j = A_j·N_j. A complete kd-tree over the element centroids (BoxTree's order)
+// stores, per node, its expansion center c, the radius ρ of the ball around c that holds every
+// corner, and the moments of the area distribution about c up to second order:
+//
+//   M0   = Σ_j v_j                                       (3)
+//   M1_a = Σ_j v_j[a] (g_j − c)                          (3×3)
+//   M2_a = Σ_j v_j[a] ((g_j − c)(g_j − c)ᵀ + C_j)         (3 × symmetric 3×3)
+//
+// with g_j the centroid and C_j = (1/12) Σ_corners (p − g_j)(p − g_j)ᵀ the covariance of a
+// uniform triangle (0 for a point). A sum Σ_j v_j ⊗ K(x − y) over a well-separated node is
+// then its second-order Taylor expansion about c, exact for the triangles' true area
+// distribution (not their centroids) to that order.
+//
+// Two kernels use it: the screened kernel of the Signed Heat Method's step 1 (vector sum)
+// and the dipole kernel of the generalized winding number (scalar). Private to the library;
+// the GPU path uploads the same arrays as float (sums_gpu.hpp).
+#pragma once
+
+#include <gsd/sums.hpp>
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+namespace gsd::detail {
+
+class SumTree {
+public:
+    struct Node {
+        double lo[3], hi[3];    ///< box of every corner below
+        std::uint32_t begin, end;
+        double c[3], rho;       ///< expansion center, radius of the ball around it holding every corner
+        double area;            ///< Σ |v_j|
+        double m0[3], m1[9], m2[18];  ///< m1[3a+i]; m2[6a + (xx yy zz xy xz yz)]
+    };
+
+    explicit SumTree(const OrientedElements& elements);
+
+    const std::vector<Node>& nodes() const { return nodes_; }
+    std::uint32_t first_leaf() const { return first_leaf_; }
+    std::size_t size() const { return v_.size() / 3; }
+    bool has_triangles() const { return triangles_; }
+    /// Element j in tree order: corners (9 doubles: a, b, c; equal for a point) and vector area.
+    const double* corners(std::size_t j) const { return &p_[9 * j]; }
+    const double* vector(std::size_t j) const { return &v_[3 * j]; }
+    /// Its covariance (1/12) Σ (p − g)(p − g)ᵀ as (xx yy zz xy xz yz); 0 for a point.
+    const double* covariance(std::size_t j) const { return &cov_[6 * j]; }
+    /// order()[j]: the caller's index of the j-th element in tree order.
+    const std::vector<std::uint32_t>& order() const { return order_; }
+
+    // ---- the winding-number (dipole) kernel --------------------------------------------
+    /// Σ_j v_j·(y − x)/(4π|y − x|³) integrated over each element: nodes with |x − c| > β·ρ by
+    /// their expansion, the rest exactly (triangles by their solid angle). terms: +1 per node
+    /// expansion or element summed.
+    double winding(const Eigen::Vector3d& x, double beta, std::size_t& terms) const;
+    /// The exact sum over every element (the reference).
+    double winding_exact(const Eigen::Vector3d& x) const;
+
+    // ---- the screened kernel of SHM step 1 ---------------------------------------------
+    struct Screened {
+        double lambda = 0;  ///< 1/√t
+        double cutoff = 8;  ///< drop what weighs less than e^(−cutoff) of the nearest element
+        double r_floor = 0; ///< distances below this count as r_floor (1/r is singular)
+        double tolerance = 1e-2; ///< accuracy: see accept_screened()
+    };
+    /// Distance from x to the nearest element (exact point–triangle distance).
+    double nearest_distance(const Eigen::Vector3d& x) const;
+    /// X = Σ_j v_j ∫ e^(−λ(r − r_min))/r dA_j / A_j over elements within r_min + cutoff/λ, by
+    /// node expansions where accept_screened() says so and by adaptive subdivision of the
+    /// triangles elsewhere. Returns X (only its direction matters) and sets r_min.
+    Eigen::Vector3d screened(const Eigen::Vector3d& x, const Screened& k, double& r_min, std::size_t& terms) const;
+
+private:
+    void compute_node(std::uint32_t i);
+
+    std::vector<Node> nodes_;
+    std::uint32_t first_leaf_ = 0;
+    std::vector<double> p_, v_, cov_;  // corners, vector areas, triangle covariances (6 each)
+    std::vector<std::uint32_t> order_;
+    bool triangles_ = false;
+};
+
+namespace sums {
+
+/// Squared distance from x to the triangle (a, b, c) (degenerate triangles included).
+double point_triangle_distance2(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                const Eigen::Vector3d& c);
+/// Signed solid angle of the triangle seen from x, / 4π (Van Oosterom–Strackee).
+double triangle_winding(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                        const Eigen::Vector3d& c);
+
+/// Whether a cluster of radius ρ, total area A, whose center is at distance d may be summed
+/// by its second-order expansion of the screened kernel f(r) = e^(−λ(r − r_min))/r. With
+/// q = ρ(λ + 2/(d − ρ)) the third Taylor term bounds the truncation error by about
+/// A·f(d − ρ)·q³/6 (f(d − ρ): the largest weight in the cluster). The cluster is accepted when
+/// that bound is below `budget` = tolerance · 2π/λ — a fraction of |X| for any sheet-like
+/// source (an infinite plane gives |X| = 2π/λ at every distance) — and d ≥ 2ρ.
+inline bool accept_screened(double rho, double d, double area, double lambda, double r_min, double budget) {
+    if (!(d > 2 * rho)) return false;
+    if (rho == 0) return true;
+    const double gap = d - rho;
+    const double q = rho * (lambda + 2 / gap);
+    return area * std::exp(-lambda * (gap - r_min)) / gap * q * q * q <= 6 * budget;
+}
+
+}  // namespace sums
+
+}  // namespace gsd::detail

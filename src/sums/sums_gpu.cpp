@@ -1,0 +1,142 @@
+// Uploading the SumTree and the winding-number kernel (shaders/sums_winding.comp).
+#include "sums/sums_gpu.hpp"
+
+#include "gpu/device_tree.hpp"
+#include "gpu/stream.hpp"
+#include "sums/sum_tree.hpp"
+
+#include <cmath>
+
+namespace gsd::sums_detail {
+
+namespace {
+
+constexpr std::size_t kMomentVec4 = 9;  // per node: c, ρ | m0, area | m1 (9) m2 (18) pad
+
+struct WindingPush {
+    std::uint32_t count, first_leaf;
+    float beta;
+    std::uint32_t lane_cap;
+};
+
+// Rounds a box outward to float so every float32 corner stays inside it.
+void outward(const double* lo, const double* hi, gpu::DeviceNode& out) {
+    for (int a = 0; a < 3; ++a) {
+        const float l = float(lo[a]), h = float(hi[a]);
+        out.lo[a] = double(l) > lo[a] ? std::nextafter(l, -INFINITY) : l;
+        out.hi[a] = double(h) < hi[a] ? std::nextafter(h, INFINITY) : h;
+    }
+}
+
+}  // namespace
+
+std::uint32_t lanes_per_group(const gpu::Context& ctx) {
+    // At least 16: a conservative guess where the reported subgroup is narrower than the SIMD.
+    return std::max<std::uint32_t>(ctx.info().subgroup_size, 16);
+}
+
+std::uint32_t lane_cap(const gpu::Context& ctx) {
+    return ctx.info().is_software() ? 65535 / lanes_per_group(ctx) - 1 : 0;
+}
+
+void mark_group(std::vector<char>& redo, std::size_t first, std::size_t q, std::uint32_t lanes, std::size_t count) {
+    const std::size_t begin = first + (q - first) / lanes * lanes;
+    for (std::size_t i = begin; i < std::min(count, begin + lanes); ++i) redo[i] = 1;
+}
+
+std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree) {
+    const std::size_t bytes = std::max(tree.size() * 48, tree.nodes().size() * kMomentVec4 * 16);
+    if (bytes > ctx.max_binding_bytes())
+        return "the source (" + std::to_string(tree.size()) + " elements) exceeds " + ctx.info().name +
+               "'s storage buffer range; the sums run on the CPU";
+    return {};
+}
+
+DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree) {
+    const auto& nodes = tree.nodes();
+    std::vector<gpu::DeviceNode> dn(nodes.size());
+    std::vector<float> mom(nodes.size() * kMomentVec4 * 4, 0.0f);
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        const auto& n = nodes[i];
+        outward(n.lo, n.hi, dn[i]);
+        dn[i].begin = n.begin;
+        dn[i].end = n.end;
+        float* m = &mom[i * kMomentVec4 * 4];
+        for (int a = 0; a < 3; ++a) {
+            m[a] = float(n.c[a]);
+            m[4 + a] = float(n.m0[a]);
+        }
+        // The radius rounded up so float distances never accept a node too close.
+        m[3] = float(n.rho) < n.rho ? std::nextafter(float(n.rho), INFINITY) : float(n.rho);
+        m[7] = float(n.area);
+        for (int k = 0; k < 9; ++k) m[8 + k] = float(n.m1[k]);
+        for (int k = 0; k < 18; ++k) m[17 + k] = float(n.m2[k]);
+    }
+    std::vector<float> el(tree.size() * 12);
+    for (std::size_t j = 0; j < tree.size(); ++j) {
+        const double* p = tree.corners(j);
+        const double* v = tree.vector(j);
+        for (int k = 0; k < 3; ++k) {
+            for (int a = 0; a < 3; ++a) el[12 * j + std::size_t(4 * k + a)] = float(p[3 * k + a]);
+            el[12 * j + std::size_t(4 * k + 3)] = float(v[k]);
+        }
+    }
+    DeviceSumTree d;
+    d.nodes = gpu::upload(ctx, dn.data(), dn.size() * sizeof(gpu::DeviceNode));
+    d.moments = gpu::upload(ctx, mom.data(), mom.size() * 4);
+    d.elements = gpu::upload(ctx, el.data(), el.size() * 4);
+    d.first_leaf = tree.first_leaf();
+    return d;
+}
+
+bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, const Points& queries,
+                 const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
+    why_not = gpu_unfit(*ctx, tree);
+    if (!why_not.empty()) return false;
+    const DeviceSumTree d = upload(*ctx, tree);
+    const gpu::Kernel& k = ctx->kernel("sums_winding", 5, sizeof(WindingPush));
+    const auto n = std::size_t(queries.rows());
+    std::size_t terms = 0;
+    const std::uint32_t cap = lane_cap(*ctx), lanes = lanes_per_group(*ctx);
+    std::vector<char> redo(n, 0);
+    gpu::StreamJob job;
+    job.count = n;
+    job.in_bytes = 16;
+    job.out_bytes = 8;
+    job.stage = "winding";
+    if (opt.chunk_size) job.chunk = opt.chunk_size;
+    job.fill = [&](std::size_t first, std::size_t m, void* dst) {
+        float* up = static_cast<float*>(dst);
+        for (std::size_t i = 0; i < m; ++i) {
+            for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(queries(Eigen::Index(first + i), a));
+            up[4 * i + 3] = 0;
+        }
+    };
+    job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
+        const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), cap};
+        rec.dispatch(k, {{&d.nodes}, {&d.moments}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
+                     std::uint32_t((m + k.workgroup - 1) / k.workgroup));
+    };
+    job.drain = [&](std::size_t first, std::size_t m, const void* src) {
+        const float* r = static_cast<const float*>(src);
+        for (std::size_t i = 0; i < m; ++i) {
+            out.w[first + i] = r[2 * i];
+            if (r[2 * i + 1] < 0) mark_group(redo, first, first + i, lanes, first + m);
+            else terms += std::size_t(r[2 * i + 1]);
+        }
+    };
+    gpu::stream(*ctx, job, progress);
+    std::size_t redone = 0;
+#pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms, redone)
+    for (std::size_t q = 0; q < n; ++q)
+        if (redo[q]) {
+            out.w[q] = tree.winding(queries.row(Eigen::Index(q)).transpose(), opt.beta, terms);
+            ++redone;
+        }
+    if (redone) log_once("winding: queries that " + ctx->info().name + "'s loop limit may have cut short were redone on the CPU");
+    out.terms = terms;
+    out.device = ctx->info().name;
+    return true;
+}
+
+}  // namespace gsd::sums_detail
