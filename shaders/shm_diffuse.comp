@@ -58,9 +58,9 @@ float nearest_distance(vec3 x) {
 bool accept(float rho, float d, float area, float r_min) {
     if (!(d > 2.0 * rho)) return false;
     if (rho == 0.0) return true;
-    float gap = d - rho;
-    float q = rho * (pc.lambda + 2.0 / gap);
-    return area * exp(-pc.lambda * (gap - r_min)) / gap * q * q * q <= 6.0 * pc.budget;
+    // As on the CPU: area·e^(−λ(gap − r_min))/gap·q³ ≤ 6·budget, q = ρ(λ·gap + 2)/gap.
+    float gap = d - rho, s = rho * (pc.lambda * gap + 2.0), g2 = gap * gap;
+    return area * exp(-pc.lambda * (gap - r_min)) * s * s * s <= 6.0 * pc.budget * g2 * g2;
 }
 
 // e^(−λ(r − r_min))/r and its first two radial derivatives.
@@ -120,15 +120,17 @@ void main() {
             vec3 cd = (pa * pa + pb * pb + pc3 * pc3) / 12.0;
             vec3 co = vec3(pa.x * pa.y + pb.x * pb.y + pc3.x * pc3.y, pa.x * pa.z + pb.x * pb.z + pc3.x * pc3.z,
                            pa.y * pa.z + pb.y * pb.z + pc3.y * pc3.z) / 12.0;
+            vec3 gc = a + g0;
+            float rho0 = max(length(a - gc), max(length(eb.xyz - gc), length(ec.xyz - gc)));
             int np = 0;
             pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
             while (np > 0) {
                 vec4 pq = pieces[--np];
                 ++iters;
                 float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
-                vec3 p0 = a + pq.x * ab + pq.y * ac, e1 = sigma * pq.z * ab, e2 = sigma * pq.z * ac;
-                vec3 g = p0 + (e1 + e2) / 3.0;
-                float rho = max(length(p0 - g), max(length(p0 + e1 - g), length(p0 + e2 - g)));
+                // Every piece is similar to the element: radius h·ρ0.
+                vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
+                float rho = rho0 * pq.z;
                 vec3 dg = x - g;
                 float dist = length(dg);
                 if (dist - rho > R) continue;

@@ -222,3 +222,25 @@ TEST_CASE("contour and slice: a closed mesh and a PNG from an evaluated grid; ba
         CHECK(io::read_npy(dir.file(std::string(b) + ".npy")).shape == std::vector<std::size_t>{16, 16, 16});
     }
 }
+
+TEST_CASE("gsd winding: ≈1 inside and 0 outside a broken mesh and a cloud, fast = exact away from the surface; bad input exits 1") {
+    ScratchDir dir("cli-winding");
+    const std::string mesh = dir.file("box.obj"), cloud = dir.file("s.ply");
+    REQUIRE(run_cli("mesh rounded-box -r 24 --holes 2 --hole-area 0.05 -o " + mesh).exit_code == 0);
+    REQUIRE(run_cli("sample sphere -n 3000 -o " + cloud).exit_code == 0);
+    for (const std::string& in : {mesh, cloud}) {
+        CAPTURE(in);
+        REQUIRE(run_cli("winding " + in + " --grid 17 " + kBounds + " -o " + dir.file("w.npy")).exit_code == 0);
+        REQUIRE(run_cli("winding " + in + " --grid 17 " + kBounds + " --exact -o " + dir.file("we.npy")).exit_code == 0);
+        const io::NpyArray w = io::read_npy(dir.file("w.npy")), we = io::read_npy(dir.file("we.npy"));
+        CHECK(w.shape == std::vector<std::size_t>{17, 17, 17});
+        CHECK(w.data[(8 * 17 + 8) * 17 + 8] == doctest::Approx(1.0).epsilon(0.05));  // the center
+        CHECK(std::abs(w.data[0]) < 0.05);                                            // a corner
+        CHECK(max_abs_diff(w, we) < 0.05);  // worst at nodes on the surface; 1e-3 farther (test_sums)
+    }
+    // Bad input: nothing written.
+    CHECK(run_cli("winding " + dir.file("missing.obj") + " --grid 8 -o " + dir.file("bad.npy")).exit_code == 1);
+    CHECK(run_cli("winding " + mesh + " -o " + dir.file("bad.npy")).exit_code != 0);  // no --grid/--queries
+    CHECK(run_cli("winding " + mesh + " --grid 8 --beta 0.5 -o " + dir.file("bad.npy")).exit_code != 0);
+    CHECK_FALSE(test::file_exists(dir.file("bad.npy")));
+}

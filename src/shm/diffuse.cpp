@@ -16,6 +16,7 @@ public:
         k_.cutoff = k.cutoff;
         k_.r_floor = k.r_floor;
         k_.tolerance = k.sum_tolerance;
+        tree_.prepare_screened(k_.lambda);
     }
 
     std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
@@ -27,12 +28,20 @@ public:
         const std::size_t block = 32768;
         for (std::size_t first = 0; first < n; first += block) {
             const std::size_t last = std::min(n, first + block);
-#pragma omp parallel for schedule(dynamic, 64) reduction(+ : terms)
-            for (std::size_t i = first; i < last; ++i) {
-                const Eigen::Vector3d X = tree_.screened(x.row(Eigen::Index(i)).transpose(), k_, r_min[i], terms);
-                const double len = X.norm();
-                if (len > 0)
-                    for (int a = 0; a < 3; ++a) y[3 * i + std::size_t(a)] = float(X[a] / len);
+            // Runs of consecutive points (usually grid neighbors) per task: the previous point's
+            // r_min plus the step bounds this one's, which prunes the nearest-element search.
+            const std::size_t run = 64, runs = (last - first + run - 1) / run;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : terms)
+            for (std::size_t r = 0; r < runs; ++r) {
+                double bound = INFINITY;
+                for (std::size_t i = first + r * run; i < std::min(last, first + (r + 1) * run); ++i) {
+                    const Eigen::Vector3d xi = x.row(Eigen::Index(i)).transpose();
+                    const Eigen::Vector3d X = tree_.screened(xi, k_, r_min[i], terms, bound);
+                    if (i + 1 < last) bound = r_min[i] + (x.row(Eigen::Index(i + 1)).transpose() - xi).norm();
+                    const double len = X.norm();
+                    if (len > 0)
+                        for (int a = 0; a < 3; ++a) y[3 * i + std::size_t(a)] = float(X[a] / len);
+                }
             }
             if (progress) progress("diffuse", double(last) / double(n));
         }

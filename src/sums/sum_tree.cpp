@@ -17,7 +17,7 @@ constexpr double kFourPi = 4 * M_PI;
 constexpr int kStack = 64;
 // Elements per leaf: small, so that clusters of a few elements get their own (cheap)
 // expansion instead of exact per-element sums.
-constexpr std::uint32_t kLeafSize = 8;
+constexpr std::uint32_t kLeafSize = 2;
 
 Vec3 vec(const double* p) { return {p[0], p[1], p[2]}; }
 
@@ -73,19 +73,18 @@ double winding_expansion(const SumTree::Node& n, const Vec3& d) {
 struct Radial {
     double f, f1, f2;
 };
-Radial screened_radial(double r, double lambda, double r_min) {
-    const double E = std::exp(-lambda * (r - r_min)), ir = 1 / r;
+Radial screened_radial(double ir, double lambda, double E) {
     return {E * ir, -E * (lambda * ir + ir * ir), E * (lambda * lambda * ir + 2 * lambda * ir * ir + 2 * ir * ir * ir)};
 }
 
 /// Second-order expansion of Σ v_j K(x − y) about c (vector result), d = x − c:
 /// X_a = M0_a f − f1 (M1_a·u) + ½ (A uᵀM2_a u + B tr M2_a), A = f2 − f1/r, B = f1/r.
-void screened_expansion(const double* m0, const double* m1, const double* m2, const Vec3& d, const SumTree::Screened& k,
-                        double r_min, Vec3& X) {
-    const double r = d.norm();
-    const Vec3 u = d / r;
-    const Radial f = screened_radial(r, k.lambda, r_min);
-    const double A = f.f2 - f.f1 / r, B = f.f1 / r;
+void screened_expansion(const double* m0, const double* m1, const double* m2, const Vec3& d, double r, const SumTree::Screened& k,
+                        double E, Vec3& X) {
+    const double ir = 1 / r;
+    const Vec3 u = d * ir;
+    const Radial f = screened_radial(ir, k.lambda, E);
+    const double A = f.f2 - f.f1 * ir, B = f.f1 * ir;
     for (int a = 0; a < 3; ++a) {
         const double* m1a = m1 + 3 * a;
         const double* m2a = m2 + 6 * a;
@@ -172,6 +171,32 @@ SumTree::SumTree(const OrientedElements& e) {
     // moments up the tree.
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::size_t i = 0; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
+    hot_.resize(nodes_.size());
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+        const Node& nd = nodes_[i];
+        Hot& h = hot_[i];
+        std::copy(nd.c, nd.c + 3, h.c);
+        std::copy(nd.lo, nd.lo + 3, h.lo);
+        std::copy(nd.hi, nd.hi + 3, h.hi);
+        h.rho = nd.rho;
+        h.area = nd.area;
+        h.decay = 1;
+        h.begin = nd.begin;
+        h.end = nd.end;
+    }
+    elem_rho_.resize(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        const double* p = corners(j);
+        const Vec3 g = (vec(p) + vec(p + 3) + vec(p + 6)) / 3;
+        elem_rho_[j] = std::max({(vec(p) - g).norm(), (vec(p + 3) - g).norm(), (vec(p + 6) - g).norm()});
+    }
+}
+
+void SumTree::prepare_screened(double lambda) {
+    for (Hot& h : hot_) h.decay = std::exp(-lambda * h.rho);
+    elem_decay_.resize(elem_rho_.size());
+    for (std::size_t j = 0; j < elem_rho_.size(); ++j) elem_decay_[j] = std::exp(-lambda * elem_rho_[j]);
+    decay_lambda_ = lambda;
 }
 
 void SumTree::compute_node(std::uint32_t i) {
@@ -223,11 +248,11 @@ double SumTree::winding(const Vec3& x, double beta, std::size_t& terms) const {
     int top = 0;
     stack[top++] = 0;
     while (top > 0) {
-        const Node& nd = nodes_[stack[--top]];
-        const std::uint32_t i = std::uint32_t(&nd - nodes_.data());
+        const std::uint32_t i = stack[--top];
+        const Hot& nd = hot_[i];
         const Vec3 d = x - vec(nd.c);
         if (d.squaredNorm() > beta * beta * nd.rho * nd.rho) {
-            w += winding_expansion(nd, d);
+            w += winding_expansion(nodes_[i], d);
             ++terms;
         } else if (i >= first_leaf_) {
             for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
@@ -266,15 +291,16 @@ double SumTree::winding_exact(const Vec3& x) const {
     return w;
 }
 
-double SumTree::nearest_distance(const Vec3& x) const {
-    double best2 = INFINITY;
+double SumTree::nearest_distance(const Vec3& x, double bound) const {
+    // Slightly above the bound so rounding never prunes the element that attains it.
+    double best2 = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
     std::uint32_t stack[kStack];
     int top = 0;
     stack[top++] = 0;
     auto box2 = [&](std::uint32_t i) {
         double s = 0;
         for (int a = 0; a < 3; ++a) {
-            const double e = std::max({nodes_[i].lo[a] - x[a], x[a] - nodes_[i].hi[a], 0.0});
+            const double e = std::max({hot_[i].lo[a] - x[a], x[a] - hot_[i].hi[a], 0.0});
             s += e * e;
         }
         return s;
@@ -283,7 +309,7 @@ double SumTree::nearest_distance(const Vec3& x) const {
         const std::uint32_t i = stack[--top];
         if (box2(i) >= best2) continue;
         if (i >= first_leaf_) {
-            for (std::uint32_t j = nodes_[i].begin; j < nodes_[i].end; ++j) {
+            for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) {
                 const double* p = corners(j);
                 best2 = std::min(best2, sums::point_triangle_distance2(x, vec(p), vec(p + 3), vec(p + 6)));
             }
@@ -297,10 +323,11 @@ double SumTree::nearest_distance(const Vec3& x) const {
     return std::sqrt(best2);
 }
 
-Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms) const {
-    r_min = nearest_distance(x);
+Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound) const {
+    r_min = nearest_distance(x, r_bound);
     const double R = r_min + k.cutoff / k.lambda;
     const double budget = k.tolerance * 2 * M_PI / k.lambda;
+    const bool cached = decay_lambda_ == k.lambda;
     Vec3 X = Vec3::Zero();
     std::uint32_t stack[kStack];
     int top = 0;
@@ -308,13 +335,14 @@ Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::siz
     // One sub-triangle of an element being refined: barycentric origin (s, t), scale h and
     // orientation σ; its corners are o, o + σh e1, o + σh e2 in the (s, t) parameters of the
     // element (a + s (b − a) + t (c − a)). Children: the three corner triangles at h/2 and the
-    // middle one, flipped.
-    struct Piece { double s, t, h, sigma; int level; };
+    // middle one, flipped — all similar to the element, so a piece's radius is h·ρ and its
+    // e^(−λρ) the square root of its parent's.
+    struct Piece { double s, t, h, sigma, decay; int level; };
     Piece pieces[3 * 20 + 8];
     const double zero[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     while (top > 0) {
         const std::uint32_t i = stack[--top];
-        const Node& nd = nodes_[i];
+        const Hot& nd = hot_[i];
         double box2 = 0;
         for (int a = 0; a < 3; ++a) {
             const double e = std::max({nd.lo[a] - x[a], x[a] - nd.hi[a], 0.0});
@@ -322,8 +350,12 @@ Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::siz
         }
         if (box2 > R * R) continue;  // every element weighs < e^(−cutoff) of the nearest
         const Vec3 d = x - vec(nd.c);
-        if (sums::accept_screened(nd.rho, d.norm(), nd.area, k.lambda, r_min, budget)) {
-            screened_expansion(nd.m0, nd.m1, nd.m2, d, k, r_min, X);
+        const double d2 = d.squaredNorm();
+        const double dn = d2 > 4 * nd.rho * nd.rho ? std::sqrt(d2) : 0.0;  // 0: too close, refused
+        double E;
+        if (sums::accept_screened(nd.rho, dn, nd.area, k.lambda, r_min, budget, cached ? nd.decay : std::exp(-k.lambda * nd.rho), E)) {
+            const Node& m = nodes_[i];
+            screened_expansion(m.m0, m.m1, m.m2, d, dn, k, E, X);
             ++terms;
             continue;
         }
@@ -338,35 +370,34 @@ Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::siz
             const Vec3 a = vec(p), ab = vec(p + 3) - a, ac = vec(p + 6) - a;
             const double* cov = covariance(j);
             const double area = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            const double rho0 = elem_rho_[j];
             int np = 0;
-            pieces[np++] = {0, 0, 1, 1, 0};
+            pieces[np++] = {0, 0, 1, 1, cached ? elem_decay_[j] : std::exp(-k.lambda * rho0), 0};
             while (np > 0) {
                 const Piece q = pieces[--np];
-                const Vec3 p0 = a + q.s * ab + q.t * ac, e1 = q.sigma * q.h * ab, e2 = q.sigma * q.h * ac;
-                const Vec3 g = p0 + (e1 + e2) / 3;
-                const double rho = std::max({(p0 - g).norm(), (p0 + e1 - g).norm(), (p0 + e2 - g).norm()});
+                const Vec3 g = a + (q.s + q.sigma * q.h / 3) * ab + (q.t + q.sigma * q.h / 3) * ac;
+                const double rho = rho0 * q.h;
                 const Vec3 dg = x - g;
                 const double dist = dg.norm();
                 if (dist - rho > R) continue;
                 const double share = q.h * q.h;  // of the element's area
                 const double m0[3] = {v[0] * share, v[1] * share, v[2] * share};
-                if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget)) {
+                if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget, q.decay, E)) {
                     double m2[18];
                     for (int c = 0; c < 3; ++c)
                         for (int b = 0; b < 6; ++b) m2[6 * c + b] = m0[c] * cov[b] * share;
-                    screened_expansion(m0, zero, m2, dg, k, r_min, X);
+                    screened_expansion(m0, zero, m2, dg, dist, k, E, X);
                 } else if (rho <= k.r_floor || q.level >= 20) {
                     // Small enough that 1/r no longer resolves it (or at the depth limit):
                     // its centroid, at no closer than r_floor.
-                    const double r = std::max(dist, k.r_floor);
-                    const double w = std::exp(-k.lambda * (dist - r_min)) / r;
+                    const double w = std::exp(-k.lambda * (dist - r_min)) / std::max(dist, k.r_floor);
                     for (int c = 0; c < 3; ++c) X[c] += m0[c] * w;
                 } else {
-                    const double h = q.h / 2, sh = q.sigma * h;
-                    pieces[np++] = {q.s, q.t, h, q.sigma, q.level + 1};
-                    pieces[np++] = {q.s + sh, q.t, h, q.sigma, q.level + 1};
-                    pieces[np++] = {q.s, q.t + sh, h, q.sigma, q.level + 1};
-                    pieces[np++] = {q.s + sh, q.t + sh, h, -q.sigma, q.level + 1};
+                    const double h = q.h / 2, sh = q.sigma * h, decay = std::sqrt(q.decay);
+                    pieces[np++] = {q.s, q.t, h, q.sigma, decay, q.level + 1};
+                    pieces[np++] = {q.s + sh, q.t, h, q.sigma, decay, q.level + 1};
+                    pieces[np++] = {q.s, q.t + sh, h, q.sigma, decay, q.level + 1};
+                    pieces[np++] = {q.s + sh, q.t + sh, h, -q.sigma, decay, q.level + 1};
                     continue;
                 }
                 ++terms;

@@ -39,7 +39,18 @@ public:
         double m0[3], m1[9], m2[18];  ///< m1[3a+i]; m2[6a + (xx yy zz xy xz yz)]
     };
 
+    /// What a tree walk reads at every visit (48 + 48 + 8 bytes), apart from the moments it
+    /// reads only when it sums a node: the walk stays in few cache lines.
+    struct Hot {
+        double c[3], rho, area, decay;  ///< decay: e^(−λρ) for the λ of prepare_screened()
+        double lo[3], hi[3];
+        std::uint32_t begin, end;
+    };
+
     explicit SumTree(const OrientedElements& elements);
+    /// Caches e^(−λρ) per node and element for screened sums with this λ (optional: screened()
+    /// computes what is not cached).
+    void prepare_screened(double lambda);
 
     const std::vector<Node>& nodes() const { return nodes_; }
     std::uint32_t first_leaf() const { return first_leaf_; }
@@ -69,16 +80,23 @@ public:
         double tolerance = 1e-2; ///< accuracy: see accept_screened()
     };
     /// Distance from x to the nearest element (exact point–triangle distance).
-    double nearest_distance(const Eigen::Vector3d& x) const;
+    /// `bound`: a known upper bound of it (e.g. a neighbor's distance plus the step: the
+    /// distance is 1-Lipschitz), which prunes the search; exact either way.
+    double nearest_distance(const Eigen::Vector3d& x, double bound = INFINITY) const;
     /// X = Σ_j v_j ∫ e^(−λ(r − r_min))/r dA_j / A_j over elements within r_min + cutoff/λ, by
     /// node expansions where accept_screened() says so and by adaptive subdivision of the
     /// triangles elsewhere. Returns X (only its direction matters) and sets r_min.
-    Eigen::Vector3d screened(const Eigen::Vector3d& x, const Screened& k, double& r_min, std::size_t& terms) const;
+    /// r_bound: an upper bound of r_min if one is known (see nearest_distance).
+    Eigen::Vector3d screened(const Eigen::Vector3d& x, const Screened& k, double& r_min, std::size_t& terms,
+                             double r_bound = INFINITY) const;
 
 private:
     void compute_node(std::uint32_t i);
 
     std::vector<Node> nodes_;
+    std::vector<Hot> hot_;
+    std::vector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
+    double decay_lambda_ = -1;
     std::uint32_t first_leaf_ = 0;
     std::vector<double> p_, v_, cov_;  // corners, vector areas, triangle covariances (6 each)
     std::vector<std::uint32_t> order_;
@@ -100,12 +118,15 @@ double triangle_winding(const Eigen::Vector3d& x, const Eigen::Vector3d& a, cons
 /// A·f(d − ρ)·q³/6 (f(d − ρ): the largest weight in the cluster). The cluster is accepted when
 /// that bound is below `budget` = tolerance · 2π/λ — a fraction of |X| for any sheet-like
 /// source (an infinite plane gives |X| = 2π/λ at every distance) — and d ≥ 2ρ.
-inline bool accept_screened(double rho, double d, double area, double lambda, double r_min, double budget) {
+/// decay = e^(−λρ); on acceptance E_d = e^(−λ(d − r_min)), the weight the expansion needs.
+inline bool accept_screened(double rho, double d, double area, double lambda, double r_min, double budget,
+                            double decay, double& E_d) {
     if (!(d > 2 * rho)) return false;
+    E_d = std::exp(-lambda * (d - r_min));
     if (rho == 0) return true;
-    const double gap = d - rho;
-    const double q = rho * (lambda + 2 / gap);
-    return area * std::exp(-lambda * (gap - r_min)) / gap * q * q * q <= 6 * budget;
+    // area·(E_d/decay)/gap·q³ ≤ 6·budget with q = ρ(λ·gap + 2)/gap, multiplied out (no division).
+    const double gap = d - rho, s = rho * (lambda * gap + 2), g2 = gap * gap;
+    return area * E_d * s * s * s <= 6 * budget * decay * g2 * g2;
 }
 
 }  // namespace sums
