@@ -99,7 +99,7 @@ Net::Norm to_double(const TorusNetModel& m, const NetNorm& n) {
 
 // ---- the network --------------------------------------------------------------------------
 
-TorusNetCpu::TorusNetCpu(const TorusNetModel& m) : k_(m.k), width_(m.width), heads_(m.heads) {
+TorusNetCpu::TorusNetCpu(const TorusNetModel& m) : k_(m.k), heads_(m.heads) {
     embed_ = to_double(m, m.embed);
     embed_norm_ = to_double(m, m.embed_norm);
     for (const NetBlock& b : m.block)

@@ -49,7 +49,7 @@ public:
     };
 
 private:
-    int k_, width_, heads_;
+    int k_, heads_;  // tokens per point, attention heads (the width is in the weights' shapes)
     Linear embed_, head_;
     Norm embed_norm_, final_norm_;
     std::vector<Block> blocks_;

@@ -109,14 +109,5 @@ Hierarchy::Hierarchy(const GridSpec& g) {
         for (Eigen::Index q = 0; q < m; ++q) coarse_pinv[std::size_t(r * m + q)] = pinv(r, q);
 }
 
-double Hierarchy::coupling(int l, int a, int i, int j, int k) const {
-    const Level& lv = levels[std::size_t(l)];
-    const int ijk[3] = {i, j, k};
-    const int b = (a + 1) % 3, c = (a + 2) % 3;
-    const AxisLevel& A = lv.axis[std::size_t(a)];
-    const double face = lv.axis[std::size_t(b)].size[std::size_t(ijk[b])] * lv.axis[std::size_t(c)].size[std::size_t(ijk[c])];
-    const double dist = 0.5 * (A.size[std::size_t(ijk[a])] + A.size[std::size_t(ijk[a] + 1)]);
-    return face / dist * inv_h2[std::size_t(a)];
-}
 
 }  // namespace gsd::shm_detail
