@@ -143,11 +143,11 @@ if [ "$what" = all ] || [ "$what" = sums ]; then
     t1=$(date +%s.%N)
     awk -v l="$1" -v a="$t0" -v b="$t1" -v n="$2" -v t="$line" 'BEGIN { printf "%-28s %10.2f %14.3g %12s\n", l, b - a, n^3 / (b - a), t }'
   }
-  wn_row "fast cpu (beta 3) 100^3" 100 "--device cpu"
-  wn_row "fast cpu (beta 2) 100^3" 100 "--device cpu --beta 2"
-  wn_row "fast gpu (beta 3) 100^3" 100 "--device gpu"
+  wn_row "fast cpu (default) 100^3" 100 "--device cpu"
+  wn_row "fast cpu (beta 2 alone) 100^3" 100 "--device cpu --beta 2 --tolerance 0"
+  wn_row "fast gpu (default) 100^3" 100 "--device gpu"
   wn_row "exact cpu 24^3" 24 "--device cpu --exact"
-  wn_row "fast cpu (beta 3) 24^3" 24 "--device cpu"
+  wn_row "fast cpu (default) 24^3" 24 "--device cpu"
   echo "(max |fast − exact| on the 24^3 grid: compare $work/w_fast*24*.npy with the exact run; docs/sums.md)"
   echo
   echo "## SHM step 1 on broken meshes with coarse faces (whole runs, default bounds)"

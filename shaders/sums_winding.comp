@@ -1,7 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // Fast generalized winding numbers (mirrors SumTree::winding in src/sums/sum_tree.cpp): nodes
-// farther than β·ρ by their second-order dipole expansion, the rest triangle by triangle.
+// that pass accept_winding by their second-order dipole expansion, the rest triangle by triangle.
 #include "box_tree.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -18,6 +18,7 @@ layout(push_constant) uniform Push {
     uint count;
     uint first_leaf;
     float beta;
+    float tolerance;
     uint lane_cap;  // loop iterations one lane may run (0: no limit), see sums_tree.glsl
 } pc;
 
@@ -55,8 +56,14 @@ void main() {
         uint i = stack[--top];
         ++iters;
         vec3 d = x - mom3(i, 0u);
-        float rho = mom(i, 3u);
-        if (dot(d, d) > pc.beta * pc.beta * rho * rho) {
+        float rho = mom(i, 3u), d2 = dot(d, d);
+        // sums::accept_winding (src/sums/sum_tree.hpp).
+        bool ok = d2 > pc.beta * pc.beta * rho * rho;
+        if (ok && pc.tolerance > 0.0) {
+            float g = sqrt(d2) - rho, g2 = g * g;
+            ok = mom(i, 7u) * rho * rho * rho <= pc.tolerance * 3.14159265 * g2 * g2 * g;
+        }
+        if (ok) {
             w += winding_expansion(i, d);
             ++terms;
         } else if (i >= pc.first_leaf) {

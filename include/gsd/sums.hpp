@@ -38,11 +38,13 @@ struct OrientedElements {
 struct WindingOptions {
     /// Sum every element exactly (O(queries × elements)): the reference.
     bool exact = false;
-    /// Opening criterion: a node of radius ρ whose center is farther than β·ρ from the query
-    /// is summed by its expansion. The truncation error of a node is O(β^−3) of its own
-    /// contribution; β = 2 is libigl's default, gsd's default 3 keeps the error under 1e-3
-    /// at queries more than one edge length from the surface (docs/sums.md). Must be > 1.
-    double beta = 3.0;
+    /// Opening criterion, two parts. A node of radius ρ and area A whose center is at distance
+    /// d from the query is summed by its second-order expansion when d > β·ρ (β > 1: the
+    /// series converges; Barill et al. and libigl use β = 2 alone) and its truncation error
+    /// bound A·ρ³/(π(d − ρ)⁵) is at most `tolerance` (0: β alone). The defaults keep the error
+    /// under 1e-3 at queries more than one edge length from the surface (docs/sums.md).
+    double beta = 1.5;
+    double tolerance = 5e-3;
     /// "auto" | "gpu" | "cpu" | index | name (empty: $GSD_DEVICE, else auto).
     std::string device;
     /// Queries per GPU chunk (0: automatic). Results do not depend on it.

@@ -38,35 +38,62 @@ double quad(const double* s, const Vec3& u) {
            2 * (s[3] * u[0] * u[1] + s[4] * u[0] * u[2] + s[5] * u[1] * u[2]);
 }
 double trace(const double* s) { return s[0] + s[1] + s[2]; }
-/// (S u)_a: row a of S times u.
-double row_dot(const double* s, int a, const Vec3& u) {
-    switch (a) {
-        case 0: return s[0] * u[0] + s[3] * u[1] + s[4] * u[2];
-        case 1: return s[3] * u[0] + s[1] * u[1] + s[5] * u[2];
-        default: return s[4] * u[0] + s[5] * u[1] + s[2] * u[2];
-    }
-}
 
 /// Second-order expansion of Σ v·∇Φ(x − y), Φ = 1/(4πr), about c, d = x − c. With radial
 /// derivatives f1..f3 of Φ: ∂_aΦ = f1 u_a, ∂_aiΦ = A u_a u_i + B δ_ai,
-/// ∂_aijΦ = C u_a u_i u_j + D (u_a δ_ij + u_i δ_aj + u_j δ_ai).
-double winding_expansion(const SumTree::Node& n, const Vec3& d) {
-    const double r = d.norm(), ir = 1 / r;
-    const Vec3 u = d * ir;
-    const double f1 = -ir * ir / kFourPi, f2 = 2 * ir * ir * ir / kFourPi, f3 = -6 * ir * ir * ir * ir / kFourPi;
-    const double A = f2 - f1 * ir, B = f1 * ir, C = f3 - 3 * f2 * ir + 3 * f1 * ir * ir, D = A * ir;
-    const Vec3 m0 = vec(n.m0);
-    const double t0 = f1 * m0.dot(u);
-    double uMu = 0, trM1 = 0, t2c = 0, t2d = 0;
+/// ∂_aijΦ = C u_a u_i u_j + D (u_a δ_ij + u_i δ_aj + u_j δ_ai), so
+/// w = f1 M0·u − (A uᵀS1u + B tr S1) + ½ (C T3(u) + D p·u).
+double winding_expansion(const SumTree::WindingNode& n, const Vec3& d) {
+    const double r2 = d.squaredNorm(), ir = 1 / std::sqrt(r2), ir2 = ir * ir;
+    const double ux = d[0] * ir, uy = d[1] * ir, uz = d[2] * ir;
+    constexpr double k = 1 / kFourPi;
+    const double f1 = -k * ir2, f2 = 2 * k * ir2 * ir, f3 = -6 * k * ir2 * ir2;
+    const double A = f2 - f1 * ir, B = f1 * ir, C = f3 - 3 * f2 * ir + 3 * f1 * ir2, D = A * ir;
+    const double t0 = f1 * (n.m0[0] * ux + n.m0[1] * uy + n.m0[2] * uz);
+    const double* s = n.s1;
+    const double q1 = s[0] * ux * ux + s[1] * uy * uy + s[2] * uz * uz + 2 * (s[3] * ux * uy + s[4] * ux * uz + s[5] * uy * uz);
+    const double tr = s[0] + s[1] + s[2];
+    const double* t = n.t3;
+    const double cubic = t[0] * ux * ux * ux + t[1] * uy * uy * uy + t[2] * uz * uz * uz + ux * ux * (t[3] * uy + t[4] * uz) +
+                         uy * uy * (t[5] * ux + t[6] * uz) + uz * uz * (t[7] * ux + t[8] * uy) + t[9] * ux * uy * uz;
+    const double pu = n.p[0] * ux + n.p[1] * uy + n.p[2] * uz;
+    return t0 - (A * q1 + B * tr) + 0.5 * (C * cubic + D * pu);
+}
+
+/// The symmetric reduction of a node's moments for winding_expansion.
+SumTree::WindingNode winding_node(const SumTree::Node& n) {
+    SumTree::WindingNode w;
     for (int a = 0; a < 3; ++a) {
-        const double* m1 = n.m1 + 3 * a;
-        uMu += u[a] * (m1[0] * u[0] + m1[1] * u[1] + m1[2] * u[2]);
-        trM1 += m1[a];
-        const double* m2 = n.m2 + 6 * a;
-        t2c += u[a] * quad(m2, u);
-        t2d += u[a] * trace(m2) + 2 * row_dot(m2, a, u);
+        w.c[a] = n.c[a];
+        w.m0[a] = n.m0[a];
     }
-    return t0 - (A * uMu + B * trM1) + 0.5 * (C * t2c + D * t2d);
+    w.rho = n.rho;
+    w.area = n.area;
+    const double* m1 = n.m1;  // m1[3a + i]
+    w.s1[0] = m1[0];
+    w.s1[1] = m1[4];
+    w.s1[2] = m1[8];
+    w.s1[3] = 0.5 * (m1[1] + m1[3]);
+    w.s1[4] = 0.5 * (m1[2] + m1[6]);
+    w.s1[5] = 0.5 * (m1[5] + m1[7]);
+    // M2_a[i][j] = m2[6a + (xx yy zz xy xz yz)].
+    auto M = [&](int a, int i, int j) {
+        static constexpr int idx[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
+        return n.m2[6 * a + idx[i][j]];
+    };
+    enum { X, Y, Z };
+    w.t3[0] = M(X, X, X);
+    w.t3[1] = M(Y, Y, Y);
+    w.t3[2] = M(Z, Z, Z);
+    w.t3[3] = M(Y, X, X) + 2 * M(X, X, Y);  // u_x² u_y
+    w.t3[4] = M(Z, X, X) + 2 * M(X, X, Z);  // u_x² u_z
+    w.t3[5] = M(X, Y, Y) + 2 * M(Y, X, Y);  // u_y² u_x
+    w.t3[6] = M(Z, Y, Y) + 2 * M(Y, Y, Z);  // u_y² u_z
+    w.t3[7] = M(X, Z, Z) + 2 * M(Z, X, Z);  // u_z² u_x
+    w.t3[8] = M(Y, Z, Z) + 2 * M(Z, Y, Z);  // u_z² u_y
+    w.t3[9] = 2 * (M(X, Y, Z) + M(Y, X, Z) + M(Z, X, Y));
+    for (int j = 0; j < 3; ++j) w.p[j] = (M(j, X, X) + M(j, Y, Y) + M(j, Z, Z)) + 2 * (M(X, X, j) + M(Y, Y, j) + M(Z, Z, j));
+    return w;
 }
 
 /// The screened kernel f(r) = e^(−λ(r − r_min))/r and its first two radial derivatives.
@@ -171,6 +198,8 @@ SumTree::SumTree(const OrientedElements& e) {
     // moments up the tree.
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::size_t i = 0; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
+    wnodes_.resize(nodes_.size());
+    for (std::size_t i = 0; i < nodes_.size(); ++i) wnodes_[i] = winding_node(nodes_[i]);
     hot_.resize(nodes_.size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
         const Node& nd = nodes_[i];
@@ -242,20 +271,20 @@ void SumTree::compute_node(std::uint32_t i) {
     nd.area = area;
 }
 
-double SumTree::winding(const Vec3& x, double beta, std::size_t& terms) const {
+double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_t& terms) const {
     double w = 0;
     std::uint32_t stack[kStack];
     int top = 0;
     stack[top++] = 0;
     while (top > 0) {
         const std::uint32_t i = stack[--top];
-        const Hot& nd = hot_[i];
+        const WindingNode& nd = wnodes_[i];
         const Vec3 d = x - vec(nd.c);
-        if (d.squaredNorm() > beta * beta * nd.rho * nd.rho) {
-            w += winding_expansion(nodes_[i], d);
+        if (sums::accept_winding(nd.rho, d.squaredNorm(), nd.area, beta, tolerance)) {
+            w += winding_expansion(nd, d);
             ++terms;
         } else if (i >= first_leaf_) {
-            for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
+            for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) {
                 const double* p = corners(j);
                 const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
                 if (a == b && a == c) {

@@ -47,6 +47,15 @@ public:
         std::uint32_t begin, end;
     };
 
+    // The dipole kernel's derivatives are symmetric in all their indices, so its expansion needs
+    // only the symmetric parts of the moments: M0 (3), sym M1 (6), the symmetrized M2 as a cubic
+    // form (10) and t + 2s (3; t_a = tr M2_a, s_j = Σ_a M2_a[a][j]) — with c and ρ, one
+    // contiguous 208-byte record per node for the winding walk.
+    struct WindingNode {
+        double c[3], rho, area;
+        double m0[3], s1[6], t3[10], p[3];
+    };
+
     explicit SumTree(const OrientedElements& elements);
     /// Caches e^(−λρ) per node and element for screened sums with this λ (optional: screened()
     /// computes what is not cached).
@@ -65,10 +74,10 @@ public:
     const std::vector<std::uint32_t>& order() const { return order_; }
 
     // ---- the winding-number (dipole) kernel --------------------------------------------
-    /// Σ_j v_j·(y − x)/(4π|y − x|³) integrated over each element: nodes with |x − c| > β·ρ by
-    /// their expansion, the rest exactly (triangles by their solid angle). terms: +1 per node
-    /// expansion or element summed.
-    double winding(const Eigen::Vector3d& x, double beta, std::size_t& terms) const;
+    /// Σ_j v_j·(y − x)/(4π|y − x|³) integrated over each element: nodes that accept_winding()
+    /// allows by their expansion, the rest exactly (triangles by their solid angle). terms: +1
+    /// per node expansion or element summed.
+    double winding(const Eigen::Vector3d& x, double beta, double tolerance, std::size_t& terms) const;
     /// The exact sum over every element (the reference).
     double winding_exact(const Eigen::Vector3d& x) const;
 
@@ -95,6 +104,7 @@ private:
 
     std::vector<Node> nodes_;
     std::vector<Hot> hot_;
+    std::vector<WindingNode> wnodes_;
     std::vector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
     double decay_lambda_ = -1;
     std::uint32_t first_leaf_ = 0;
@@ -111,6 +121,17 @@ double point_triangle_distance2(const Eigen::Vector3d& x, const Eigen::Vector3d&
 /// Signed solid angle of the triangle seen from x, / 4π (Van Oosterom–Strackee).
 double triangle_winding(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
                         const Eigen::Vector3d& c);
+
+/// Whether a node of radius ρ and total area A (Σ|v_j|) at squared distance d2 from its center
+/// may be summed by its second-order dipole expansion: d > β·ρ, and — when tolerance > 0 — the
+/// Taylor remainder bound A·ρ³/(π(d − ρ)⁵) (from |∂⁴(1/4πr)| ≤ 24/(4πr⁵)) is at most
+/// `tolerance`, an absolute error in the winding number per node.
+inline bool accept_winding(double rho, double d2, double area, double beta, double tolerance) {
+    if (!(d2 > beta * beta * rho * rho)) return false;
+    if (tolerance <= 0) return true;
+    const double g = std::sqrt(d2) - rho, g2 = g * g;
+    return area * rho * rho * rho <= tolerance * M_PI * g2 * g2 * g;
+}
 
 /// Whether a cluster of radius ρ, total area A, whose center is at distance d may be summed
 /// by its second-order expansion of the screened kernel f(r) = e^(−λ(r − r_min))/r. With

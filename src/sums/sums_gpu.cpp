@@ -15,7 +15,7 @@ constexpr std::size_t kMomentVec4 = 9;  // per node: c, ρ | m0, area | m1 (9) m
 
 struct WindingPush {
     std::uint32_t count, first_leaf;
-    float beta;
+    float beta, tolerance;
     std::uint32_t lane_cap;
 };
 
@@ -113,7 +113,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
         }
     };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
-        const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), cap};
+        const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), float(opt.tolerance), cap};
         rec.dispatch(k, {{&d.nodes}, {&d.moments}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
                      std::uint32_t((m + k.workgroup - 1) / k.workgroup));
     };
@@ -130,7 +130,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
 #pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms, redone)
     for (std::size_t q = 0; q < n; ++q)
         if (redo[q]) {
-            out.w[q] = tree.winding(queries.row(Eigen::Index(q)).transpose(), opt.beta, terms);
+            out.w[q] = tree.winding(queries.row(Eigen::Index(q)).transpose(), opt.beta, opt.tolerance, terms);
             ++redone;
         }
     if (redone) log_once("winding: queries that " + ctx->info().name + "'s loop limit may have cut short were redone on the CPU");

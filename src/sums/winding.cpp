@@ -109,6 +109,7 @@ std::vector<std::uint32_t> spatial_order(const Points& q) {
 WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries, const WindingOptions& opt,
                                    const ProgressFn& progress) {
     if (!(opt.beta > 1) || !std::isfinite(opt.beta)) throw Error("beta", "the opening criterion β must be > 1");
+    if (!(opt.tolerance >= 0) || !std::isfinite(opt.tolerance)) throw Error("tolerance", "the error tolerance must be ≥ 0");
     if (!queries.allFinite()) throw Error("queries", "non-finite query coordinates");
     if (queries.rows() >= (Eigen::Index(1) << 32)) throw Error("queries", "more than 2^32 queries");
     const detail::SumTree tree(elements);
@@ -139,7 +140,7 @@ WindingResult fast_winding_numbers(const OrientedElements& elements, const Point
                 out.w[q] = tree.winding_exact(x);
                 terms += tree.size();
             } else {
-                out.w[q] = tree.winding(x, opt.beta, terms);
+                out.w[q] = tree.winding(x, opt.beta, opt.tolerance, terms);
             }
         }
         if (progress) progress("winding", double(last) / double(n));

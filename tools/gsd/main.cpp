@@ -456,8 +456,10 @@ void add_winding(CLI::App& app) {
     wn->add_option("-o,--output", *output, "Output float32 .npy: (N,N,N) for a grid, (M,) for queries")->required()->check(output_file({".npy"}));
     domain->add_to(*wn, true);
     wn->add_flag("--exact", opt->exact, "Sum every element exactly (O(queries × elements)): the reference");
-    wn->add_option("--beta", opt->beta, "Opening criterion: a cluster farther than β × its radius is summed by its expansion")
+    wn->add_option("--beta", opt->beta, "Opening criterion: a cluster is summed by its expansion only farther than β × its radius")
         ->check(CLI::Range(1.01, 100.0))->capture_default_str();
+    wn->add_option("--tolerance", opt->tolerance, "... and only if its truncation error bound is below this (0: β alone, as libigl)")
+        ->check(CLI::Range(0.0, 1.0))->capture_default_str();
     wn->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     wn->callback([=] {
         if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
