@@ -150,6 +150,15 @@ if [ "$what" = all ] || [ "$what" = sums ]; then
   wn_row "fast cpu (default) 24^3" 24 "--device cpu"
   echo "(max |fast − exact| on the 24^3 grid: compare $work/w_fast*24*.npy with the exact run; docs/sums.md)"
   echo
+  echo "## Inside/outside on broken meshes (holes, flips, duplicates, self-crossing), 64^3"
+  real=""
+  for m in bunny_small pat-block pat-femur rocker polygon-bear; do
+    [ -f "../shared/data/meshes/$m.obj" ] && real="$real ../shared/data/meshes/$m.obj"
+  done
+  build/bin/gsd-broken-bench $real
+  echo "(the same with the zero set fitted softly)"
+  build/bin/gsd-broken-bench --fit-zero-set 1 $real
+  echo
   echo "## SHM step 1 on broken meshes with coarse faces (whole runs, default bounds)"
   "$gsd" -q mesh capsule -r 16 -o "$work/cap.obj"
   "$gsd" -q mesh --from "$work/cap.obj" --holes 3 --hole-area 0.15 --flip 0.05 -o "$work/capb.obj"

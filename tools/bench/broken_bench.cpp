@@ -1,7 +1,7 @@
 // gsd-broken-bench: inside/outside on broken closed meshes — the grid SHM's sign against the
 // generalized winding number thresholded at ½ (the classic answer).
 //
-//   gsd-broken-bench [--grid N] [--seed S] [MESH.obj ...]
+//   gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--fit-zero-set W] [--only-given] [MESH.obj ...]
 //
 // Each mesh (procedural shapes, plus any given) is scaled into [−0.9, 0.9]³ and damaged three
 // ways: (a) 20 % of the area in 3 holes + 10 % of faces flipped; (b) the same plus duplicated
@@ -93,21 +93,29 @@ Score score(const PolygonMesh& intact, const PolygonMesh& broken, const GridSpec
 int main(int argc, char** argv) {
     int n = 64;
     std::uint64_t seed = 21;
+    ShmOptions shm;
+    shm.device = "cpu";
     std::vector<std::pair<std::string, PolygonMesh>> meshes;
+    bool only_given = false;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--grid" && i + 1 < argc) n = std::stoi(argv[++i]);
         else if (a == "--seed" && i + 1 < argc) seed = std::stoull(argv[++i]);
+        else if (a == "--t-coef" && i + 1 < argc) shm.t_coef = std::stod(argv[++i]);
+        else if (a == "--fit-zero-set" && i + 1 < argc) shm.fit_zero_set = std::stod(argv[++i]);
+        else if (a == "--only-given") only_given = true;
         else if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [MESH.obj ...]\n");
+            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--fit-zero-set W] [--only-given] [MESH.obj ...]\n");
             return 2;
         } else {
             const auto slash = a.find_last_of('/');
             meshes.push_back({a.substr(slash == std::string::npos ? 0 : slash + 1), io::read_mesh(a)});
         }
     }
-    for (const char* s : {"sphere", "torus", "capsule", "rounded-box"}) meshes.insert(meshes.begin(), {s, shapes::mesh(*shapes::by_name(s), 64)});
-    meshes.insert(meshes.begin(), {"double-torus", shapes::double_torus_mesh(64)});
+    if (!only_given) {
+        for (const char* s : {"sphere", "torus", "capsule", "rounded-box"}) meshes.insert(meshes.begin(), {s, shapes::mesh(*shapes::by_name(s), 64)});
+        meshes.insert(meshes.begin(), {"double-torus", shapes::double_torus_mesh(64)});
+    }
     const GridSpec g = GridSpec::cube(n, Box{{-1, -1, -1}, {1, 1, 1}});
     std::printf("%d^3 on [-1,1]^3, nodes > 2 cells from the intact surface; %% signed right (inside / outside)\n", n);
     std::printf("%-22s %-14s %8s %8s | %8s %8s | %8s %8s\n", "mesh", "damage", "SHM in", "SHM out", "GWN in", "GWN out", "inside", "SHM s");
@@ -123,8 +131,7 @@ int main(int argc, char** argv) {
         const std::vector<std::pair<const char*, PolygonMesh>> damaged{
             {"holes+flips", a}, {"+duplicates", with_duplicates(a, seed + 1)}, {"+self-crossing", shapes::corrupt(intact, noisy, seed)}};
         for (const auto& [what, broken] : damaged) {
-            ShmOptions o;
-            o.device = "cpu";
+            const ShmOptions o = shm;
             const auto t0 = std::chrono::steady_clock::now();
             const ShmResult r = SignedHeatGrid(shm_source(broken), g, o).solve();
             const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
