@@ -45,6 +45,11 @@ void mark_group(std::vector<char>& redo, std::size_t first, std::size_t q, std::
 }
 
 std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree) {
+    // float32 squares distances: beyond ~1e19 they overflow. Keep a wide margin.
+    const auto& root = tree.nodes()[0];
+    for (int a = 0; a < 3; ++a)
+        if (std::max(std::abs(root.lo[a]), std::abs(root.hi[a])) > 1e15)
+            return "coordinates beyond ±1e15 are outside float32's safe range; the sums run on the CPU";
     const std::size_t bytes = std::max(tree.size() * 48, tree.nodes().size() * kMomentVec4 * 16);
     if (bytes > ctx.max_binding_bytes())
         return "the source (" + std::to_string(tree.size()) + " elements) exceeds " + ctx.info().name +

@@ -115,7 +115,9 @@ WindingResult fast_winding_numbers(const OrientedElements& elements, const Point
     const detail::SumTree tree(elements);
     WindingResult out;
     out.w.assign(std::size_t(queries.rows()), 0.0);
-    if (!opt.exact) {
+    if (!opt.exact && queries.size() > 0 && queries.cwiseAbs().maxCoeff() > 1e15) {
+        log_once("winding: queries beyond ±1e15 are outside float32's safe range; the sums run on the CPU");
+    } else if (!opt.exact) {
         const gpu::Selection sel = gpu::select(opt.device);
         if (!sel.note.empty()) log_once(sel.note);
         if (sel.context) {
