@@ -65,7 +65,7 @@ struct ShmOptions {
     /// second-order expansion when a bound on its truncation error is below this fraction of
     /// 2π/λ, the magnitude of the diffused field of a sheet (docs/shm.md). Smaller is slower
     /// and closer to the exact integral.
-    double sum_tolerance = 0.1;
+    double sum_tolerance = 0.3;
     PoissonSolver solver = PoissonSolver::Multigrid;
     /// Stop when ‖b − Lφ‖ ≤ tolerance·‖b‖.
     double tolerance = 1e-6;

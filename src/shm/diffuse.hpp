@@ -24,7 +24,7 @@ struct KernelParams {
     double lambda = 0;  ///< 1/√t
     double cutoff = 12; ///< drop sources with weight < e^(−cutoff) of the nearest
     double r_floor = 0; ///< distances below this count as r_floor (1/r is singular at a source)
-    double sum_tolerance = 1e-2; ///< expansion accuracy (ShmOptions::sum_tolerance)
+    double sum_tolerance = 0.3; ///< expansion accuracy (ShmOptions::sum_tolerance)
 };
 
 /// Exact Y and r_min at a batch of points.

@@ -86,7 +86,7 @@ public:
         double lambda = 0;  ///< 1/√t
         double cutoff = 8;  ///< drop what weighs less than e^(−cutoff) of the nearest element
         double r_floor = 0; ///< distances below this count as r_floor (1/r is singular)
-        double tolerance = 0.1; ///< accuracy: see accept_screened()
+        double tolerance = 0.3; ///< accuracy: see accept_screened()
     };
     /// Distance from x to the nearest element (exact point–triangle distance).
     /// `bound`: a known upper bound of it (e.g. a neighbor's distance plus the step: the
