@@ -5,7 +5,8 @@
 #     with the SSPD baseline beside it;
 #  2. the Signed Heat Method on a broken mesh of a rounded box — 20% of its area cut away in
 #     3 holes, 10% of its faces flipped (data/demo/box-broken.ply, made by `gsd mesh`) → SDF grid
-#     → a closed zero-level surface → a slice;
+#     → a closed zero-level surface → a slice, beside the fast generalized winding number (`gsd
+#     winding`) and its ½ level;
 #  3. the Signed Heat Method on a surface: a torus mesh (`gsd mesh`) and a closed curve on it with
 #     40% cut away in three gaps (`gsd curve`) → geodesic signed distance per vertex → a picture,
 #     isolines and a colored mesh;
@@ -45,6 +46,8 @@ bounds="-1 -1 -1 1 1 1"
 
 "$gsd" -v shm grid "$broken" --grid 96 --bounds $bounds -o "$out/shm.npy" --contour "$out/shm-surface.obj"
 "$gsd" slice "$out/shm.npy" --bounds $bounds --axis z --at 0 -o "$out/shm-slice-z.png"
+"$gsd" -v winding "$broken" --grid 96 --bounds $bounds -o "$out/winding.npy"   # the classic answer, for comparison
+"$gsd" slice "$out/winding.npy" --bounds $bounds --axis z --at 0 --level 0.5 -o "$out/winding-slice-z.png"
 
 surf_mesh="$out/torus-mesh.ply"
 "$gsd" mesh torus -r 72 -o "$surf_mesh"
@@ -76,6 +79,7 @@ SHM on a broken mesh (input: $broken, 20% of the area in 3 holes, 10% of faces f
   SDF grid 96^3        $out/shm.npy
   closed zero surface  $out/shm-surface.obj
   slice                $out/shm-slice-z.png
+  winding number       $out/winding.npy  $out/winding-slice-z.png  (contour at ½: the holes leak)
 
 SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 40% cut away):
   φ per vertex         $out/surface-phi.npy   (float32, the mesh's vertex order)

@@ -237,7 +237,12 @@ TEST_CASE("gsd winding: ≈1 inside and 0 outside a broken mesh and a cloud, fas
         CHECK(w.data[(8 * 17 + 8) * 17 + 8] == doctest::Approx(1.0).epsilon(0.05));  // the center
         CHECK(std::abs(w.data[0]) < 0.05);                                            // a corner
         CHECK(max_abs_diff(w, we) < 0.05);  // worst at nodes on the surface; 1e-3 farther (test_sums)
+        // A picture with its contour at ½.
+        CHECK(run_cli("slice " + dir.file("w.npy") + " " + kBounds + " --at 0 --level 0.5 -o " + dir.file("w.png")).exit_code == 0);
+        CHECK(test::file_exists(dir.file("w.png")));
     }
+    CHECK(run_cli("slice " + dir.file("w.npy") + " " + kBounds + " --at 0 --level nan -o " + dir.file("bad.png")).exit_code != 0);
+    CHECK_FALSE(test::file_exists(dir.file("bad.png")));
     // Bad input: nothing written.
     CHECK(run_cli("winding " + dir.file("missing.obj") + " --grid 8 -o " + dir.file("bad.npy")).exit_code == 1);
     CHECK(run_cli("winding " + mesh + " -o " + dir.file("bad.npy")).exit_code != 0);  // no --grid/--queries

@@ -263,13 +263,19 @@ void add_slice(CLI::App& app) {
     s->add_option("--width", opt->width, "Image width in pixels (default 512, or the grid size if larger)")->check(CLI::Range(0, 16384));
     s->add_option("--range", opt->range, "Colors saturate at ±range (default: max |value| on the slice)")->check(CLI::NonNegativeNumber);
     s->add_option("--isolines", opt->isolines, "Isolines on each side of zero")->check(CLI::Range(0, 1000))->capture_default_str();
+    auto level = std::make_shared<double>(0.0);
+    s->add_option("--level", *level, "Center the colors and the contour on this value instead of 0 (0.5 for winding numbers)")
+        ->capture_default_str();
     s->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
     s->callback([=] {
+        if (!std::isfinite(*level)) throw Error("--level", "must be finite");
         const io::NpyArray a = io::read_grid(*input);
         const GridSpec g = grid_of(a, *bounds);
         SliceOptions o = *opt;
         o.axis = *axis == "x" ? Axis::X : (*axis == "y" ? Axis::Y : Axis::Z);
-        write_png(*output, render_slice(g, as_float(a), o));
+        std::vector<float> values = as_float(a);
+        for (float& v : values) v = float(double(v) - *level);
+        write_png(*output, render_slice(g, values, o));
         note("wrote " + *output);
     });
 }
