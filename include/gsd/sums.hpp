@@ -15,6 +15,8 @@
 
 namespace gsd {
 
+class KdTree;
+
 /// Oriented area elements: flat triangles of uniform density, or points, each carrying its
 /// vector area v_j = A_j·N_j. The sums integrate each kernel over each triangle (not just at
 /// its centroid), so a coarse mesh needs no splitting.
@@ -29,6 +31,8 @@ struct OrientedElements {
     /// Points of an oriented cloud, each with its unit normal times the area π d_8²/8 it
     /// represents (gsd::point_areas, d_8: distance to the 8th neighbor).
     static OrientedElements from_cloud(const PointCloud& cloud);
+    /// The same with a kd-tree of the cloud's points the caller already has.
+    static OrientedElements from_cloud(const PointCloud& cloud, const KdTree& tree);
     /// Points with given vector areas (n×3 each).
     static OrientedElements from_points(const Points& positions, const Points& vector_areas);
     /// Checks sizes and finiteness (called by every sum); throws Error.

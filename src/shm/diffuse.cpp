@@ -11,11 +11,7 @@ namespace {
 
 class CpuEvaluator final : public DirectionEvaluator {
 public:
-    CpuEvaluator(const ShmSource& src, const KernelParams& k) : tree_(src.elements) {
-        k_.lambda = k.lambda;
-        k_.cutoff = k.cutoff;
-        k_.r_floor = k.r_floor;
-        k_.tolerance = k.sum_tolerance;
+    CpuEvaluator(const ShmSource& src, const KernelParams& k) : k_(screened_params(k)), tree_(src.elements) {
         tree_.prepare_screened(k_.lambda);
     }
 
@@ -74,6 +70,15 @@ struct LevelField {
 };
 
 }  // namespace
+
+detail::SumTree::Screened screened_params(const KernelParams& k) {
+    detail::SumTree::Screened s;
+    s.lambda = k.lambda;
+    s.cutoff = k.cutoff;
+    s.r_floor = k.r_floor;
+    s.tolerance = k.sum_tolerance;
+    return s;
+}
 
 std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k) {
     return std::make_unique<CpuEvaluator>(src, k);

@@ -37,13 +37,7 @@ public:
         job.out_bytes = 32;
         job.stage = "diffuse";
         if (chunk_) job.chunk = chunk_;
-        job.fill = [&](std::size_t first, std::size_t m, void* dst) {
-            float* up = static_cast<float*>(dst);
-            for (std::size_t i = 0; i < m; ++i) {
-                for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(x(Eigen::Index(first + i), a));
-                up[4 * i + 3] = 0;
-            }
-        };
+        job.fill = [&](std::size_t first, std::size_t m, void* dst) { gpu::fill_vec4(x, first, m, dst); };
         job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& out, std::size_t m) {
             const DiffusePush push{std::uint32_t(m), tree_.first_leaf, float(k_.lambda), float(k_.cutoff), float(k_.r_floor),
                                    float(k_.sum_tolerance * 2 * M_PI / k_.lambda), cap};
@@ -61,11 +55,7 @@ public:
         };
         gpu::stream(*ctx_, job, progress);
         // Queries a software device may have cut short: the CPU reference, in double.
-        detail::SumTree::Screened s;
-        s.lambda = k_.lambda;
-        s.cutoff = k_.cutoff;
-        s.r_floor = k_.r_floor;
-        s.tolerance = k_.sum_tolerance;
+        const detail::SumTree::Screened s = screened_params(k_);
         std::size_t redone = 0;
 #pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms, redone)
         for (std::size_t q = 0; q < n; ++q) {

@@ -70,9 +70,11 @@ private:
 
 ShmSource shm_source(const PointCloud& cloud) {
     if (cloud.size() < 2) throw Error("the signed heat method needs at least 2 points");
+    // One kd-tree for both the point areas and the spacing.
+    const KdTree tree(cloud.points);
     ShmSource s;
-    s.elements = OrientedElements::from_cloud(cloud);
-    s.spacing = mean_spacing(cloud.points);
+    s.elements = OrientedElements::from_cloud(cloud, tree);
+    s.spacing = mean_spacing(tree);
     if (!(s.spacing > 0)) throw Error("all points of the cloud coincide");
     return s;
 }

@@ -284,18 +284,8 @@ double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_
             w += winding_expansion(nd, d);
             ++terms;
         } else if (i >= first_leaf_) {
-            for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) {
-                const double* p = corners(j);
-                const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
-                if (a == b && a == c) {
-                    const Vec3 y = a - x;
-                    const double r2 = y.squaredNorm();
-                    if (r2 > 0) w += vec(vector(j)).dot(y) / (kFourPi * r2 * std::sqrt(r2));
-                } else {
-                    w += sums::triangle_winding(x, a, b, c);
-                }
-                ++terms;
-            }
+            for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) w += element_winding(x, j);
+            terms += hot_[i].end - hot_[i].begin;
         } else {
             stack[top++] = 2 * i + 1;
             stack[top++] = 2 * i + 2;
@@ -304,19 +294,19 @@ double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_
     return w;
 }
 
+double SumTree::element_winding(const Vec3& x, std::size_t j) const {
+    const double* p = corners(j);
+    const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
+    if (a != b || a != c) return sums::triangle_winding(x, a, b, c);
+    // A point: the dipole v·(y − x)/(4π|y − x|³); nothing at the point itself.
+    const Vec3 y = a - x;
+    const double r2 = y.squaredNorm();
+    return r2 > 0 ? vec(vector(j)).dot(y) / (kFourPi * r2 * std::sqrt(r2)) : 0.0;
+}
+
 double SumTree::winding_exact(const Vec3& x) const {
     double w = 0;
-    for (std::size_t j = 0; j < size(); ++j) {
-        const double* p = corners(j);
-        const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
-        if (a == b && a == c) {
-            const Vec3 y = a - x;
-            const double r2 = y.squaredNorm();
-            if (r2 > 0) w += vec(vector(j)).dot(y) / (kFourPi * r2 * std::sqrt(r2));
-        } else {
-            w += sums::triangle_winding(x, a, b, c);
-        }
-    }
+    for (std::size_t j = 0; j < size(); ++j) w += element_winding(x, j);
     return w;
 }
 

@@ -101,6 +101,8 @@ public:
 
 private:
     void compute_node(std::uint32_t i);
+    /// Element j's exact term: its solid angle / 4π, or a point's dipole.
+    double element_winding(const Eigen::Vector3d& x, std::size_t j) const;
 
     std::vector<Node> nodes_;
     std::vector<Hot> hot_;

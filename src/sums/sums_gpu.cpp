@@ -110,13 +110,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     job.out_bytes = 8;
     job.stage = "winding";
     if (opt.chunk_size) job.chunk = opt.chunk_size;
-    job.fill = [&](std::size_t first, std::size_t m, void* dst) {
-        float* up = static_cast<float*>(dst);
-        for (std::size_t i = 0; i < m; ++i) {
-            for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(queries(Eigen::Index(first + i), a));
-            up[4 * i + 3] = 0;
-        }
-    };
+    job.fill = [&](std::size_t first, std::size_t m, void* dst) { gpu::fill_vec4(queries, first, m, dst); };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
         const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), float(opt.tolerance), cap};
         rec.dispatch(k, {{&d.nodes}, {&d.moments}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),

@@ -43,7 +43,10 @@ OrientedElements OrientedElements::from_mesh(const PolygonMesh& mesh) {
 
 OrientedElements OrientedElements::from_cloud(const PointCloud& cloud) {
     if (cloud.size() < 2) throw Error("cloud", "an oriented cloud needs at least 2 points");
-    const KdTree tree(cloud.points);
+    return from_cloud(cloud, KdTree(cloud.points));
+}
+
+OrientedElements OrientedElements::from_cloud(const PointCloud& cloud, const KdTree& tree) {
     const std::vector<double> area = point_areas(tree);
     Points v(cloud.size(), 3);
     for (Eigen::Index i = 0; i < cloud.size(); ++i) v.row(i) = area[std::size_t(i)] * cloud.normals.row(i).normalized();
