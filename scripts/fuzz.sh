@@ -1,13 +1,14 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets (fuzz/, ASan + UBSan, library instrumented too) into build-fuzz/
-# and runs each for SECONDS (default 60). Seeds: the checked-in fuzz/corpus/<target>/ plus fresh
-# ones made by the project's own CLI (build-fuzz/seeds/). New inputs collect in the writable
-# build-fuzz/corpus/<target>/, crashes in build-fuzz/artifacts/<target>/, logs in
-# build-fuzz/logs/. Exits 1 if any target found a crash, leak, timeout or out-of-memory.
+# Builds the libFuzzer targets (fuzz/, ASan + UBSan, library instrumented too) into build-san/
+# (scripts/sanitizer-build.sh) and runs each for SECONDS (default 60), or, with FUZZ_RUNS=N set,
+# for exactly N inputs from a fixed seed (a reproducible run: what CI does). Seeds: the
+# checked-in fuzz/corpus/<target>/ plus fresh ones made by the project's own CLI (build-san/seeds/). New inputs collect in the writable
+# build-san/corpus/<target>/, crashes in build-san/artifacts/<target>/, logs in
+# build-san/logs/. Exits 1 if any target found a crash, leak, timeout or out-of-memory.
 #
 #   scripts/fuzz.sh [SECONDS]        FUZZ_TARGETS="mesh npy" scripts/fuzz.sh 30   (a subset)
 #
-# Reproduce a finding: build-fuzz/bin/fuzz_<target> <crash file>. docs/io.md ("Fuzzing").
+# Reproduce a finding: build-san/bin/fuzz_<target> <crash file>. docs/io.md ("Fuzzing").
 set -euo pipefail
 script=$(realpath "$0")
 cd "$(dirname "$script")/.."
@@ -16,37 +17,11 @@ seconds=${1:-60}
 [[ $seconds =~ ^[0-9]+$ ]] || { echo "usage: scripts/fuzz.sh [SECONDS]" >&2; exit 2; }
 all_targets=(point_cloud mesh npy tori safetensors curve)
 read -r -a targets <<< "${FUZZ_TARGETS:-${all_targets[*]}}"
-build=build-fuzz
-
-# ---- dependencies: the project's, plus clang with libFuzzer and its OpenMP runtime ------------
-bash scripts/setup-deps.sh
-fuzz_packages=(clang libclang-rt-14-dev libomp-dev)
-missing=()
-for p in "${fuzz_packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "fuzz: installing ${missing[*]}"
-  SUDO=""
-  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+build=build-san
 
 # ---- build: the library, the CLI (for seeds) and the targets, all instrumented ---------------
-# -O1 -g with assertions on (no NDEBUG; _GLIBCXX_ASSERTIONS checks std containers); UBSan
-# findings abort instead of printing and going on.
-san="-fsanitize=address,undefined -fno-sanitize-recover=undefined -fsanitize=fuzzer-no-link -fno-omit-frame-pointer"
-if [ ! -f $build/CMakeCache.txt ]; then
-  CC=clang CXX=clang++ cmake -S . -B $build -G Ninja -DGSD_FUZZ=ON -DGSD_BUILD_TESTS=OFF \
-    -DGSD_BUILD_TOOLS=ON -DGSD_WITH_VULKAN=OFF -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-    "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -g -D_GLIBCXX_ASSERTIONS" "-DCMAKE_C_FLAGS_RELWITHDEBINFO=-O1 -g" \
-    "-DCMAKE_CXX_FLAGS=$san" "-DCMAKE_C_FLAGS=$san" >/dev/null
-fi
-start=$SECONDS
-cmake --build $build --parallel 2 --target gsd_cli "${all_targets[@]/#/fuzz_}"
-echo "fuzz: build took $((SECONDS - start)) s"
+# One sanitizer build serves the fuzzers and the sanitizer test suite (scripts/sanitize.sh).
+bash scripts/sanitizer-build.sh gsd_cli "${all_targets[@]/#/fuzz_}"
 
 # Sanitizer settings for everything below. Leak checking stays on: the readers never touch
 # Vulkan (the build has none), so a leak is a real one. One OpenMP thread: reproducible runs.
@@ -189,6 +164,8 @@ if [ ! -d $seeds ] || [ $build/bin/gsd -nt $seeds ] || [ "$script" -nt $seeds ];
 fi
 
 # ---- run -------------------------------------------------------------------------------------
+budget=(-max_total_time="$seconds") what="$seconds s"
+[ -n "${FUZZ_RUNS:-}" ] && budget=(-runs="$FUZZ_RUNS" -seed=1) what="$FUZZ_RUNS inputs"
 failed=()
 summary=()
 mkdir -p $build/logs
@@ -200,9 +177,9 @@ for t in "${targets[@]}"; do
   [ -f fuzz/dict/$t.dict ] && dict=(-dict=fuzz/dict/$t.dict)
   marker=$build/logs/$t.start
   touch "$marker"
-  echo "fuzz: $t for ${seconds} s"
+  echo "fuzz: $t for $what"
   rc=0
-  $build/bin/fuzz_$t "$corpus" "$seeds/$t" "${dict[@]}" -max_total_time="$seconds" -rss_limit_mb=2048 \
+  $build/bin/fuzz_$t "$corpus" "$seeds/$t" "${dict[@]}" "${budget[@]}" -rss_limit_mb=2048 \
     -timeout=20 -print_final_stats=1 -artifact_prefix="$artifacts/" \
     > $build/logs/$t.log 2>&1 &
   pid=$!
@@ -224,7 +201,7 @@ for t in "${targets[@]}"; do
 done
 
 echo
-echo "fuzz: summary (${seconds} s per target)"
+echo "fuzz: summary ($what per target)"
 printf '  %s\n' "${summary[@]}"
 if [ ${#failed[@]} -gt 0 ]; then
   echo "fuzz: findings in: ${failed[*]} (inputs under $build/artifacts/<target>/; reproduce with $build/bin/fuzz_<target> FILE)"

@@ -8,6 +8,23 @@
 
 namespace gsd::test {
 
+namespace {
+std::uint64_t g_cli_validation_errors = 0;
+std::uint64_t g_expected_validation_errors = 0;
+
+// The runtime prints one line per validation error ("gsd: Vulkan validation error: ...").
+std::uint64_t count_validation_errors(const std::string& output) {
+    static const std::string tag = "Vulkan validation error:";
+    std::uint64_t n = 0;
+    for (std::size_t at = output.find(tag); at != std::string::npos; at = output.find(tag, at + tag.size())) ++n;
+    return n;
+}
+}  // namespace
+
+std::uint64_t cli_validation_errors() { return g_cli_validation_errors; }
+std::uint64_t expected_validation_errors() { return g_expected_validation_errors; }
+void expect_validation_errors(std::uint64_t n) { g_expected_validation_errors += n; }
+
 ScratchDir::ScratchDir(const std::string& tag) {
     std::random_device rd;
     path_ = std::filesystem::temp_directory_path() /
@@ -29,6 +46,7 @@ RunResult run_shell(const std::string& command) {
     while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.output.append(buf.data(), n);
     const int status = pclose(pipe);
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+    g_cli_validation_errors += count_validation_errors(r.output);
     return r;
 }
 

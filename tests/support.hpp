@@ -3,6 +3,7 @@
 
 #include <gsd/core.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -40,5 +41,22 @@ std::string shared_data(const std::string& relative);
 void write_bytes(const std::string& path, const std::string& bytes);
 
 bool file_exists(const std::string& path);
+
+/// Whether the suite runs under sanitizers (scripts/sanitize.sh; 10-30x slower there).
+#if defined(GSD_TESTS_SANITIZED) && GSD_TESTS_SANITIZED
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+/// A problem size: `full` in the Release suite, `sanitized` under sanitizers, where the same
+/// checks run on less data so the suite fits in CI's time.
+inline int sized(int full, int sanitized) { return kSanitized ? sanitized : full; }
+
+/// Vulkan validation errors reported in the output of CLI runs (run_cli/run_shell) so far.
+std::uint64_t cli_validation_errors();
+/// Validation errors that tests provoked on purpose, so far (the runner does not count them).
+std::uint64_t expected_validation_errors();
+/// Declares that the calling test is about to provoke `n` validation errors on purpose.
+void expect_validation_errors(std::uint64_t n);
 
 }  // namespace gsd::test

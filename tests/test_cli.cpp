@@ -216,6 +216,20 @@ TEST_CASE("contour and slice: a closed mesh and a PNG from an evaluated grid; ba
     CHECK(test::file_exists(dir.file("s.png")));
     CHECK(run_cli("slice " + dir.file("g.npy") + " " + kBounds + " --axis z --at 5 -o " + dir.file("bad.png")).exit_code == 1);
     CHECK_FALSE(test::file_exists(dir.file("bad.png")));
+    // A grid with a NaN node: the message names the grid file, like every data error.
+    std::vector<float> values(8 * 8 * 8, 1.0f);
+    for (std::size_t i = 0; i < values.size(); ++i)  // NaN on the middle plane of each axis
+        if (i % 8 == 4 || i / 8 % 8 == 4 || i / 64 == 4) values[i] = std::nanf("");
+    io::write_npy(dir.file("nan.npy"), {8, 8, 8}, values);
+    for (const std::string& cmd : {"slice " + dir.file("nan.npy") + " " + kBounds + " --at 0 -o " + dir.file("bad.png"),
+                                  "contour " + dir.file("nan.npy") + " " + kBounds + " -o " + dir.file("bad.obj")}) {
+        CAPTURE(cmd);
+        const test::RunResult r = run_cli(cmd);
+        CHECK(r.exit_code == 1);
+        CHECK(r.output.find("gsd: error: " + dir.file("nan.npy") + ": non-finite value") != std::string::npos);
+    }
+    CHECK_FALSE(test::file_exists(dir.file("bad.png")));
+    CHECK_FALSE(test::file_exists(dir.file("bad.obj")));
     for (const char* b : {"sspd", "shc"}) {
         CAPTURE(b);
         CHECK(run_cli(std::string("baseline ") + b + " " + cloud + " --grid 16 -o " + dir.file(std::string(b) + ".npy")).exit_code == 0);

@@ -11,6 +11,7 @@
 #include <gsd/sums.hpp>
 
 #include "blend/blend.hpp"
+#include "gpu/runtime.hpp"
 #include "support.hpp"
 
 #include <cmath>
@@ -83,6 +84,25 @@ TEST_CASE("a Vulkan device is available (lavapipe in CI) and validation is on") 
     CHECK(gpu::validation_active());
 }
 
+TEST_CASE("a validation error is seen (the runner fails any test case that raises one unexpectedly)") {
+    REQUIRE(device());
+    REQUIRE(gpu::validation_active());
+    // A buffer with no usage flags breaks VUID-VkBufferCreateInfo-usage-requiredbitmask; drivers
+    // still create it, so nothing else happens.
+    VkBufferCreateInfo info{};
+    info.sType = VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO;
+    info.size = 256;
+    info.usage = 0;
+    info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
+    const std::uint64_t before = gpu::validation_error_count();
+    VkBuffer buffer = VK_NULL_HANDLE;
+    if (vkCreateBuffer(device()->device(), &info, nullptr, &buffer) == VK_SUCCESS)
+        vkDestroyBuffer(device()->device(), buffer, nullptr);
+    const std::uint64_t raised = gpu::validation_error_count() - before;
+    test::expect_validation_errors(raised);  // on purpose: not this suite's failure
+    CHECK(raised >= 1);
+}
+
 TEST_CASE("torus_from_jet: device tori match the CPU's") {
     REQUIRE(device());
     std::mt19937_64 rng(1);
@@ -124,7 +144,7 @@ TEST_CASE("torus_from_jet: device tori match the CPU's") {
     CHECK(worst_k < 1e-5);
     CHECK(worst_n < 1e-6);
     CHECK(worst_e < 1e-4);
-    CHECK(gpu::validation_error_count() == 0);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
 TEST_CASE("PAT on the device matches the CPU reference (sphere, accelerated and exact, with gradients)") {
@@ -144,7 +164,7 @@ TEST_CASE("PAT on the device matches the CPU reference (sphere, accelerated and 
         const Diff dgrad = compare(gpu.gradient, cpu.gradient, 1e-3);
         CHECK(dgrad.max_abs < 1e-3);
     }
-    CHECK(gpu::validation_error_count() == 0);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
 TEST_CASE("SSPD and signed Hopf-Cole on the device match the CPU reference") {
@@ -166,7 +186,7 @@ TEST_CASE("SSPD and signed Hopf-Cole on the device match the CPU reference") {
             if (kind == Baseline::Shc) CHECK(d.over * 2000 <= q.rows());
             else CHECK(d.max_abs < 1e-4);
         }
-    CHECK(gpu::validation_error_count() == 0);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
 TEST_CASE("results do not depend on the chunk size (one chunk vs many)") {
@@ -185,7 +205,7 @@ TEST_CASE("results do not depend on the chunk size (one chunk vs many)") {
     const GridSpec g = GridSpec::cube(20, Box{{-1, -1, -1}, {1, 1, 1}});
     many.chunk_size = 333;  // not a multiple of the workgroup
     CHECK(TorusField(f, one).evaluate(g).phi == TorusField(f, many).evaluate(g).phi);
-    CHECK(gpu::validation_error_count() == 0);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
 #if GSD_HAVE_SHARED_DATA
@@ -216,7 +236,7 @@ TEST_CASE("real, sparse and corrupted clouds: device agrees with the CPU to 2e-4
     const Diff d = compare(TorusField(f, on("gpu")).evaluate(q).phi, TorusField(f, on("cpu")).evaluate(q).phi, 2e-4);
     MESSAGE("corrupted 512-point box: max |Δφ| = " << d.max_abs);
     CHECK(d.max_abs < 2e-4);
-    CHECK(gpu::validation_error_count() == 0);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 #endif
 
@@ -228,8 +248,9 @@ TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud)
     d.flip_fraction = 0.1;
     const PolygonMesh m = shapes::corrupt(shapes::mesh(*shapes::by_name("torus"), 40), d, 4);
     const PointCloud c = shapes::by_name("capsule")->sample(3000, 5);
-    // Point dipoles grow as 1/r² next to a point, and some queries are within 0.02 of one: the
-    // cloud gets a looser float32 tolerance than the mesh's solid angles.
+    // Point dipoles grow as 1/r² next to a point, and some queries are within 0.02 of one, where
+    // |w| reaches tens: errors are relative to max(1, |w|), and the cloud gets a looser float32
+    // tolerance than the mesh's solid angles.
     for (const auto& [e, tol] : {std::pair{OrientedElements::from_mesh(m), 1e-4}, std::pair{OrientedElements::from_cloud(c), 5e-4}}) {
         const Points q = mixed_queries(c, 7);
         WindingOptions cpu, one, many;
@@ -243,11 +264,12 @@ TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud)
         CHECK(b.device != "cpu");
         CHECK(b.w == bb.w);
         double worst = 0;
-        for (std::size_t i = 0; i < a.w.size(); ++i) worst = std::max(worst, std::abs(a.w[i] - b.w[i]));
-        MESSAGE("winding: max |w_gpu − w_cpu| = " << worst);
+        for (std::size_t i = 0; i < a.w.size(); ++i)
+            worst = std::max(worst, std::abs(a.w[i] - b.w[i]) / std::max(1.0, std::abs(a.w[i])));
+        MESSAGE("winding: max |w_gpu − w_cpu| / max(1, |w_cpu|) = " << worst);
         CHECK(worst < tol);
     }
-    CHECK(gpu::validation_error_count() == 0);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
 TEST_CASE("device choice: cpu, names, and fallback without a device") {

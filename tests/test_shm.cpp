@@ -174,7 +174,7 @@ TEST_CASE("multigrid, CG and CHOLMOD solve the same system") {
     CHECK(worst < 1e-5);
 }
 
-TEST_CASE("GPU multigrid: relative residual 1e-6 within 20 cycles at 128^3, φ matches the CPU") {
+TEST_CASE("GPU multigrid: relative residual 1e-6 within 20 cycles at 128^3, φ matches the CPU" * doctest::test_suite("slow")) {
     const gpu::Selection sel = gpu::select("gpu");
     REQUIRE(sel.context);
     const GridSpec g = GridSpec::cube(128, kCube);
@@ -232,7 +232,9 @@ TEST_CASE("broken meshes (holes, flips, coarse faces): GPU and CPU SHM agree to 
 #if GSD_HAVE_SHARED_DATA
     cases.push_back({"broken pat-block", shapes::corrupt(io::read_mesh(test::shared_data("meshes/pat-block.obj")), d, 5)});
 #endif
-    for (const auto& [name, mesh] : cases) {
+    for (const auto& entry : cases) {
+        const auto& name = entry.first;  // (no structured binding: clang 14 cannot capture one)
+        const auto& mesh = entry.second;
         CAPTURE(name);
         const ShmSource src = shm_source(mesh);
         const GridSpec g = GridSpec::cube(32, shm_default_bounds(src));
@@ -292,7 +294,9 @@ TEST_CASE("analytic clouds: SHM is accurate on a sphere and a torus (2048 points
     // 0.032 the bounds are 0.1 and 0.25 of a cell.
     const GridSpec g = GridSpec::cube(64, kCube);
     const double cell = 2.0 / 63;
-    for (auto [name, bound] : {std::pair{"sphere", 0.1 * cell}, std::pair{"torus", 0.25 * cell}}) {
+    for (const auto& c : {std::pair{"sphere", 0.1 * cell}, std::pair{"torus", 0.25 * cell}}) {
+        const char* name = c.first;  // (no structured binding: clang 14 cannot capture one)
+        const double bound = c.second;
         CAPTURE(name);
         auto s = shapes::by_name(name);
         ShmOptions o;
@@ -304,7 +308,7 @@ TEST_CASE("analytic clouds: SHM is accurate on a sphere and a torus (2048 points
     }
 }
 
-TEST_CASE("broken meshes: 20% of the area in 3 holes and 10% of faces flipped — the sign is right") {
+TEST_CASE("broken meshes: 20% of the area in 3 holes and 10% of faces flipped — the sign is right" * doctest::test_suite("slow")) {
     struct Case { std::string name; PolygonMesh mesh; };
     std::vector<Case> cases;
     cases.push_back({"torus (procedural)", shapes::mesh(*shapes::by_name("torus"), 48)});

@@ -758,7 +758,9 @@ TEST_CASE("every curve in the shared data loads and solves to finite values") {
         {"DoubleTorusWithLoops.obj", "DoubleTorusWithLoops.obj"},
         {"DoubleTorusWithBrokenLoops.obj", "DoubleTorusWithBrokenLoops.obj"},
     };
-    for (const auto& [mesh_file, curve_file] : pairs) {
+    for (const auto& pair : pairs) {
+        const auto& mesh_file = pair.first;  // (no structured binding: clang 14 cannot capture one)
+        const auto& curve_file = pair.second;
         CAPTURE(curve_file);
         const std::string mp = test::shared_data("surface-curves/" + mesh_file);
         const SurfaceMesh mesh(io::read_mesh(mp), mp);

@@ -390,7 +390,9 @@ TEST_CASE("SWN: the shared curves on surfaces run; the double torus' loops split
         {"S.obj", "S.txt"},                               {"bunny.obj", "bunny-brokenheart.txt"},
         {"spots-on-spot.obj", "spots-on-spot.txt"},       {"twirl.obj", "twirl.txt"},
         {"DoubleTorusWithLoops.obj", ""},                 {"DoubleTorusWithBrokenLoops.obj", ""}};
-    for (const auto& [mesh_file, curve_file] : inputs) {
+    for (const auto& input : inputs) {
+        const auto& mesh_file = input.first;  // (no structured binding: clang 14 cannot capture one)
+        const auto& curve_file = input.second;
         CAPTURE(mesh_file);
         const std::string mesh_path = test::shared_data("surface-curves/" + mesh_file);
         const SurfaceMesh mesh(io::read_mesh(mesh_path), mesh_path);

@@ -123,7 +123,7 @@ public:
     std::shared_ptr<Context> context(std::uint32_t index) {
         std::lock_guard<std::mutex> lock(mutex_);
         auto& slot = contexts_[index];
-        if (!slot) slot = std::make_shared<Context>(instance_, physical_[index], inventory_.devices[index]);
+        if (!slot) slot = std::make_shared<Context>(physical_[index], inventory_.devices[index]);
         return slot;
     }
 
@@ -301,8 +301,8 @@ Selection select(const std::string& requested) {
 
 // ---- Context -------------------------------------------------------------------------------
 
-Context::Context(VkInstance instance, VkPhysicalDevice physical, const DeviceInfo& info)
-    : instance_(instance), physical_(physical), info_(info) {
+Context::Context(VkPhysicalDevice physical, const DeviceInfo& info)
+    : physical_(physical), info_(info) {
     vkGetPhysicalDeviceProperties(physical_, &props_);
     vkGetPhysicalDeviceMemoryProperties(physical_, &mem_props_);
     find_compute_queue(physical_, queue_family_);

@@ -70,7 +70,7 @@ struct Binding {
 
 class Context {
 public:
-    Context(VkInstance instance, VkPhysicalDevice physical, const DeviceInfo& info);
+    Context(VkPhysicalDevice physical, const DeviceInfo& info);
     ~Context();
     Context(const Context&) = delete;
     Context& operator=(const Context&) = delete;
@@ -99,7 +99,6 @@ public:
     std::mutex& queue_mutex() { return queue_mutex_; }
 
 private:
-    VkInstance instance_;
     VkPhysicalDevice physical_;
     DeviceInfo info_;
     VkPhysicalDeviceProperties props_{};

@@ -18,10 +18,22 @@ double uniform(Rng& rng, double a = 0, double b = 1) {
     return a + (b - a) * std::uniform_real_distribution<double>(0.0, 1.0)(rng);
 }
 
+/// Three draws of `dist` in a fixed order, z then y then x, whatever the compiler: a call like
+/// Vec3(g(rng), g(rng), g(rng)) leaves the order unspecified (GCC draws right to left, clang left
+/// to right), so the same seed gave different clouds. z-first is GCC's order, which keeps every
+/// cloud made before from the same seed.
+template <class Distribution>
+Vec3 draw3(Distribution& dist, Rng& rng) {
+    const double z = dist(rng);
+    const double y = dist(rng);
+    const double x = dist(rng);
+    return {x, y, z};
+}
+
 Vec3 unit_vector(Rng& rng) {
     std::normal_distribution<double> g;
     for (;;) {
-        Vec3 v(g(rng), g(rng), g(rng));
+        const Vec3 v = draw3(g, rng);
         const double n = v.norm();
         if (n > 1e-12) return v / n;
     }
@@ -246,9 +258,9 @@ PointCloud corrupt(const PointCloud& clean, const Corruption& c, std::uint64_t s
     for (std::size_t r = 0; r < kept.size(); ++r) {
         Vec3 p = clean.points.row(kept[r]).transpose();
         Vec3 nn = clean.normals.row(kept[r]).transpose().normalized();
-        if (c.position_noise > 0) p += c.position_noise * diag * Vec3(g(rng), g(rng), g(rng));
+        if (c.position_noise > 0) p += c.position_noise * diag * draw3(g, rng);
         if (c.normal_noise > 0) {
-            const Vec3 m = nn + c.normal_noise * Vec3(g(rng), g(rng), g(rng));
+            const Vec3 m = nn + c.normal_noise * draw3(g, rng);
             if (m.norm() > 1e-9) nn = m.normalized();
         }
         if (c.flip_fraction > 0 && uniform(rng) < c.flip_fraction) nn = -nn;

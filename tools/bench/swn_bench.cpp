@@ -76,7 +76,8 @@ Waves random_waves(std::mt19937_64& rng, const PolygonMesh& m) {
     std::uniform_real_distribution<double> u(0, 1);
     Waves w;
     for (std::size_t i = 0; i < 3; ++i) {
-        Eigen::Vector3d d(n(rng), n(rng), n(rng));
+        const double dz = n(rng), dy = n(rng), dx = n(rng);  // a fixed order (GCC's), any compiler
+        const Eigen::Vector3d d(dx, dy, dz);
         w.k[i] = d.normalized() * (2.0 + 2.0 * u(rng));
         w.phase[i] = 2 * kPi * u(rng);
         w.amplitude[i] = 0.5 + u(rng);

@@ -56,6 +56,15 @@ void note(const std::string& message) {
     if (!globals().quiet) std::fprintf(stderr, "gsd: %s\n", message.c_str());
 }
 
+void naming_file(const std::string& file, const std::string& field, const std::function<void()>& work) {
+    try {
+        work();
+    } catch (const Error& e) {
+        if (e.where() == field) throw Error(file, e.what());
+        throw;
+    }
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }

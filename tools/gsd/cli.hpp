@@ -82,6 +82,11 @@ void write_all(const std::vector<std::pair<std::string, std::function<void()>>>&
 /// Prints "gsd: <message>" unless --quiet.
 void note(const std::string& message);
 
+/// Runs `work`. An error the library raises about its argument `field` ("values" of a grid, a
+/// "mesh") is raised again naming `file`, the input that argument came from, so the message
+/// reads "gsd: error: <file>: <what>" like every other data error.
+void naming_file(const std::string& file, const std::string& field, const std::function<void()>& work);
+
 double seconds_since(std::chrono::steady_clock::time_point t0);
 /// printf-style formatting of one number.
 std::string fmt(const char* format, double value);

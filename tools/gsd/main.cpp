@@ -242,7 +242,8 @@ void add_contour(CLI::App& app) {
     c->callback([=] {
         const io::NpyArray a = io::read_grid(*input);
         const GridSpec g = grid_of(a, *bounds);
-        const PolygonMesh mesh = contour(g, as_float(a), *iso);
+        PolygonMesh mesh;
+        naming_file(*input, "values", [&] { mesh = contour(g, as_float(a), *iso); });
         if (mesh.face_count() == 0) throw Error(*input, "the level " + fmt("%g", *iso) + " does not cross the grid");
         io::write_mesh(*output, mesh);
         note("wrote " + std::to_string(mesh.face_count()) + " triangles to " + *output);
@@ -275,7 +276,9 @@ void add_slice(CLI::App& app) {
         o.axis = *axis == "x" ? Axis::X : (*axis == "y" ? Axis::Y : Axis::Z);
         std::vector<float> values = as_float(a);
         for (float& v : values) v = float(double(v) - *level);
-        write_png(*output, render_slice(g, values, o));
+        Image image;
+        naming_file(*input, "values", [&] { image = render_slice(g, values, o); });
+        write_png(*output, image);
         note("wrote " + *output);
     });
 }

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <optional>
 
 namespace gsd::cli {
 
@@ -128,11 +129,15 @@ void run(const SurfaceArgs& a) {
 
     SurfaceShmOptions options = a.options;
     options.level_set = level_set_from_name(a.level_set);
-    SignedHeatSurface shm(mesh, a.setup);
     Progress progress("shm surface");
-    const SurfaceShmResult r = shm.solve(sources, options, progress.fn());
+    std::optional<SignedHeatSurface> shm;
+    SurfaceShmResult r;
+    naming_file(a.mesh, "mesh", [&] {
+        shm.emplace(mesh, a.setup);
+        r = shm->solve(sources, options, progress.fn());
+    });
     progress.finish();
-    report(a, mesh, shm, r, load_seconds);
+    report(a, mesh, *shm, r, load_seconds);
 
     // Build every output in memory first, then write them all (or none).
     const auto t1 = std::chrono::steady_clock::now();

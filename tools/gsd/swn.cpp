@@ -104,17 +104,19 @@ void run(const SwnArgs& a) {
     std::vector<int> labels;
     SwnResult r;
     Progress progress(shm ? "swn (shm sign)" : "swn");
-    if (shm) {
-        SignedHeatSurface solver(mesh);
-        labels = shm_labels(mesh, solver.solve(curves, {}, progress.fn()).phi);
-    } else {
-        SwnOptions o = a.options;
-        o.residual = swn_residual_from_name(a.lp);
-        o.solver = swn_solver_from_name(a.solver);
-        SurfaceWindingNumbers solver(mesh);
-        r = solver.solve(curves, o, progress.fn());
-        labels = r.labels;
-    }
+    naming_file(a.mesh, "mesh", [&] {
+        if (shm) {
+            SignedHeatSurface solver(mesh);
+            labels = shm_labels(mesh, solver.solve(curves, {}, progress.fn()).phi);
+        } else {
+            SwnOptions o = a.options;
+            o.residual = swn_residual_from_name(a.lp);
+            o.solver = swn_solver_from_name(a.solver);
+            SurfaceWindingNumbers solver(mesh);
+            r = solver.solve(curves, o, progress.fn());
+            labels = r.labels;
+        }
+    });
     progress.finish();
     if (globals().verbose) {
         note("mesh: " + std::to_string(mesh.vertex_count()) + " vertices, " + std::to_string(mesh.face_count()) +
