@@ -2,7 +2,7 @@
 # The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (clang), then a short,
 # reproducible fuzz run over every reader. scripts/test.sh runs it after the Release suite.
 #
-#   scripts/sanitize.sh [FUZZ_RUNS]      inputs per fuzz target (default 2000; 0: no fuzz run)
+#   scripts/sanitize.sh [FUZZ_RUNS]      inputs per fuzz target (default 20000; 0: no fuzz run)
 #   scripts/sanitize.sh 0 -R test_io     extra arguments go to ctest
 #
 # Build: build-san/ (scripts/sanitizer-build.sh). Leak checking is on everywhere. Lavapipe, the
@@ -12,7 +12,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
-runs=${1:-2000}
+runs=${1:-20000}
 [[ $runs =~ ^[0-9]+$ ]] || { echo "usage: scripts/sanitize.sh [FUZZ_RUNS] [ctest arguments]" >&2; exit 2; }
 [ $# -gt 0 ] && shift
 
