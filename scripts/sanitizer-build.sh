@@ -12,20 +12,7 @@ cd "$(dirname "$0")/.."
 build=build-san
 
 # ---- dependencies: the project's, plus clang with libFuzzer and its OpenMP runtime ------------
-bash scripts/setup-deps.sh
-packages=(clang libclang-rt-14-dev libomp-dev)
-missing=()
-for p in "${packages[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
-done
-if [ ${#missing[@]} -gt 0 ]; then
-  echo "sanitizer-build: installing ${missing[*]}"
-  SUDO=""
-  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
-fi
+bash scripts/setup-deps.sh clang libclang-rt-14-dev libomp-dev
 
 san="-fsanitize=address,undefined -fno-sanitize-recover=undefined -fsanitize=fuzzer-no-link -fno-omit-frame-pointer"
 # Configured every time (a few seconds), so a changed option here reaches an existing build-san/.

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Installs every Debian package gsd needs to build, test and run. Idempotent and quiet;
-# returns at once when everything is already there.
+# Installs every Debian package gsd needs to build, test and run, plus any packages named as
+# arguments (scripts/sanitizer-build.sh adds clang's). Idempotent and quiet; returns at once
+# when everything is already there.
 set -euo pipefail
 
 packages=(
@@ -10,6 +11,7 @@ packages=(
   libcli11-dev libstb-dev nlohmann-json3-dev doctest-dev
   libopenblas0-pthread
   python3 python3-numpy
+  "$@"
 )
 
 missing=()

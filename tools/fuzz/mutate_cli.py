@@ -867,6 +867,19 @@ def _st_tensors(header):
         if isinstance(header, dict) else []
 
 
+def _on_tensors(op):
+    """A mutator of a parsed .safetensors with at least one tensor: op(rng, header, body, data)
+    gets the JSON header and the data; any other input comes back unchanged."""
+    def wrapped(rng, data, ctx):
+        p = st_parse(data)
+        if not p or not _st_tensors(p[0]):
+            return data
+        return op(rng, p[0], p[1], data)
+    wrapped.__name__ = op.__name__
+    wrapped.__doc__ = op.__doc__
+    return wrapped
+
+
 def op_st_length(rng, data, ctx):
     if len(data) < 8:
         return data
@@ -876,11 +889,8 @@ def op_st_length(rng, data, ctx):
     return struct.pack("<Q", max(0, min(2**64 - 1, new))) + data[8:]
 
 
-def op_st_offsets(rng, data, ctx):
-    p = st_parse(data)
-    if not p or not _st_tensors(p[0]):
-        return data
-    header, body = p
+@_on_tensors
+def op_st_offsets(rng, header, body, data):
     names = _st_tensors(header)
     t = header[rng.choice(names)]
     a, b = (t.get("data_offsets") or [0, 0])[:2]
@@ -892,11 +902,8 @@ def op_st_offsets(rng, data, ctx):
     return st_build(rng, header, body)
 
 
-def op_st_shape(rng, data, ctx):
-    p = st_parse(data)
-    if not p or not _st_tensors(p[0]):
-        return data
-    header, body = p
+@_on_tensors
+def op_st_shape(rng, header, body, data):
     t = header[rng.choice(_st_tensors(header))]
     dims = list(t.get("shape") or [1])
     j = rng.randrange(len(dims))
@@ -907,20 +914,14 @@ def op_st_shape(rng, data, ctx):
     return st_build(rng, header, body)
 
 
-def op_st_dtype(rng, data, ctx):
-    p = st_parse(data)
-    if not p or not _st_tensors(p[0]):
-        return data
-    header, body = p
+@_on_tensors
+def op_st_dtype(rng, header, body, data):
     header[rng.choice(_st_tensors(header))]["dtype"] = rng.choice(ST_DTYPES)
     return st_build(rng, header, body)
 
 
-def op_st_entries(rng, data, ctx):
-    p = st_parse(data)
-    if not p or not _st_tensors(p[0]):
-        return data
-    header, body = p
+@_on_tensors
+def op_st_entries(rng, header, body, data):
     names = _st_tensors(header)
     name = rng.choice(names)
     kind = rng.randrange(6)
@@ -965,13 +966,10 @@ def op_st_value(rng, data, ctx):
     return data[:len(data) - len(body)] + bytes(body)
 
 
-def op_st_tensor(rng, data, ctx):
+@_on_tensors
+def op_st_tensor(rng, header, body, data):
     """Still a valid file, other weights: a tensor scaled (0, -1, 1e3, ...) or two
     same-sized tensors' data swapped."""
-    p = st_parse(data)
-    if not p or not _st_tensors(p[0]):
-        return data
-    header, body = p
     spans = [tuple(header[k]["data_offsets"]) for k in _st_tensors(header)
              if header[k].get("dtype") == "F32" and len(header[k].get("data_offsets", [])) == 2]
     if not spans:
