@@ -10,7 +10,7 @@ packages=(
   libvulkan-dev libvulkan-volk-dev glslang-tools mesa-vulkan-drivers vulkan-validationlayers
   libcli11-dev libstb-dev nlohmann-json3-dev doctest-dev
   libopenblas0-pthread
-  python3 python3-numpy
+  python3 python3-numpy python3-dev pybind11-dev python3-pytest
   "$@"
 )
 

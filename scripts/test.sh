@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh
-bash scripts/build.sh -DGSD_WERROR=ON -DGSD_BUILD_TESTS=ON
+bash scripts/build.sh -DGSD_WERROR=ON -DGSD_BUILD_TESTS=ON -DGSD_PYTHON=ON
 export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 ctest --test-dir build --output-on-failure --timeout 1800 "$@"
 if [ "${GSD_SANITIZE:-1}" != 0 ]; then

@@ -263,3 +263,72 @@ TEST_CASE("gsd winding: ≈1 inside and 0 outside a broken mesh and a cloud, fas
     CHECK(run_cli("winding " + mesh + " --grid 8 --beta 0.5 -o " + dir.file("bad.npy")).exit_code != 0);
     CHECK_FALSE(test::file_exists(dir.file("bad.npy")));
 }
+
+TEST_CASE("grid sidecars: every grid gets GRID.npy.json; contour and slice need no --bounds") {
+    ScratchDir dir("cli-sidecar");
+    const std::string cloud = dir.file("t.ply");
+    REQUIRE(run_cli("sample torus -n 1500 -o " + cloud).exit_code == 0);
+    // Default bounds (the input's padded cube), written only to the sidecar.
+    REQUIRE(run_cli("pat eval " + cloud + " --grid 24 --device cpu -o " + dir.file("g.npy") + " --gradient " + dir.file("dg.npy"))
+                .exit_code == 0);
+    const auto meta = io::read_grid_metadata(dir.file("g.npy"));
+    REQUIRE(meta.has_value());
+    CHECK(meta->method == "pat");
+    CHECK(meta->components == 1);
+    CHECK(meta->grid.nx == 24);
+    CHECK(meta->version == std::string(version()));
+    REQUIRE(meta->command.size() > 3);
+    CHECK(meta->command[1] == "pat");
+    CHECK(meta->options_json.find("\"--grid\":\"24\"") != std::string::npos);
+    // The sidecar's box is the default bounds the CLI used: the cloud's padded bounding cube.
+    const Box expect = padded_cube(bounding_box(io::read_point_cloud(cloud).points));
+    CHECK((meta->grid.box.lo - expect.lo).norm() < 1e-12);
+    CHECK((meta->grid.box.hi - expect.hi).norm() < 1e-12);
+    const auto grad = io::read_grid_metadata(dir.file("dg.npy"));
+    REQUIRE(grad.has_value());
+    CHECK(grad->components == 3);
+
+    // contour without --bounds equals contour with the bounds written out by hand.
+    char bounds[256];
+    std::snprintf(bounds, sizeof bounds, "--bounds %.17g %.17g %.17g %.17g %.17g %.17g", expect.lo.x(), expect.lo.y(),
+                  expect.lo.z(), expect.hi.x(), expect.hi.y(), expect.hi.z());
+    REQUIRE(run_cli("contour " + dir.file("g.npy") + " -o " + dir.file("a.obj")).exit_code == 0);
+    REQUIRE(run_cli("contour " + dir.file("g.npy") + " " + bounds + " -o " + dir.file("b.obj")).exit_code == 0);
+    const PolygonMesh a = io::read_mesh(dir.file("a.obj")), b = io::read_mesh(dir.file("b.obj"));
+    REQUIRE(a.vertices.rows() == b.vertices.rows());
+    CHECK((a.vertices - b.vertices).cwiseAbs().maxCoeff() < 1e-6);
+    CHECK(run_cli("slice " + dir.file("g.npy") + " --at 0 -o " + dir.file("s.png")).exit_code == 0);
+
+    // Every grid command writes one: shm grid, winding, baselines.
+    REQUIRE(run_cli("shm grid " + cloud + " --grid 16 --device cpu -o " + dir.file("shm.npy")).exit_code == 0);
+    CHECK(io::read_grid_metadata(dir.file("shm.npy"))->method == "shm");
+    REQUIRE(run_cli("winding " + cloud + " --grid 12 --device cpu -o " + dir.file("w.npy")).exit_code == 0);
+    CHECK(io::read_grid_metadata(dir.file("w.npy"))->method == "winding");
+    REQUIRE(run_cli("baseline sspd " + cloud + " --grid 12 --device cpu -o " + dir.file("b.npy")).exit_code == 0);
+    CHECK(io::read_grid_metadata(dir.file("b.npy"))->method == "sspd");
+    // Queries are not a grid: no sidecar.
+    io::write_npy(dir.file("q.npy"), {2, 3}, std::vector<float>{0, 0, 0, 0.5f, 0, 0});
+    REQUIRE(run_cli("pat eval " + cloud + " --queries " + dir.file("q.npy") + " --device cpu -o " + dir.file("qv.npy")).exit_code == 0);
+    CHECK_FALSE(test::file_exists(dir.file("qv.npy.json")));
+
+    // No sidecar and no --bounds: exit 1 naming --bounds. A sidecar of another shape or a
+    // broken one: exit 1 naming the sidecar; nothing written.
+    io::write_npy(dir.file("bare.npy"), {8, 8, 8}, std::vector<float>(512, 1.0f));
+    auto r = run_cli("contour " + dir.file("bare.npy") + " -o " + dir.file("x.obj"));
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("--bounds") != std::string::npos);
+    std::filesystem::copy_file(dir.file("g.npy.json"), dir.file("bare.npy.json"));
+    r = run_cli("slice " + dir.file("bare.npy") + " --at 0 -o " + dir.file("x.png"));
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find(dir.file("bare.npy.json") + ": describes a 24×24×24 grid") != std::string::npos);
+    for (const std::string& broken : {std::string("{\"shape\": [8, 8, 8]}"), std::string("not json"),
+                                      std::string("{\"shape\": [8, 8, 8], \"bounds\": {\"lo\": [0, 0, 0], \"hi\": [0, 1, 1]}}")}) {
+        CAPTURE(broken);
+        test::write_bytes(dir.file("bare.npy.json"), broken);
+        r = run_cli("contour " + dir.file("bare.npy") + " -o " + dir.file("x.obj"));
+        CHECK(r.exit_code == 1);
+        CHECK(r.output.find("gsd: error: " + dir.file("bare.npy.json") + ": ") != std::string::npos);
+    }
+    CHECK_FALSE(test::file_exists(dir.file("x.obj")));
+    CHECK_FALSE(test::file_exists(dir.file("x.png")));
+}

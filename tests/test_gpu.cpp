@@ -96,8 +96,8 @@ TEST_CASE("a validation error is seen (the runner fails any test case that raise
     info.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
     const std::uint64_t before = gpu::validation_error_count();
     VkBuffer buffer = VK_NULL_HANDLE;
-    if (vkCreateBuffer(device()->device(), &info, nullptr, &buffer) == VK_SUCCESS)
-        vkDestroyBuffer(device()->device(), buffer, nullptr);
+    if (device()->vk().vkCreateBuffer(device()->device(), &info, nullptr, &buffer) == VK_SUCCESS)
+        device()->vk().vkDestroyBuffer(device()->device(), buffer, nullptr);
     const std::uint64_t raised = gpu::validation_error_count() - before;
     test::expect_validation_errors(raised);  // on purpose: not this suite's failure
     CHECK(raised >= 1);

@@ -895,3 +895,50 @@ TEST_CASE("every real mesh loads; polygon-bear keeps its polygons") {
     CHECK(largest > 4);
 }
 #endif
+
+TEST_CASE("grid metadata round-trips exactly; absent is nullopt; bad options and grids are refused") {
+    ScratchDir dir("io-grid-meta");
+    const std::string grid = dir.file("g.npy");
+    CHECK_FALSE(io::read_grid_metadata(grid).has_value());
+    io::GridMetadata m;
+    m.grid = GridSpec{5, 6, 7, Box{{-0.1, 1.0 / 3.0, -1e-9}, {2.0 / 7.0, 12345.678901234567, 1e-9}}};
+    m.components = 3;
+    m.method = "shm";
+    m.options_json = R"({"t_coef": 1.5, "solver": "mg"})";
+    m.command = {"gsd", "shm", "grid", "a b.obj"};
+    io::write_grid_metadata(grid, m);
+    const auto r = io::read_grid_metadata(grid);
+    REQUIRE(r.has_value());
+    CHECK(r->grid.nx == 5);
+    CHECK(r->grid.ny == 6);
+    CHECK(r->grid.nz == 7);
+    CHECK(r->grid.box.lo == m.grid.box.lo);  // every bit of the doubles
+    CHECK(r->grid.box.hi == m.grid.box.hi);
+    CHECK(r->components == 3);
+    CHECK(r->method == "shm");
+    CHECK(r->command == m.command);
+    CHECK(r->version == std::string(version()));
+    CHECK(r->options_json.find("\"t_coef\":1.5") != std::string::npos);
+
+    m.options_json = "[1, 2]";
+    CHECK_THROWS_AS(io::write_grid_metadata(grid, m), Error);
+    m.options_json = "{";
+    CHECK_THROWS_AS(io::write_grid_metadata(grid, m), Error);
+    m.options_json = "{}";
+    m.grid.nx = 1;
+    CHECK_THROWS_AS(io::write_grid_metadata(grid, m), Error);
+    for (const char* bad : {"", "[]", R"({"shape": [4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})",
+                            R"({"shape": [4, 4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,"x"]}})",
+                            R"({"shape": [4, 4, 4.5], "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})",
+                            R"({"shape": [4, 4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,1e400]}})",
+                            R"({"shape": [4, 4, 4]})"}) {
+        CAPTURE(bad);
+        write_bytes(io::grid_metadata_path(grid), bad);
+        try {
+            (void)io::read_grid_metadata(grid);
+            FAIL("accepted");
+        } catch (const Error& e) {
+            CHECK(std::string(e.where()) == io::grid_metadata_path(grid));
+        }
+    }
+}

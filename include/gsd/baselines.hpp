@@ -4,6 +4,8 @@
 // by each point's area A_i = π d_8² / 8 (gsd::point_areas).
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 #include <gsd/pat.hpp>
 
@@ -18,7 +20,7 @@ enum class Baseline {
 
 /// A baseline signed distance field over an oriented cloud. Gradients are not offered
 /// (FieldValues::gradient stays empty).
-class BaselineField {
+class GSD_EXPORT BaselineField {
 public:
     BaselineField(Baseline kind, const PointCloud& cloud, BlendOptions options = {});
     ~BaselineField();
@@ -38,9 +40,9 @@ private:
 /// faces of their signed solid angles at each query / 4π. 1 inside and 0 outside a closed,
 /// outward-oriented mesh; fractional where the mesh is open. Exact sum (O(faces × queries),
 /// multi-threaded): the baseline that thresholding at ½ turns into inside/outside.
-std::vector<double> winding_numbers(const PolygonMesh& mesh, const Points& queries);
+GSD_EXPORT std::vector<double> winding_numbers(const PolygonMesh& mesh, const Points& queries);
 
 /// Parses "sspd" / "shc".
-Baseline baseline_from_name(const std::string& name);
+GSD_EXPORT Baseline baseline_from_name(const std::string& name);
 
 }  // namespace gsd

@@ -4,6 +4,8 @@
 // Vulkan. Coordinates are double on the API; the GPU path converts to float32 internally.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <Eigen/Core>
 
 #include <cstdint>
@@ -16,11 +18,11 @@
 namespace gsd {
 
 /// Library version ("major.minor.patch").
-std::string_view version();
+GSD_EXPORT std::string_view version();
 
 /// The one exception type thrown at the API boundary. `where` names the file, option or
 /// argument at fault (may be empty); `what()` says what is wrong with it.
-class Error : public std::runtime_error {
+class GSD_EXPORT Error : public std::runtime_error {
 public:
     Error(std::string where, const std::string& what)
         : std::runtime_error(what), where_(std::move(where)) {}
@@ -47,7 +49,7 @@ struct PointCloud {
 
 /// A polygon mesh, faces stored compressed: face f has the vertex indices
 /// indices[offsets[f] .. offsets[f+1]). Triangles, quads and n-gons may be mixed.
-struct PolygonMesh {
+struct GSD_EXPORT PolygonMesh {
     Points vertices;
     std::vector<std::uint32_t> indices;
     std::vector<std::uint32_t> offsets{0};
@@ -70,7 +72,7 @@ struct Box {
 /// A regular grid of nodes on a box: node (i, j, k) sits at
 /// lo + (i·(hi−lo)_x/(nx−1), j·…/(ny−1), k·…/(nz−1)). Values are stored C order:
 /// index = (i·ny + j)·nz + k, the layout of a (nx, ny, nz) .npy array.
-struct GridSpec {
+struct GSD_EXPORT GridSpec {
     int nx = 0, ny = 0, nz = 0;
     Box box;
 
@@ -96,22 +98,22 @@ inline constexpr double kMaxExtentRatio = 1e12;
 
 /// The memory, in bytes, that one computation may plan to allocate: $GSD_MEMORY_LIMIT (bytes,
 /// or with a suffix K, M, G, T: "8G"), else three quarters of the machine's physical memory.
-std::size_t memory_budget();
+GSD_EXPORT std::size_t memory_budget();
 
 /// Throws Error(where, …) when `bytes`, an estimate made before allocating, exceeds
 /// memory_budget(); `what` names the work ("a 1024³ grid", "splitting 7 large faces").
-void check_memory(double bytes, const std::string& where, const std::string& what);
+GSD_EXPORT void check_memory(double bytes, const std::string& where, const std::string& what);
 
 /// Throws Error(where, …) unless the box is finite, non-empty on every axis, within
 /// ±kMaxCoordinate, and hi − lo is finite.
-void validate_box(const Box& box, const std::string& where);
+GSD_EXPORT void validate_box(const Box& box, const std::string& where);
 
 /// Bounding box of a set of points (throws on an empty set).
-Box bounding_box(const Points& p);
+GSD_EXPORT Box bounding_box(const Points& p);
 
 /// The cube centered on a box whose side is the box's longest side enlarged by `margin`
 /// (0.1: 10%): the default grid bounds of every command.
-Box padded_cube(const Box& b, double margin = 0.1);
+GSD_EXPORT Box padded_cube(const Box& b, double margin = 0.1);
 
 /// Progress callback for long work: `stage` names the step, `fraction` runs from 0 to 1.
 /// Called from the calling thread only, at most a few hundred times per job.
@@ -121,11 +123,11 @@ using ProgressFn = std::function<void(std::string_view stage, double fraction)>;
 /// coordinates within ±kMaxCoordinate, finite non-zero normals, an extent within
 /// kMaxExtentRatio of the median spacing; normalizes the normals in place.
 /// `where` names the source (usually a file) for the error message.
-void validate(PointCloud& cloud, const std::string& where = {});
+GSD_EXPORT void validate(PointCloud& cloud, const std::string& where = {});
 
 /// Checks a mesh: at least one face, finite vertices within ±kMaxCoordinate, indices in
 /// range, faces with ≥ 3 vertices, an extent within kMaxExtentRatio of the median edge length. Degenerate (zero-area) faces are allowed here; algorithms that cannot use
 /// them say so.
-void validate(const PolygonMesh& mesh, const std::string& where = {});
+GSD_EXPORT void validate(const PolygonMesh& mesh, const std::string& where = {});
 
 }  // namespace gsd

@@ -11,6 +11,8 @@
 // No Vulkan type appears in this header.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -22,9 +24,9 @@ namespace gsd {
 
 /// Where gsd's one-line notices go (device fallback and the like). Default: stderr,
 /// prefixed "gsd: ". Pass an empty function to silence them.
-void set_log_sink(std::function<void(std::string_view)> sink);
+GSD_EXPORT void set_log_sink(std::function<void(std::string_view)> sink);
 /// Emits a notice through the sink, once per distinct message per process.
-void log_once(const std::string& message);
+GSD_EXPORT void log_once(const std::string& message);
 
 namespace gpu {
 
@@ -48,7 +50,7 @@ struct Inventory {
 };
 
 /// Lists the Vulkan devices (safe to call without a loader: reports it).
-Inventory list_devices();
+GSD_EXPORT Inventory list_devices();
 
 class Context;
 
@@ -61,16 +63,16 @@ struct Selection {
 
 /// Resolves a choice string ("" means $GSD_DEVICE, else "auto"). Contexts are shared: one per
 /// device per process. Throws gsd::Error for an index or name that matches no device.
-Selection select(const std::string& choice);
+GSD_EXPORT Selection select(const std::string& choice);
 
 /// Name of a context's device.
-std::string device_name(const Context& ctx);
+GSD_EXPORT std::string device_name(const Context& ctx);
 
 /// Number of validation-layer errors reported so far in this process (validation runs when
 /// $GSD_VALIDATION=1 and the Khronos layer is installed). Tests require it to stay 0.
-std::uint64_t validation_error_count();
+GSD_EXPORT std::uint64_t validation_error_count();
 /// Whether the validation layer is actually active in this process.
-bool validation_active();
+GSD_EXPORT bool validation_active();
 
 }  // namespace gpu
 }  // namespace gsd

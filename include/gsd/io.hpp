@@ -7,10 +7,13 @@
 // output behind.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -25,31 +28,31 @@ namespace gsd::io {
 // .obj (v and vn lines; vn paired with v by order)
 // .npy (N×6, float32 or float64, C order)
 // The returned cloud has passed gsd::validate (normals normalized).
-PointCloud read_point_cloud(const std::string& path);
+GSD_EXPORT PointCloud read_point_cloud(const std::string& path);
 /// Writes .ply (binary little endian, float32), .xyz/.xyzn/.txt, .pc, .obj or .npy (float32).
-void write_point_cloud(const std::string& path, const PointCloud& cloud);
+GSD_EXPORT void write_point_cloud(const std::string& path, const PointCloud& cloud);
 
 // ---- meshes ---------------------------------------------------------------------------
 // .obj (v + f with polygons; "f v/vt/vn" forms and negative indices; l lines ignored)
 // .ply (vertex x y z + face vertex_indices/vertex_index list, any list/count types)
 // .off (OFF header, optional comments; colors after face indices ignored)
 // .stl (ascii or binary; coincident vertices are welded exactly)
-PolygonMesh read_mesh(const std::string& path);
+GSD_EXPORT PolygonMesh read_mesh(const std::string& path);
 /// Writes .obj, .ply (binary little endian), .off or .stl (binary; polygons fan-triangulated).
-void write_mesh(const std::string& path, const PolygonMesh& mesh);
+GSD_EXPORT void write_mesh(const std::string& path, const PolygonMesh& mesh);
 /// Writes a triangle/polygon mesh as binary little-endian .ply with per-vertex colors
 /// (red green blue, uchar) and, if `values` is non-empty, a float per vertex named `value_name`
 /// (NaN allowed), e.g. colors from gsd::diverging_color and the values they show. Throws
 /// gsd::Error for a path not ending in .ply, an invalid mesh, a color or value count other
 /// than the vertex count, or a value name that is empty, has whitespace or clashes with
 /// x y z red green blue. read_mesh reads the file back (colors and values are skipped).
-void write_colored_mesh(const std::string& path, const PolygonMesh& mesh,
+GSD_EXPORT void write_colored_mesh(const std::string& path, const PolygonMesh& mesh,
                         const std::vector<std::array<std::uint8_t, 3>>& colors,
                         const std::vector<double>& values = {}, const std::string& value_name = "value");
 
 /// True if the file at `path` holds faces (a mesh) rather than only points. Used by the CLI
 /// to decide how to treat an input that could be either (.ply, .obj).
-bool file_has_faces(const std::string& path);
+GSD_EXPORT bool file_has_faces(const std::string& path);
 
 // ---- curves on surfaces -----------------------------------------------------------------
 /// Raw records of a file of curves on a surface, checked for syntax but not against a mesh.
@@ -72,7 +75,7 @@ struct CurveFile {
 /// wrong token counts, non-integer or negative indices, indices too large, t outside [0,1],
 /// NaN/Inf, bad barycentric weights, an `l` with fewer than 2 points or naming a point record
 /// that does not exist, a file with no points at all.
-CurveFile read_curve_file(const std::string& path);
+GSD_EXPORT CurveFile read_curve_file(const std::string& path);
 
 // ---- .npy arrays ----------------------------------------------------------------------
 /// A dense array in C order, values widened to double.
@@ -83,25 +86,46 @@ struct NpyArray {
 };
 /// Reads a .npy file holding float32 or float64 (either byte order), C order
 /// (Fortran order is rejected with a clear message), any rank.
-NpyArray read_npy(const std::string& path);
+GSD_EXPORT NpyArray read_npy(const std::string& path);
 /// Writes float32 values with the given shape (product of shape must equal values.size()).
-void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+GSD_EXPORT void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const float* values, std::size_t count);
-void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+GSD_EXPORT void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const std::vector<float>& values);
 /// Writes int32 values ('<i4'), e.g. labels.
-void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
+GSD_EXPORT void write_npy(const std::string& path, const std::vector<std::size_t>& shape,
                const std::vector<std::int32_t>& values);
 
 /// Reads an (M, 3) query list (.npy float32/float64). Throws on other shapes or non-finite values.
-Points read_queries(const std::string& path);
+GSD_EXPORT Points read_queries(const std::string& path);
 /// Reads an (N, N, N) float grid.
-NpyArray read_grid(const std::string& path);
+GSD_EXPORT NpyArray read_grid(const std::string& path);
+
+// ---- grid metadata (GRID.npy.json) ----------------------------------------------------
+/// What a grid's .npy cannot say by itself: where its nodes are and what made it. Every grid
+/// the CLI writes gets this beside it as GRID.npy.json (docs/formats.md); `gsd contour` and
+/// `gsd slice` read it when no --bounds are given.
+struct GridMetadata {
+    GridSpec grid;                      ///< node counts and box: node (0,0,0) at box.lo, the last at box.hi
+    int components = 1;                 ///< values per node (1: a scalar field, 3: a gradient)
+    std::string method;                 ///< what computed the values: "pat", "shm", "winding", "sspd", …
+    std::string options_json = "{}";    ///< the options it ran with, as a JSON object
+    std::vector<std::string> command;   ///< the command line that wrote it (empty if not the CLI)
+    std::string version;                ///< the gsd version that wrote it (write: empty means this one)
+};
+/// GRID.npy → GRID.npy.json.
+GSD_EXPORT std::string grid_metadata_path(const std::string& grid_path);
+/// Writes the sidecar of `grid_path` atomically. Throws gsd::Error if options_json is not a
+/// JSON object or the grid is invalid.
+GSD_EXPORT void write_grid_metadata(const std::string& grid_path, const GridMetadata& meta);
+/// Reads the sidecar of `grid_path`: std::nullopt when there is none; gsd::Error naming the
+/// sidecar when it is not valid JSON, lacks a field, or describes an invalid grid.
+GSD_EXPORT std::optional<GridMetadata> read_grid_metadata(const std::string& grid_path);
 
 /// Lower-cased extension including the dot (".ply"), or "" if none.
-std::string extension(const std::string& path);
+GSD_EXPORT std::string extension(const std::string& path);
 
 /// Writes `bytes` to `path` atomically (temporary file + rename). All writers use this.
-void write_file_atomic(const std::string& path, const std::string& bytes);
+GSD_EXPORT void write_file_atomic(const std::string& path, const std::string& bytes);
 
 }  // namespace gsd::io

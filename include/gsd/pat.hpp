@@ -7,6 +7,8 @@
 //   auto phi = field.evaluate(queries);           // φ at any points; gradients on request
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 
 #include <array>
@@ -31,7 +33,7 @@ struct Jet {
 /// Curvatures are signed with respect to `n`: k < 0 bends away from n (convex, like the
 /// outside of a sphere), k > 0 bends toward it (concave). Minor radius r = 1/|k1|; the
 /// tube's center is q + n/k1 and the torus's center q + n/k2; k1 = k2 = 0 is a plane.
-struct Torus {
+struct GSD_EXPORT Torus {
     Eigen::Vector3d q = Eigen::Vector3d::Zero();
     Eigen::Vector3d e1 = Eigen::Vector3d::UnitX();
     Eigen::Vector3d n = Eigen::Vector3d::UnitZ();
@@ -45,28 +47,28 @@ struct TorusGeometry {
     Eigen::Vector3d c, u;
     double R, r, sign;
 };
-TorusGeometry geometry(const Torus& t);
+GSD_EXPORT TorusGeometry geometry(const Torus& t);
 
 /// A tangent frame for a unit normal n: returns s with s ⟂ n, |s| = 1; t = n × s. The choice
 /// is deterministic (it defines the coordinates the jet coefficients are expressed in).
-Eigen::Vector3d tangent_of(const Eigen::Vector3d& n);
+GSD_EXPORT Eigen::Vector3d tangent_of(const Eigen::Vector3d& n);
 
 /// Builds the osculating torus of the height function `jet` at point p with unit normal n and
 /// tangent s (t = n × s): the surface point q = p + a00 n, normal, principal curvatures and
 /// directions from the first and second fundamental forms (II v = κ I v).
-Torus torus_from_jet(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const Eigen::Vector3d& s,
+GSD_EXPORT Torus torus_from_jet(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const Eigen::Vector3d& s,
                      const Jet& jet);
 
 /// Signed distance g(x) of the torus, positive on the side its normal points to; optionally its
 /// gradient. Evaluated in a form that is exact for tori and stays accurate in float32 as the
 /// radii grow (planes and cylinders are its limits).
-double torus_sdf(const Torus& t, const Eigen::Vector3d& x, Eigen::Vector3d* gradient = nullptr);
+GSD_EXPORT double torus_sdf(const Torus& t, const Eigen::Vector3d& x, Eigen::Vector3d* gradient = nullptr);
 
 // ---- fitting ------------------------------------------------------------------------------
 
 /// The result of fitting: per point, the frame and coefficients that define its torus.
 /// This is what the .tori file stores, so a cloud is fitted once.
-struct FittedTori {
+struct GSD_EXPORT FittedTori {
     Points points;               ///< p_i
     Points normals;              ///< n_i (unit)
     Points tangents;             ///< s_i (unit, ⟂ n_i); t_i = n_i × s_i
@@ -82,8 +84,8 @@ struct FittedTori {
 
 /// Saves/loads the documented binary .tori format (docs/formats.md). Loading validates
 /// everything (magic, version, counts against the file size, finite values).
-void save_tori(const std::string& path, const FittedTori& tori);
-FittedTori load_tori(const std::string& path);
+GSD_EXPORT void save_tori(const std::string& path, const FittedTori& tori);
+GSD_EXPORT FittedTori load_tori(const std::string& path);
 
 struct JetFitterOptions {
     /// Neighbors per fit, the point itself included.
@@ -100,7 +102,7 @@ struct JetFitterOptions {
 
 /// Weighted least-squares quadratic over the k nearest neighbors in each point's tangent frame
 /// (thesis fig. 5.17's classic baseline, here with optional normal rows). Multi-threaded.
-class JetFitter {
+class GSD_EXPORT JetFitter {
 public:
     explicit JetFitter(JetFitterOptions options = {});
     /// Fits every point of a validated cloud. Reports progress as ("fit", fraction).
@@ -126,7 +128,7 @@ struct TorusNetOptions {
 /// coefficients the jet fit would solve for. Runs on the device chosen by `options.device`
 /// (float32 kernels) or on the CPU reference (double, multi-threaded); a device that was
 /// selected but fails is an error, not a silent fallback. Copies share the loaded model.
-class TorusNet {
+class GSD_EXPORT TorusNet {
 public:
     /// Loads and validates the model (throws gsd::Error naming the file on any problem).
     explicit TorusNet(TorusNetOptions options = {});
@@ -175,7 +177,7 @@ struct FieldValues {
 };
 
 /// The PAT signed distance field of a set of fitted tori.
-class TorusField {
+class GSD_EXPORT TorusField {
 public:
     explicit TorusField(FittedTori tori, BlendOptions options = {});
     ~TorusField();

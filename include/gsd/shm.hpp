@@ -12,6 +12,8 @@
 // average (or fits it softly). docs/shm.md has the details and the error bounds.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 #include <gsd/sums.hpp>
 
@@ -33,24 +35,24 @@ struct ShmSource {
 
 /// Point cloud → sources: each point with its unit normal times the area π d_8²/8 it
 /// represents (gsd::point_areas). h = mean nearest-neighbor spacing.
-ShmSource shm_source(const PointCloud& cloud);
+GSD_EXPORT ShmSource shm_source(const PointCloud& cloud);
 
 /// Mesh in any state (holes, self-intersections, nonmanifold or duplicate faces, inconsistent
 /// orientation: all kept as they are) → sources: its (fanned) triangles with their vector
 /// areas. However coarse the faces, step 1 integrates the kernel over each triangle (expansions
 /// far away, adaptive refinement near it), so nothing is split up front. h = mean edge length.
 /// Degenerate faces contribute nothing; a mesh whose faces are all degenerate is an error.
-ShmSource shm_source(const PolygonMesh& mesh);
+GSD_EXPORT ShmSource shm_source(const PolygonMesh& mesh);
 
 /// Mesh and cloud together (bonus): their sources concatenated; h is the larger spacing.
-ShmSource combine(const ShmSource& a, const ShmSource& b);
+GSD_EXPORT ShmSource combine(const ShmSource& a, const ShmSource& b);
 
 enum class PoissonSolver {
     Multigrid,  ///< geometric multigrid V-cycles (GPU when a device is chosen, else CPU)
     CG,         ///< conjugate gradients with a Jacobi preconditioner (CPU reference)
     Direct,     ///< sparse Cholesky (CHOLMOD, CPU; small grids)
 };
-PoissonSolver poisson_solver_from_name(const std::string& name);  // "mg" | "cg" | "direct"
+GSD_EXPORT PoissonSolver poisson_solver_from_name(const std::string& name);  // "mg" | "cg" | "direct"
 
 struct ShmOptions {
     /// Diffusion time t = t_coef · h².
@@ -92,7 +94,7 @@ struct ShmResult {
 };
 
 /// The grid SHM solver: sources and grid fixed at construction; solve() runs the three steps.
-class SignedHeatGrid {
+class GSD_EXPORT SignedHeatGrid {
 public:
     SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions options = {});
     ~SignedHeatGrid();
@@ -113,14 +115,14 @@ private:
 };
 
 /// The default SHM box: the bounding cube of the source, enlarged by 10%.
-Box shm_default_bounds(const ShmSource& source);
+GSD_EXPORT Box shm_default_bounds(const ShmSource& source);
 
 // ---- the Poisson solver, usable on its own ----------------------------------------------
 
 /// Solves the 7-point least-squares Poisson problem on a grid: find φ minimizing
 /// Σ_edges ((φ_j − φ_i)/Δ − Ȳ·e)², i.e. L φ = b with natural Neumann boundary, L the
 /// (positive semi-definite) 7-point Laplacian. The constant nullspace is removed (mean φ = 0).
-class GridPoissonSolver {
+class GSD_EXPORT GridPoissonSolver {
 public:
     GridPoissonSolver(GridSpec grid, PoissonSolver solver = PoissonSolver::Multigrid, std::string device = "cpu");
     ~GridPoissonSolver();

@@ -4,6 +4,8 @@
 // outlive the tree and must not be resized while the tree exists.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 
 #include <memory>
@@ -16,7 +18,7 @@ struct Neighbor {
     double distance;  ///< Euclidean (not squared)
 };
 
-class KdTree {
+class GSD_EXPORT KdTree {
 public:
     explicit KdTree(const Points& points);
     ~KdTree();
@@ -40,12 +42,12 @@ private:
 
 /// Mean distance from each point to its nearest other point (duplicates count as 0): the
 /// spacing h that scales default parameters. Throws if there are fewer than two points.
-double mean_spacing(const Points& p);
-double mean_spacing(const KdTree& tree);
+GSD_EXPORT double mean_spacing(const Points& p);
+GSD_EXPORT double mean_spacing(const KdTree& tree);
 
 /// Per-point area estimate A_i = π d_k² / k, with d_k the distance to the k-th nearest
 /// other point: the area of the disk that holds the point's k neighbors, shared among them.
 /// Used as the quadrature weight of a point sample.
-std::vector<double> point_areas(const KdTree& tree, int k = 8);
+GSD_EXPORT std::vector<double> point_areas(const KdTree& tree, int k = 8);
 
 }  // namespace gsd

@@ -8,6 +8,8 @@
 //   std::vector<double> w = gsd::fast_winding_numbers(e, queries).w;     // ≈ 1 inside, 0 outside
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 
 #include <string>
@@ -20,7 +22,7 @@ class KdTree;
 /// Oriented area elements: flat triangles of uniform density, or points, each carrying its
 /// vector area v_j = A_j·N_j. The sums integrate each kernel over each triangle (not just at
 /// its centroid), so a coarse mesh needs no splitting.
-struct OrientedElements {
+struct GSD_EXPORT OrientedElements {
     Points corners;  ///< (3n, 3): rows 3j, 3j+1, 3j+2 are element j's corners (a point repeats itself)
     Points vectors;  ///< (n, 3): v_j; for a triangle ½(b − a)×(c − a)
     std::size_t size() const { return std::size_t(vectors.rows()); }
@@ -66,7 +68,7 @@ struct WindingResult {
 /// outward-oriented mesh; fractional where the surface is open or broken. Per-query results
 /// do not depend on the other queries or on how they are chunked. CPU in double (OpenMP); the
 /// GPU path computes in float32 and agrees to ~1e-5.
-WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries,
+GSD_EXPORT WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries,
                                    const WindingOptions& options = {}, const ProgressFn& progress = {});
 
 }  // namespace gsd

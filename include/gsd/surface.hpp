@@ -15,6 +15,8 @@
 // discretization, the options and measured accuracy and timings.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 
 #include <array>
@@ -41,7 +43,7 @@ struct Topology;
 /// inconsistent orientation, boundaries, several components and unreferenced vertices are all
 /// allowed. Degenerate (zero-area) triangles are kept in the numbering but carry no area.
 /// Copies share the (immutable) topology.
-class SurfaceMesh {
+class GSD_EXPORT SurfaceMesh {
 public:
     explicit SurfaceMesh(PolygonMesh mesh, const std::string& where = {});
 
@@ -113,18 +115,18 @@ struct SurfaceSources {
 /// `#offset 0` for 0-based indices, 1-based otherwise; see docs/formats.md) or the `l` lines of
 /// an .obj file (1-based vertex indices). Each `l` line becomes one curve; points no line uses
 /// are ignored. Errors name the file and line (index out of range, t outside [0, 1], NaN, …).
-SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& mesh);
+GSD_EXPORT SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& mesh);
 /// Reads isolated points: every `v`/`e`/`f` record of a curve text file (lines not allowed),
 /// or every vertex named by the `p`/`l` lines of an .obj.
-std::vector<SurfacePoint> read_surface_points(const std::string& path, const SurfaceMesh& mesh);
+GSD_EXPORT std::vector<SurfacePoint> read_surface_points(const std::string& path, const SurfaceMesh& mesh);
 /// Writes curves (and points, as records no line uses) in the curve text format, 0-based
 /// (`#offset 0`), atomically. Every node gets its own record; `l` lines join consecutive nodes.
-void write_surface_curves(const std::string& path, const SurfaceSources& sources);
+GSD_EXPORT void write_surface_curves(const std::string& path, const SurfaceSources& sources);
 /// Checks sources against a mesh (indices in range, finite coordinates in range, ≥ 2 nodes per
 /// curve). `where` names the source for the message. Throws gsd::Error.
-void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std::string& where = {});
+GSD_EXPORT void validate(const SurfaceSources& sources, const SurfaceMesh& mesh, const std::string& where = {});
 /// The 3D position of a surface point.
-Eigen::Vector3d position(const SurfaceMesh& mesh, const SurfacePoint& p);
+GSD_EXPORT Eigen::Vector3d position(const SurfaceMesh& mesh, const SurfacePoint& p);
 
 /// Damage to curves for tests and demos, as in thesis fig. 4.16: every curve loses `gaps`
 /// stretches holding `cut` of its pieces in all (gaps at random places may overlap, so up to
@@ -135,19 +137,19 @@ struct CurveDamage {
     int reversed = 0;
 };
 /// Returns the damaged curves (points kept); deterministic for a seed.
-SurfaceSources damage(const SurfaceSources& sources, const CurveDamage& d, std::uint64_t seed);
+GSD_EXPORT SurfaceSources damage(const SurfaceSources& sources, const CurveDamage& d, std::uint64_t seed);
 
 /// Sources drawn in 3D: each curve as polylines that follow the surface (a piece between nodes
 /// in different triangles bends where it crosses edges), each isolated point as a one-point
 /// polyline. For pictures and OBJ output.
-std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources);
+GSD_EXPORT std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources);
 
 /// The level set {f = level} of a per-vertex function (linear on each triangle) as curves whose
 /// nodes lie on edges, oriented so that f < level on their left (counter-clockwise around the
 /// regions below the level): the zero set of a signed distance comes back as its source curve.
 /// Vertices exactly at the level count as above it. Pieces are chained into polylines across
 /// triangles that share an edge; closed loops repeat their first node at the end.
-std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::vector<double>& f, double level = 0);
+GSD_EXPORT std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::vector<double>& f, double level = 0);
 
 // ---- the Signed Heat Method on surfaces ---------------------------------------------------
 
@@ -157,7 +159,7 @@ enum class LevelSetConstraint {
     ZeroSet,     ///< φ = 0 at every curve node and point (hard, or soft with a weight)
     Components,  ///< φ constant along each connected curve component (levels found by the solve)
 };
-LevelSetConstraint level_set_from_name(const std::string& name);  // "none" | "zero" | "components"
+GSD_EXPORT LevelSetConstraint level_set_from_name(const std::string& name);  // "none" | "zero" | "components"
 
 /// Per-mesh settings: they decide the operators, which are factored once and cached.
 struct SurfaceShmSetup {
@@ -214,7 +216,7 @@ struct SurfaceShmResult {
 /// mass matrix, cotan Laplacian) are assembled and factored (CHOLMOD) on the first solve that
 /// needs them and reused by every later solve, so a new curve on the same mesh costs
 /// back-substitutions. Not thread-safe: use one solver per thread.
-class SignedHeatSurface {
+class GSD_EXPORT SignedHeatSurface {
 public:
     explicit SignedHeatSurface(SurfaceMesh mesh, SurfaceShmSetup setup = {});
     ~SignedHeatSurface();
@@ -236,13 +238,13 @@ private:
 /// The error measure of thesis §4.5: ε(φ) = (Σ_i A_i (φ_i − φ⁰_i)²)^½ / ((max φ⁰ − min φ⁰)·𝒜^½),
 /// A_i a third of the area of the triangles at vertex i, 𝒜 = Σ A_i. Vertices where either value
 /// is not finite are left out.
-double surface_distance_error(const SurfaceMesh& mesh, const std::vector<double>& phi,
+GSD_EXPORT double surface_distance_error(const SurfaceMesh& mesh, const std::vector<double>& phi,
                               const std::vector<double>& phi_true);
 /// Share of the surface area (vertex areas A_i) where sign(φ) = sign(φ_true); vertices where
 /// φ_true is 0 count as agreeing.
-double surface_sign_agreement(const SurfaceMesh& mesh, const std::vector<double>& phi,
+GSD_EXPORT double surface_sign_agreement(const SurfaceMesh& mesh, const std::vector<double>& phi,
                               const std::vector<double>& phi_true);
 /// Vertex areas A_i (a third of the incident triangle areas).
-std::vector<double> vertex_areas(const SurfaceMesh& mesh);
+GSD_EXPORT std::vector<double> vertex_areas(const SurfaceMesh& mesh);
 
 }  // namespace gsd

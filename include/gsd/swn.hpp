@@ -13,6 +13,8 @@
 // normals point to) has winding number +1 on its left, 0 outside. docs/swn.md has the method.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 #include <gsd/surface.hpp>
 
@@ -30,7 +32,7 @@ enum class SwnResidual {
     Reduced,  ///< the same program over the components of a shortest-path cut (fig. 6.11)
     None,     ///< skip: labels from rounding the jump harmonic function u (the naive baseline)
 };
-SwnResidual swn_residual_from_name(const std::string& name);  // "full" | "reduced" | "none"
+GSD_EXPORT SwnResidual swn_residual_from_name(const std::string& name);  // "full" | "reduced" | "none"
 
 /// How the residual's linear program is solved. Both give an optimum of the same program; where
 /// it has several (ties), they may pick different ones.
@@ -39,7 +41,7 @@ enum class SwnSolver {
               ///< rounded to ~2⁻²⁸ of its range, and much faster
     Clp,      ///< COIN-OR CLP's dual simplex on the program as written in the thesis
 };
-SwnSolver swn_solver_from_name(const std::string& name);  // "network" | "clp"
+GSD_EXPORT SwnSolver swn_solver_from_name(const std::string& name);  // "network" | "clp"
 
 struct SwnOptions {
     SwnResidual residual = SwnResidual::Full;
@@ -76,7 +78,7 @@ struct SwnResult {
 /// The SWN solver: one per mesh. The mesh must be manifold and consistently oriented (SWN reads
 /// curves' sides from the orientation); other meshes get a clear error (the surface Signed Heat
 /// Method works on them: shm_labels). Boundaries and several components are fine.
-class SurfaceWindingNumbers {
+class GSD_EXPORT SurfaceWindingNumbers {
 public:
     explicit SurfaceWindingNumbers(SurfaceMesh mesh);
     ~SurfaceWindingNumbers();
@@ -97,11 +99,11 @@ private:
 
 /// Inside/outside from the sign of a surface signed distance (thesis §7.1): label 1 for faces
 /// whose mean φ over their corners is negative, 0 otherwise; per input face, area majority.
-std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi);
+GSD_EXPORT std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi);
 
 /// Share of the area where labels differ, after the best global integer shift of `labels` when
 /// `up_to_shift` (closed surfaces: winding numbers are defined up to a constant there).
-double mislabeled_area(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth,
+GSD_EXPORT double mislabeled_area(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth,
                        bool up_to_shift);
 
 }  // namespace gsd

@@ -2,6 +2,8 @@
 // grids, and pictures of fields on meshes.
 #pragma once
 
+#include <gsd/export.hpp>
+
 #include <gsd/core.hpp>
 
 #include <array>
@@ -16,7 +18,7 @@ namespace gsd {
 /// oriented so their normals point toward increasing φ (outward for a signed distance), and
 /// where the level set is closed inside the grid the mesh is closed, manifold and
 /// consistently oriented. Non-finite values are rejected.
-PolygonMesh contour(const GridSpec& grid, const std::vector<float>& values, double iso = 0.0);
+GSD_EXPORT PolygonMesh contour(const GridSpec& grid, const std::vector<float>& values, double iso = 0.0);
 
 /// Which axis a slice is perpendicular to.
 enum class Axis { X = 0, Y = 1, Z = 2 };
@@ -39,10 +41,10 @@ struct Image {
 /// Renders a planar slice through a grid with a diverging color map (blue negative, white
 /// zero, red positive), thin isolines and the zero contour, as in the thesis figures.
 /// The slice's image axes are the two remaining world axes in order (for Z: x right, y up).
-Image render_slice(const GridSpec& grid, const std::vector<float>& values, const SliceOptions& opt);
+GSD_EXPORT Image render_slice(const GridSpec& grid, const std::vector<float>& values, const SliceOptions& opt);
 
 /// Writes an image as PNG (atomically).
-void write_png(const std::string& path, const Image& image);
+GSD_EXPORT void write_png(const std::string& path, const Image& image);
 
 // ---- fields on surfaces ------------------------------------------------------------------
 
@@ -89,14 +91,14 @@ struct SurfaceRenderOptions {
 /// the far side of the mesh are hidden. Deterministic. Throws gsd::Error on a missing or
 /// invalid mesh, wrong value or label counts, non-finite curve points, bad options, or a
 /// render buffer (width·height·supersample²) above 10^8 pixels.
-Image render_surface(const SurfacePicture& picture, const SurfaceRenderOptions& options = {});
+GSD_EXPORT Image render_surface(const SurfacePicture& picture, const SurfaceRenderOptions& options = {});
 
 /// The diverging color of render_slice for value x on a scale ±range (range > 0; NaN: the
 /// gray of missing values), exposed so other outputs, e.g. colored meshes, match the pictures.
-std::array<std::uint8_t, 3> diverging_color(double x, double range);
+GSD_EXPORT std::array<std::uint8_t, 3> diverging_color(double x, double range);
 /// A categorical color for an integer label: 0 off-white, then +1 blue, −1 orange, +2 green,
 /// −2 red, +3 purple, −3 brown, +4 pink, −4 olive, +5 cyan; further labels repeat the
 /// cycle darker.
-std::array<std::uint8_t, 3> label_color(int label);
+GSD_EXPORT std::array<std::uint8_t, 3> label_color(int label);
 
 }  // namespace gsd

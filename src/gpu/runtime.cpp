@@ -324,10 +324,12 @@ Context::Context(VkPhysicalDevice physical, const DeviceInfo& info)
     has_float64_ = supported.shaderFloat64 == VK_TRUE;
     ci.pEnabledFeatures = &enabled;
     check(vkCreateDevice(physical_, &ci, nullptr, &device_), "vkCreateDevice");
-    volkLoadDevice(device_);
-    vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
+    // Device commands go through this context's own table, never volk's globals: each device
+    // (and an engine's device, later adopted) gets the entry points its driver returned.
+    volkLoadDeviceTable(&vk_, device_);
+    vk_.vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
     VkPipelineCacheCreateInfo pc{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
-    check(vkCreatePipelineCache(device_, &pc, nullptr, &cache_), "vkCreatePipelineCache");
+    check(vk_.vkCreatePipelineCache(device_, &pc, nullptr, &cache_), "vkCreatePipelineCache");
     // CPU devices run a workgroup as SIMD lanes over a few threads: small groups keep all cores
     // busy on small jobs. GPUs want enough warps per group to hide latency.
     workgroup_ = info_.is_software() ? 64u : 128u;
@@ -341,15 +343,15 @@ Context::Context(VkPhysicalDevice physical, const DeviceInfo& info)
 
 Context::~Context() {
     if (!device_) return;
-    vkDeviceWaitIdle(device_);
+    vk_.vkDeviceWaitIdle(device_);
     for (auto& [name, k] : kernels_) {
-        vkDestroyPipeline(device_, k->pipeline, nullptr);
-        vkDestroyPipelineLayout(device_, k->layout, nullptr);
-        vkDestroyDescriptorSetLayout(device_, k->set_layout, nullptr);
+        vk_.vkDestroyPipeline(device_, k->pipeline, nullptr);
+        vk_.vkDestroyPipelineLayout(device_, k->layout, nullptr);
+        vk_.vkDestroyDescriptorSetLayout(device_, k->set_layout, nullptr);
     }
-    for (auto& [name, m] : modules_) vkDestroyShaderModule(device_, m, nullptr);
-    vkDestroyPipelineCache(device_, cache_, nullptr);
-    vkDestroyDevice(device_, nullptr);
+    for (auto& [name, m] : modules_) vk_.vkDestroyShaderModule(device_, m, nullptr);
+    vk_.vkDestroyPipelineCache(device_, cache_, nullptr);
+    vk_.vkDestroyDevice(device_, nullptr);
 }
 
 std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
@@ -384,7 +386,7 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
         VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
         mi.codeSize = found->word_count * sizeof(std::uint32_t);
         mi.pCode = found->words;
-        check(vkCreateShaderModule(device_, &mi, nullptr, &module), "vkCreateShaderModule");
+        check(vk_.vkCreateShaderModule(device_, &mi, nullptr, &module), "vkCreateShaderModule");
     }
 
     auto k = std::make_unique<Kernel>();
@@ -399,14 +401,14 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     dl.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
     dl.bindingCount = bindings;
     dl.pBindings = b.data();
-    check(vkCreateDescriptorSetLayout(device_, &dl, nullptr, &k->set_layout), "vkCreateDescriptorSetLayout");
+    check(vk_.vkCreateDescriptorSetLayout(device_, &dl, nullptr, &k->set_layout), "vkCreateDescriptorSetLayout");
     VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes};
     VkPipelineLayoutCreateInfo pl{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pl.setLayoutCount = 1;
     pl.pSetLayouts = &k->set_layout;
     pl.pushConstantRangeCount = push_bytes ? 1 : 0;
     pl.pPushConstantRanges = &range;
-    check(vkCreatePipelineLayout(device_, &pl, nullptr, &k->layout), "vkCreatePipelineLayout");
+    check(vk_.vkCreatePipelineLayout(device_, &pl, nullptr, &k->layout), "vkCreatePipelineLayout");
 
     std::vector<std::int32_t> values{std::int32_t(workgroup_)};
     values.insert(values.end(), constants.begin(), constants.end());
@@ -420,7 +422,7 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     ci.stage.pName = "main";
     ci.stage.pSpecializationInfo = &spec;
     ci.layout = k->layout;
-    check(vkCreateComputePipelines(device_, cache_, 1, &ci, nullptr, &k->pipeline), "vkCreateComputePipelines");
+    check(vk_.vkCreateComputePipelines(device_, cache_, 1, &ci, nullptr, &k->pipeline), "vkCreateComputePipelines");
     return *(kernels_[key] = std::move(k));
 }
 
@@ -431,16 +433,16 @@ Buffer::Buffer(Context& ctx, VkDeviceSize bytes, Memory memory) : ctx_(&ctx), si
     bi.size = size_;
     bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
-    check(vkCreateBuffer(ctx.device(), &bi, nullptr, &buffer_), "vkCreateBuffer");
+    check(ctx.vk().vkCreateBuffer(ctx.device(), &bi, nullptr, &buffer_), "vkCreateBuffer");
     VkMemoryRequirements req;
-    vkGetBufferMemoryRequirements(ctx.device(), buffer_, &req);
+    ctx.vk().vkGetBufferMemoryRequirements(ctx.device(), buffer_, &req);
     VkMemoryAllocateInfo ai{VK_STRUCTURE_TYPE_MEMORY_ALLOCATE_INFO};
     ai.allocationSize = req.size;
     try {
         ai.memoryTypeIndex = ctx.memory_type(req.memoryTypeBits, memory);
-        check(vkAllocateMemory(ctx.device(), &ai, nullptr, &memory_), "vkAllocateMemory");
-        check(vkBindBufferMemory(ctx.device(), buffer_, memory_, 0), "vkBindBufferMemory");
-        if (memory != Memory::Device) check(vkMapMemory(ctx.device(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_), "vkMapMemory");
+        check(ctx.vk().vkAllocateMemory(ctx.device(), &ai, nullptr, &memory_), "vkAllocateMemory");
+        check(ctx.vk().vkBindBufferMemory(ctx.device(), buffer_, memory_, 0), "vkBindBufferMemory");
+        if (memory != Memory::Device) check(ctx.vk().vkMapMemory(ctx.device(), memory_, 0, VK_WHOLE_SIZE, 0, &mapped_), "vkMapMemory");
     } catch (...) {
         release();
         throw;
@@ -449,9 +451,9 @@ Buffer::Buffer(Context& ctx, VkDeviceSize bytes, Memory memory) : ctx_(&ctx), si
 
 void Buffer::release() {
     if (!ctx_) return;
-    if (mapped_) vkUnmapMemory(ctx_->device(), memory_);
-    if (buffer_) vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
-    if (memory_) vkFreeMemory(ctx_->device(), memory_, nullptr);
+    if (mapped_) ctx_->vk().vkUnmapMemory(ctx_->device(), memory_);
+    if (buffer_) ctx_->vk().vkDestroyBuffer(ctx_->device(), buffer_, nullptr);
+    if (memory_) ctx_->vk().vkFreeMemory(ctx_->device(), memory_, nullptr);
     buffer_ = VK_NULL_HANDLE;
     memory_ = VK_NULL_HANDLE;
     mapped_ = nullptr;
@@ -479,34 +481,34 @@ Recorder::Recorder(Context& ctx) : ctx_(ctx) {
     VkCommandPoolCreateInfo pi{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
     pi.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
     pi.queueFamilyIndex = ctx.queue_family();
-    check(vkCreateCommandPool(ctx.device(), &pi, nullptr, &pool_), "vkCreateCommandPool");
+    check(ctx.vk().vkCreateCommandPool(ctx.device(), &pi, nullptr, &pool_), "vkCreateCommandPool");
     VkCommandBufferAllocateInfo ai{VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO};
     ai.commandPool = pool_;
     ai.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
     ai.commandBufferCount = 1;
-    check(vkAllocateCommandBuffers(ctx.device(), &ai, &cmd_), "vkAllocateCommandBuffers");
+    check(ctx.vk().vkAllocateCommandBuffers(ctx.device(), &ai, &cmd_), "vkAllocateCommandBuffers");
     VkFenceCreateInfo fi{VK_STRUCTURE_TYPE_FENCE_CREATE_INFO};
-    check(vkCreateFence(ctx.device(), &fi, nullptr, &fence_), "vkCreateFence");
+    check(ctx.vk().vkCreateFence(ctx.device(), &fi, nullptr, &fence_), "vkCreateFence");
 }
 
 Recorder::~Recorder() {
     try { wait(); } catch (...) {}
-    vkDestroyFence(ctx_.device(), fence_, nullptr);
-    vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
+    ctx_.vk().vkDestroyFence(ctx_.device(), fence_, nullptr);
+    ctx_.vk().vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
 }
 
 void Recorder::begin() {
     wait();
-    check(vkResetCommandBuffer(cmd_, 0), "vkResetCommandBuffer");
+    check(ctx_.vk().vkResetCommandBuffer(cmd_, 0), "vkResetCommandBuffer");
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(cmd_, &bi), "vkBeginCommandBuffer");
+    check(ctx_.vk().vkBeginCommandBuffer(cmd_, &bi), "vkBeginCommandBuffer");
 }
 
 void Recorder::copy(const Buffer& src, VkDeviceSize so, const Buffer& dst, VkDeviceSize d, VkDeviceSize bytes) {
     if (bytes == 0) return;
     VkBufferCopy region{so, d, bytes};
-    vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
+    ctx_.vk().vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
 }
 
 void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
@@ -514,7 +516,7 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
     if (bindings.size() != k.bindings) throw Error("gpu", "kernel " + k.name + ": wrong number of buffers");
     if (push_bytes != k.push_bytes) throw Error("gpu", "kernel " + k.name + ": wrong push-constant size");
     if (groups == 0) return;
-    vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.pipeline);
+    ctx_.vk().vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.pipeline);
     std::vector<VkDescriptorBufferInfo> infos;
     infos.reserve(bindings.size());
     for (const Binding& b : bindings) infos.push_back({b.buffer->handle(), b.offset, b.range});
@@ -526,16 +528,16 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
         writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
         writes[i].pBufferInfo = &infos[i];
     }
-    vkCmdPushDescriptorSetKHR(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, std::uint32_t(writes.size()), writes.data());
-    if (push_bytes) vkCmdPushConstants(cmd_, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
+    ctx_.vk().vkCmdPushDescriptorSetKHR(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, std::uint32_t(writes.size()), writes.data());
+    if (push_bytes) ctx_.vk().vkCmdPushConstants(cmd_, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
     const std::uint32_t max_x = ctx_.max_groups_x();
     const std::uint32_t x = std::min(groups, max_x);
     const std::uint32_t y = (groups + x - 1) / x;
-    vkCmdDispatch(cmd_, x, y, 1);
+    ctx_.vk().vkCmdDispatch(cmd_, x, y, 1);
 }
 
 void Recorder::fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes) {
-    vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, 0);
+    ctx_.vk().vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, 0);
 }
 
 void Recorder::barrier() {
@@ -543,26 +545,26 @@ void Recorder::barrier() {
     mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT;
     mb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT | VK_ACCESS_TRANSFER_READ_BIT |
                        VK_ACCESS_TRANSFER_WRITE_BIT | VK_ACCESS_HOST_READ_BIT;
-    vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
+    ctx_.vk().vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT,
                          VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT | VK_PIPELINE_STAGE_TRANSFER_BIT | VK_PIPELINE_STAGE_HOST_BIT,
                          0, 1, &mb, 0, nullptr, 0, nullptr);
 }
 
 void Recorder::submit() {
-    check(vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+    check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
     VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
     si.commandBufferCount = 1;
     si.pCommandBuffers = &cmd_;
     std::lock_guard<std::mutex> lock(ctx_.queue_mutex());
-    check(vkQueueSubmit(ctx_.queue(), 1, &si, fence_), "vkQueueSubmit");
+    check(ctx_.vk().vkQueueSubmit(ctx_.queue(), 1, &si, fence_), "vkQueueSubmit");
     pending_ = true;
 }
 
 void Recorder::wait() {
     if (!pending_) return;
     pending_ = false;
-    check(vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX), "vkWaitForFences");
-    check(vkResetFences(ctx_.device(), 1, &fence_), "vkResetFences");
+    check(ctx_.vk().vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX), "vkWaitForFences");
+    check(ctx_.vk().vkResetFences(ctx_.device(), 1, &fence_), "vkResetFences");
 }
 
 Buffer upload(Context& ctx, const void* data, std::size_t bytes) {

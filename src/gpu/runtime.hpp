@@ -76,6 +76,8 @@ public:
     Context& operator=(const Context&) = delete;
 
     VkDevice device() const { return device_; }
+    /// The device-level Vulkan commands of this device (every vkCmd…, vkCreate…, … on it).
+    const VolkDeviceTable& vk() const { return vk_; }
     const DeviceInfo& info() const { return info_; }
     const VkPhysicalDeviceLimits& limits() const { return props_.limits; }
     /// Workgroup size used for 1-D kernels on this device (64 on CPUs, 256 on GPUs).
@@ -104,6 +106,7 @@ private:
     VkPhysicalDeviceProperties props_{};
     VkPhysicalDeviceMemoryProperties mem_props_{};
     VkDevice device_ = VK_NULL_HANDLE;
+    VolkDeviceTable vk_{};
     VkQueue queue_ = VK_NULL_HANDLE;
     std::uint32_t queue_family_ = 0;
     std::uint32_t workgroup_ = 64;

@@ -4,6 +4,8 @@
 
 #include <gsd/io.hpp>
 
+#include <nlohmann/json.hpp>
+
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
@@ -36,6 +38,9 @@ CLI::Validator output_file(std::vector<std::string> extensions) {
 void remove_output(const std::string& path) {
     std::error_code ec;
     if (std::filesystem::is_regular_file(path, ec)) std::filesystem::remove(path, ec);
+    // A grid's sidecar goes with it.
+    const std::string sidecar = io::grid_metadata_path(path);
+    if (io::extension(path) == ".npy" && std::filesystem::is_regular_file(sidecar, ec)) std::filesystem::remove(sidecar, ec);
 }
 
 void write_all(const std::vector<std::pair<std::string, std::function<void()>>>& outputs) {
@@ -167,7 +172,7 @@ GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     if (!bounds.empty()) box = bounds_from(bounds, "--bounds");
     else if (fallback) {
         box = default_bounds(*fallback);
-        note("grid bounds (pass them to contour/slice): " + bounds_text(box));
+        note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(box));
     }
     else throw Error("--bounds", "a grid needs --bounds");
     GridSpec g = GridSpec::cube(grid, box);
@@ -176,11 +181,77 @@ GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     return g;
 }
 
+namespace {
+
+// The options given on the command line, from the root command down to the one that ran:
+// {"--grid": "96", "INPUT": "cloud.ply", "--flag": true, ...}.
+std::string given_options_json() {
+    nlohmann::json j = nlohmann::json::object();
+    for (const CLI::App* a = globals().app; a != nullptr;) {
+        for (const CLI::Option* o : a->get_options()) {
+            if (o->count() == 0 || o->get_name() == "--help" || o->get_name() == "--version") continue;
+            const std::vector<std::string> r = o->results();
+            if (o->get_expected_max() == 0) j[o->get_name()] = true;  // a flag
+            else if (r.size() == 1) j[o->get_name()] = r[0];
+            else j[o->get_name()] = r;
+        }
+        const auto subs = a->get_subcommands();
+        a = subs.empty() ? nullptr : subs.front();
+    }
+    return j.dump();
+}
+
+// A sidecar only beside a file this run creates: not for `-o /dev/null` or a FIFO.
+bool writes_regular_file(const std::string& path) {
+    struct stat st {};
+    return !(::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode)));
+}
+
+}  // namespace
+
+void write_grid(const std::string& path, const GridSpec& g, const std::vector<float>& values, int components,
+                const std::string& method) {
+    std::vector<std::size_t> shape{std::size_t(g.nx), std::size_t(g.ny), std::size_t(g.nz)};
+    if (components > 1) shape.push_back(std::size_t(components));
+    io::GridMetadata meta;
+    meta.grid = g;
+    meta.components = components;
+    meta.method = method;
+    meta.options_json = given_options_json();
+    meta.command = globals().argv;
+    io::write_npy(path, shape, values);
+    if (!writes_regular_file(path)) return;
+    try {
+        io::write_grid_metadata(path, meta);
+    } catch (...) {
+        remove_output(path);
+        throw;
+    }
+}
+
+GridSpec grid_of(const std::vector<std::size_t>& shape, const std::string& path, const std::vector<double>& bounds) {
+    GridSpec g{int(shape[0]), int(shape[1]), int(shape[2]), {}};
+    if (!bounds.empty()) {
+        g.box = bounds_from(bounds, "--bounds");
+    } else if (const auto meta = io::read_grid_metadata(path)) {
+        if (meta->grid.nx != g.nx || meta->grid.ny != g.ny || meta->grid.nz != g.nz)
+            throw Error(io::grid_metadata_path(path), "describes a " + std::to_string(meta->grid.nx) + "×" +
+                                                         std::to_string(meta->grid.ny) + "×" + std::to_string(meta->grid.nz) +
+                                                         " grid, but the array is " + std::to_string(g.nx) + "×" +
+                                                         std::to_string(g.ny) + "×" + std::to_string(g.nz));
+        g.box = meta->grid.box;
+    } else {
+        throw Error("--bounds", "needed: " + path + " has no sidecar " + io::grid_metadata_path(path) +
+                                    " saying where its nodes are");
+    }
+    g.validate();
+    return g;
+}
+
 void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,
-                  const std::vector<float>& values, int components) {
-    std::vector<std::size_t> shape;
-    if (d.is_grid()) shape = {std::size_t(g.nx), std::size_t(g.ny), std::size_t(g.nz)};
-    else shape = {count};
+                  const std::vector<float>& values, int components, const std::string& method) {
+    if (d.is_grid()) return write_grid(path, g, values, components, method);
+    std::vector<std::size_t> shape{count};
     if (components > 1) shape.push_back(std::size_t(components));
     io::write_npy(path, shape, values);
 }

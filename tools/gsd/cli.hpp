@@ -20,6 +20,8 @@ enum Exit { kOk = 0, kDataError = 1, kUsage = 2 };
 struct Globals {
     bool quiet = false;
     bool verbose = false;
+    std::vector<std::string> argv;  ///< the command line, recorded in grid sidecars
+    const CLI::App* app = nullptr;  ///< the parsed command line, for the options a sidecar records
 };
 Globals& globals();
 
@@ -62,9 +64,18 @@ Box bounds_from(const std::vector<double>& v, const std::string& option);
 /// "--bounds x0 y0 z0 x1 y1 z1" for notes.
 std::string bounds_text(const Box& b);
 
+/// Writes a grid's float32 values, (nx,ny,nz[,components]), and its sidecar GRID.npy.json
+/// (bounds, shape, `method`, the options given, the command line): both or neither.
+void write_grid(const std::string& path, const GridSpec& g, const std::vector<float>& values, int components,
+                const std::string& method);
+
+/// The grid of an (nx,ny,nz) array read from `path`: on `bounds` (--bounds) when given, else on
+/// the bounds of its sidecar, whose shape must match; an error naming --bounds when neither.
+GridSpec grid_of(const std::vector<std::size_t>& shape, const std::string& path, const std::vector<double>& bounds);
+
 /// Writes a float32 result for a domain: (N,N,N[,3]) for a grid, (M[,3]) for queries.
 void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,
-                  const std::vector<float>& values, int components);
+                  const std::vector<float>& values, int components, const std::string& method);
 
 /// A check for an output option: its extension must be one of `extensions` (".npy", …;
 /// case-insensitive), so a run never computes for minutes and then writes the wrong format or
@@ -72,7 +83,8 @@ void write_values(const std::string& path, const Domain& d, const GridSpec& g, s
 CLI::Validator output_file(std::vector<std::string> extensions);
 
 /// Undoes an output already written when a later one fails (all outputs or none). Only a
-/// regular file is removed: `-o /dev/null` or a FIFO was written into, not created.
+/// regular file is removed: `-o /dev/null` or a FIFO was written into, not created. A .npy
+/// takes its grid sidecar (GRID.npy.json) with it.
 void remove_output(const std::string& path);
 
 /// Writes every requested output (pairs of path and writer; an empty path is skipped), or

@@ -112,7 +112,7 @@ bool is_tori_file(const std::string& path) { return io::extension(path) == ".tor
 template <class EvalPoints, class EvalGrid>
 void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
                         const std::string& gradient_out, EvalPoints eval_points, EvalGrid eval_grid,
-                        const std::string& what) {
+                        const std::string& what, const std::string& method) {
     GridSpec grid;
     Points queries;
     if (domain.is_grid()) grid = domain.grid_spec(input_box);
@@ -126,10 +126,10 @@ void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_bo
     if (globals().verbose)
         note("evaluated " + std::to_string(count) + " points on " + v.device + " in " + fmt("%.3f s", dt) + " (" +
              fmt("%.3g", double(count) / std::max(dt, 1e-9)) + " points/s)");
-    write_values(out, domain, grid, count, v.phi, 1);
+    write_values(out, domain, grid, count, v.phi, 1, method);
     if (!gradient_out.empty()) {
         try {
-            write_values(gradient_out, domain, grid, count, v.gradient, 3);
+            write_values(gradient_out, domain, grid, count, v.gradient, 3, method);
         } catch (...) {
             remove_output(out);  // all outputs or none
             throw;
@@ -192,7 +192,7 @@ void add_pat(CLI::App& app) {
                 *domain, box, *output, *gradient,
                 [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, want_gradient, p); },
                 [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, want_gradient, p); },
-                "pat eval");
+                "pat eval", "pat");
         });
     }
 }
@@ -216,15 +216,8 @@ void add_baseline(CLI::App& app) {
         evaluate_and_write(
             *domain, bounding_box(cloud.points), *output, "",
             [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, p); },
-            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, p); }, "baseline " + *kind);
+            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, p); }, "baseline " + *kind, *kind);
     });
-}
-
-// Reads an (nx, ny, nz) grid and pairs it with --bounds.
-GridSpec grid_of(const io::NpyArray& a, const std::vector<double>& bounds) {
-    GridSpec g{int(a.shape[0]), int(a.shape[1]), int(a.shape[2]), bounds_from(bounds, "--bounds")};
-    g.validate();
-    return g;
 }
 
 std::vector<float> as_float(const io::NpyArray& a) { return std::vector<float>(a.data.begin(), a.data.end()); }
@@ -236,12 +229,12 @@ void add_contour(CLI::App& app) {
     auto bounds = std::make_shared<std::vector<double>>();
     auto iso = std::make_shared<double>(0.0);
     c->add_option("GRID", *input, "(N,N,N) float .npy grid")->required();
-    c->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1")->required()->expected(6);
+    c->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: from GRID.npy.json, written beside every grid)")->expected(6);
     c->add_option("--iso", *iso, "Level to extract")->capture_default_str();
     c->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required()->check(output_file({".obj", ".ply", ".off", ".stl"}));
     c->callback([=] {
         const io::NpyArray a = io::read_grid(*input);
-        const GridSpec g = grid_of(a, *bounds);
+        const GridSpec g = grid_of(a.shape, *input, *bounds);
         PolygonMesh mesh;
         naming_file(*input, "values", [&] { mesh = contour(g, as_float(a), *iso); });
         if (mesh.face_count() == 0) throw Error(*input, "the level " + fmt("%g", *iso) + " does not cross the grid");
@@ -258,7 +251,7 @@ void add_slice(CLI::App& app) {
     auto axis = std::make_shared<std::string>("z");
     auto opt = std::make_shared<SliceOptions>();
     s->add_option("GRID", *input, "(N,N,N) float .npy grid")->required();
-    s->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1")->required()->expected(6);
+    s->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: from GRID.npy.json, written beside every grid)")->expected(6);
     s->add_option("--axis", *axis, "Slice perpendicular to x, y or z")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
     s->add_option("--at", opt->at, "World coordinate of the slice plane")->required();
     s->add_option("--width", opt->width, "Image width in pixels (default 512, or the grid size if larger)")->check(CLI::Range(0, 16384));
@@ -271,7 +264,7 @@ void add_slice(CLI::App& app) {
     s->callback([=] {
         if (!std::isfinite(*level)) throw Error("--level", "must be finite");
         const io::NpyArray a = io::read_grid(*input);
-        const GridSpec g = grid_of(a, *bounds);
+        const GridSpec g = grid_of(a.shape, *input, *bounds);
         SliceOptions o = *opt;
         o.axis = *axis == "x" ? Axis::X : (*axis == "y" ? Axis::Y : Axis::Z);
         std::vector<float> values = as_float(a);
@@ -364,7 +357,7 @@ void add_shm(CLI::App& app) {
         const GridSpec g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
         g.validate();
         check_grid_memory(g);
-        if (bounds->empty()) note("grid bounds (pass them to contour/slice): " + bounds_text(g.box));
+        if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
         bool first = true;
         std::size_t which = 0;
         for (const auto& m : meshes) {
@@ -410,7 +403,7 @@ void add_shm(CLI::App& app) {
             zero = contour(g, r.phi, 0.0);
             if (zero.face_count() == 0) throw Error(*contour_out, "the zero level set does not cross the grid");
         }
-        io::write_npy(*output, {std::size_t(*n), std::size_t(*n), std::size_t(*n)}, r.phi);
+        write_grid(*output, g, r.phi, 1, "shm");
         if (!contour_out->empty()) {
             try {
                 io::write_mesh(*contour_out, zero);
@@ -494,7 +487,7 @@ void add_winding(CLI::App& app) {
         };
         evaluate_and_write(
             *domain, bounding_box(elements.corners), *output, "", eval,
-            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding");
+            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding", "winding");
     });
 }
 
@@ -537,6 +530,8 @@ int main(int argc, char** argv) {
     add_swn(app);
     add_info(app);
     try {
+        globals().argv.assign(argv, argv + argc);
+        globals().app = &app;
         app.parse(argc, argv);
     } catch (const CLI::CallForHelp& e) {
         return app.exit(e);

@@ -1,0 +1,313 @@
+// gsd's Python module (pybind11): NumPy arrays in and out, the GIL released while gsd works.
+//
+// Arrays come in as any (N, 3) float array and are converted once to gsd's row-major double
+// matrices; results (std::vector) are handed to NumPy without a copy (the array owns them).
+// gsd::Error becomes gsd.Error, a ValueError. python/gsd/__init__.py documents the API.
+#include <gsd/baselines.hpp>
+#include <gsd/gpu.hpp>
+#include <gsd/io.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/shm.hpp>
+#include <gsd/sums.hpp>
+#include <gsd/surface.hpp>
+#include <gsd/swn.hpp>
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <optional>
+#include <utility>
+
+namespace py = pybind11;
+using namespace gsd;
+
+namespace {
+
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using IndexArray = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
+
+// An (N, 3) array of any float dtype → gsd::Points; `name` is the argument, for errors.
+Points points_from(const DoubleArray& a, const char* name) {
+    if (a.ndim() != 2 || a.shape(1) != 3) {
+        std::string shape;
+        for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
+        throw Error(name, "must be an (N, 3) array, not (" + shape + ")");
+    }
+    Points p(a.shape(0), 3);
+    std::copy(a.data(), a.data() + a.size(), p.data());
+    return p;
+}
+
+// Moves a vector into a NumPy array of the given shape (no copy: a capsule owns the vector).
+template <class T>
+py::array_t<T> to_numpy(std::vector<T>&& v, std::vector<py::ssize_t> shape) {
+    auto* owned = new std::vector<T>(std::move(v));
+    py::capsule free_when_done(owned, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+    return py::array_t<T>(shape, owned->data(), free_when_done);
+}
+
+py::array_t<double> to_numpy(const Points& p) {
+    py::array_t<double> out({py::ssize_t(p.rows()), py::ssize_t(3)});
+    std::copy(p.data(), p.data() + p.size(), out.mutable_data());
+    return out;
+}
+
+// A polygon mesh from vertices (V, 3) and faces: an (F, k) integer array (all faces k-gons) or
+// a sequence of index sequences (mixed sizes).
+PolygonMesh mesh_from(const DoubleArray& vertices, const py::object& faces) {
+    PolygonMesh m;
+    m.vertices = points_from(vertices, "vertices");
+    auto add = [&](const std::int64_t* f, std::size_t n) {
+        std::vector<std::uint32_t> idx(n);
+        for (std::size_t k = 0; k < n; ++k) {
+            if (f[k] < 0 || f[k] >= std::int64_t(m.vertices.rows()))
+                throw Error("faces", "index " + std::to_string(f[k]) + " is not a vertex (there are " +
+                                         std::to_string(m.vertices.rows()) + ")");
+            idx[k] = std::uint32_t(f[k]);
+        }
+        m.add_face(idx.data(), n);
+    };
+    if (py::isinstance<py::array>(faces)) {
+        const IndexArray f = faces.cast<IndexArray>();
+        if (f.ndim() != 2 || f.shape(1) < 3) throw Error("faces", "must be an (F, k) integer array with k ≥ 3");
+        for (py::ssize_t i = 0; i < f.shape(0); ++i) add(f.data(i, 0), std::size_t(f.shape(1)));
+    } else {
+        for (const py::handle face : faces) {
+            const IndexArray f = py::reinterpret_borrow<py::object>(face).cast<IndexArray>();
+            if (f.ndim() != 1) throw Error("faces", "each face must be a sequence of vertex indices");
+            add(f.data(), std::size_t(f.size()));
+        }
+    }
+    validate(m, "mesh");
+    return m;
+}
+
+py::object faces_of(const PolygonMesh& m) {
+    bool uniform = true;
+    for (std::size_t f = 1; f < m.face_count() && uniform; ++f) uniform = m.face_size(f) == m.face_size(0);
+    if (uniform && m.face_count() > 0) {
+        const std::size_t k = m.face_size(0);
+        py::array_t<std::int64_t> out({py::ssize_t(m.face_count()), py::ssize_t(k)});
+        for (std::size_t i = 0; i < m.indices.size(); ++i) out.mutable_data()[i] = m.indices[i];
+        return out;
+    }
+    py::list out;
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        out.append(py::array_t<std::int64_t>(py::ssize_t(m.face_size(f)), std::vector<std::int64_t>(
+            m.indices.begin() + m.offsets[f], m.indices.begin() + m.offsets[f + 1]).data()));
+    return out;
+}
+
+PointCloud cloud_from(const DoubleArray& points, const DoubleArray& normals) {
+    PointCloud c{points_from(points, "points"), points_from(normals, "normals")};
+    validate(c, "cloud");
+    return c;
+}
+
+GridSpec grid_from(int n, const std::optional<std::array<double, 6>>& bounds, const Box& fallback) {
+    const Box box = bounds ? Box{{(*bounds)[0], (*bounds)[1], (*bounds)[2]}, {(*bounds)[3], (*bounds)[4], (*bounds)[5]}}
+                           : padded_cube(fallback);
+    GridSpec g = GridSpec::cube(n, box);
+    g.validate();
+    return g;
+}
+
+py::tuple bounds_tuple(const Box& b) { return py::make_tuple(b.lo.x(), b.lo.y(), b.lo.z(), b.hi.x(), b.hi.y(), b.hi.z()); }
+
+py::object field_result(FieldValues&& v, bool gradient, std::vector<py::ssize_t> shape) {
+    py::array_t<float> phi = to_numpy(std::move(v.phi), shape);
+    if (!gradient) return phi;
+    shape.push_back(3);
+    return py::make_tuple(phi, to_numpy(std::move(v.gradient), shape));
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_gsd, m) {
+    m.doc() = "gsd: generalized signed distance and winding numbers from imperfect geometry";
+    static py::exception<Error> error(m, "Error", PyExc_ValueError);
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const Error& e) {
+            const std::string where = e.where();
+            const std::string message = (where.empty() ? std::string() : where + ": ") + e.what();
+            PyErr_SetString(error.ptr(), message.c_str());
+        }
+    });
+
+    m.def("version", [] { return std::string(version()); });
+    m.def("devices", [] {
+        py::list out;
+        for (const auto& d : gpu::list_devices().devices)
+            out.append(py::dict(py::arg("index") = d.index, py::arg("name") = d.name, py::arg("type") = d.type,
+                                py::arg("usable") = d.usable));
+        return out;
+    }, "The Vulkan devices gsd sees (an empty list without a loader).");
+
+    // ---- io ----
+    m.def("read_point_cloud", [](const std::string& path) {
+        PointCloud c;
+        {
+            py::gil_scoped_release nogil;
+            c = io::read_point_cloud(path);
+        }
+        return py::make_tuple(to_numpy(c.points), to_numpy(c.normals));
+    }, py::arg("path"), "(points (N,3), normals (N,3)) from .ply .xyz .xyzn .txt .pc .obj .npy");
+    m.def("read_mesh", [](const std::string& path) {
+        PolygonMesh mesh;
+        {
+            py::gil_scoped_release nogil;
+            mesh = io::read_mesh(path);
+        }
+        return py::make_tuple(to_numpy(mesh.vertices), faces_of(mesh));
+    }, py::arg("path"), "(vertices (V,3), faces) from .obj .ply .off .stl; faces (F,k) if all are k-gons, else a list");
+    m.def("write_mesh", [](const std::string& path, const DoubleArray& vertices, const py::object& faces) {
+        const PolygonMesh mesh = mesh_from(vertices, faces);
+        py::gil_scoped_release nogil;
+        io::write_mesh(path, mesh);
+    }, py::arg("path"), py::arg("vertices"), py::arg("faces"));
+
+    // ---- Points as Tori ----
+    py::class_<FittedTori>(m, "Tori", "Tori fitted at every point of a cloud (fit once, evaluate often).")
+        .def("__len__", [](const FittedTori& t) { return t.size(); })
+        .def_property_readonly("points", [](const FittedTori& t) { return to_numpy(t.points); })
+        .def_property_readonly("normals", [](const FittedTori& t) { return to_numpy(t.normals); })
+        .def_readonly("spacing", &FittedTori::spacing)
+        .def_readonly("fitter", &FittedTori::fitter)
+        .def("save", [](const FittedTori& t, const std::string& path) {
+            py::gil_scoped_release nogil;
+            save_tori(path, t);
+        }, py::arg("path"));
+    m.def("load_tori", [](const std::string& path) {
+        py::gil_scoped_release nogil;
+        return load_tori(path);
+    }, py::arg("path"));
+    m.def("fit_tori", [](const DoubleArray& points, const DoubleArray& normals, const std::string& fitter,
+                         const std::string& device) {
+        PointCloud cloud = cloud_from(points, normals);
+        if (fitter != "net" && fitter != "jet") throw Error("fitter", "must be \"net\" or \"jet\", not \"" + fitter + "\"");
+        py::gil_scoped_release nogil;
+        if (fitter == "jet") return JetFitter().fit(cloud);
+        TorusNetOptions o;
+        o.device = device;
+        return TorusNet(o).fit(cloud);
+    }, py::arg("points"), py::arg("normals"), py::arg("fitter") = "net", py::arg("device") = "",
+       "Fits a torus at every point: fitter \"net\" (TorusNet, the default) or \"jet\".");
+
+    py::class_<TorusField>(m, "TorusField", "The PAT generalized signed distance of fitted tori.")
+        .def(py::init([](const FittedTori& tori, bool exact, const std::string& device, double r_eval) {
+                 BlendOptions o;
+                 o.exact = exact;
+                 o.device = device;
+                 o.r_eval = r_eval;
+                 py::gil_scoped_release nogil;
+                 return std::make_unique<TorusField>(tori, o);
+             }),
+             py::arg("tori"), py::arg("exact") = false, py::arg("device") = "", py::arg("r_eval") = 0.0)
+        .def("evaluate", [](const TorusField& f, const DoubleArray& queries, bool gradient) {
+            const Points q = points_from(queries, "queries");
+            FieldValues v;
+            {
+                py::gil_scoped_release nogil;
+                v = f.evaluate(q, gradient);
+            }
+            return field_result(std::move(v), gradient, {py::ssize_t(q.rows())});
+        }, py::arg("queries"), py::arg("gradient") = false,
+           "φ (M,) float32 at (M,3) queries; with gradient=True, (φ, ∇φ (M,3)).")
+        .def("evaluate_grid", [](const TorusField& f, int n, std::optional<std::array<double, 6>> bounds, bool gradient) {
+            const GridSpec g = grid_from(n, bounds, bounding_box(f.tori().points));
+            FieldValues v;
+            {
+                py::gil_scoped_release nogil;
+                v = f.evaluate(g, gradient);
+            }
+            return py::make_tuple(field_result(std::move(v), gradient, {n, n, n}), bounds_tuple(g.box));
+        }, py::arg("n"), py::arg("bounds") = py::none(), py::arg("gradient") = false,
+           "(φ (n,n,n), bounds) on an n³ grid; bounds (x0,y0,z0,x1,y1,z1), default the cloud's cube + 10%.")
+        .def_property_readonly("r_eval", &TorusField::r_eval);
+
+    // ---- Signed Heat Method on grids ----
+    m.def("signed_heat_grid", [](int n, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,
+                                 std::optional<DoubleArray> vertices, py::object faces,
+                                 std::optional<std::array<double, 6>> bounds, double t_coef, const std::string& device) {
+        if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
+        if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
+        if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
+        std::optional<PointCloud> cloud;
+        std::optional<PolygonMesh> mesh;
+        if (points) cloud = cloud_from(*points, *normals);
+        if (vertices) mesh = mesh_from(*vertices, faces);
+        ShmOptions o;
+        o.t_coef = t_coef;
+        o.device = device;
+        py::gil_scoped_release nogil;
+        ShmSource src;
+        if (mesh) src = shm_source(*mesh);
+        if (cloud) src = mesh ? combine(src, shm_source(*cloud)) : shm_source(*cloud);
+        const GridSpec g = bounds ? grid_from(n, bounds, {}) : GridSpec::cube(n, shm_default_bounds(src));
+        g.validate();
+        ShmResult r = SignedHeatGrid(std::move(src), g, o).solve();
+        py::gil_scoped_acquire gil;
+        return py::make_tuple(to_numpy(std::move(r.phi), {n, n, n}), bounds_tuple(g.box));
+    }, py::arg("n"), py::arg("points") = py::none(), py::arg("normals") = py::none(), py::arg("vertices") = py::none(),
+       py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("t_coef") = 1.0, py::arg("device") = "",
+       "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both.");
+
+    // ---- winding numbers ----
+    m.def("winding_numbers", [](const DoubleArray& queries, std::optional<DoubleArray> vertices, py::object faces,
+                                std::optional<DoubleArray> points, std::optional<DoubleArray> normals, bool exact,
+                                const std::string& device) {
+        const Points q = points_from(queries, "queries");
+        OrientedElements elements;
+        if (vertices && !faces.is_none()) elements = OrientedElements::from_mesh(mesh_from(*vertices, faces));
+        else if (points && normals) elements = OrientedElements::from_cloud(cloud_from(*points, *normals));
+        else throw Error("vertices", "give a mesh (vertices, faces) or a cloud (points, normals)");
+        WindingOptions o;
+        o.exact = exact;
+        o.device = device;
+        WindingResult r;
+        {
+            py::gil_scoped_release nogil;
+            r = fast_winding_numbers(elements, q, o);
+        }
+        return to_numpy(std::move(r.w), {py::ssize_t(q.rows())});
+    }, py::arg("queries"), py::arg("vertices") = py::none(), py::arg("faces") = py::none(), py::arg("points") = py::none(),
+       py::arg("normals") = py::none(), py::arg("exact") = false, py::arg("device") = "",
+       "Generalized winding number (M,) of a mesh in any state or an oriented cloud at (M,3) queries.");
+
+    // ---- on surfaces ----
+    m.def("signed_heat_surface", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
+                                    double t_coef) {
+        PolygonMesh mesh = mesh_from(vertices, faces);
+        py::gil_scoped_release nogil;
+        SurfaceMesh surface(std::move(mesh), "mesh");
+        const SurfaceSources sources = read_surface_curves(curves, surface);
+        SurfaceShmSetup setup;
+        setup.t_coef = t_coef;
+        SurfaceShmResult r = SignedHeatSurface(std::move(surface), setup).solve(sources);
+        py::gil_scoped_acquire gil;
+        const py::ssize_t n = py::ssize_t(r.phi.size());
+        return to_numpy(std::move(r.phi), {n});
+    }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("t_coef") = 1.0,
+       "Signed distance per vertex to the curves in a file (docs/formats.md), by the surface Signed Heat Method.");
+    m.def("surface_winding_numbers", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
+                                        const std::string& lp) {
+        PolygonMesh mesh = mesh_from(vertices, faces);
+        SwnOptions o;
+        o.residual = swn_residual_from_name(lp);
+        py::gil_scoped_release nogil;
+        SurfaceMesh surface(std::move(mesh), "mesh");
+        const SurfaceSources sources = read_surface_curves(curves, surface);
+        SwnResult r = SurfaceWindingNumbers(std::move(surface)).solve(sources, o);
+        std::vector<std::int32_t> labels(r.labels.begin(), r.labels.end());
+        std::vector<double> w;
+        w.reserve(r.w.size() * 3);
+        for (const auto& c : r.w) w.insert(w.end(), c.begin(), c.end());
+        py::gil_scoped_acquire gil;
+        const py::ssize_t f = py::ssize_t(labels.size()), t = py::ssize_t(r.w.size());
+        return py::make_tuple(to_numpy(std::move(labels), {f}), to_numpy(std::move(w), {t, 3}));
+    }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("lp") = "full",
+       "(labels (F,) int32 per input face, w (T,3) per triangle corner): Surface Winding Numbers of curves in a file.");
+}

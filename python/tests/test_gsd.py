@@ -1,0 +1,174 @@
+"""The Python module against the gsd CLI (the same library through another door), analytic
+answers, and bad input. Run by CTest (test_python) with PYTHONPATH at the build's python/ and
+GSD_CLI naming the built `gsd` executable."""
+import os
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+import gsd
+
+CLI = os.environ.get("GSD_CLI", "gsd")
+BOUNDS = (-1.2, -1.2, -1.2, 1.2, 1.2, 1.2)
+
+
+def cli(*args):
+    r = subprocess.run([CLI, "-q", *map(str, args)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout + r.stderr
+    return r
+
+
+def bounds_args():
+    return ["--bounds", *BOUNDS]
+
+
+@pytest.fixture(scope="module")
+def sphere(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sphere")
+    cloud = d / "s.ply"
+    cli("sample", "sphere", "-n", 1500, "--seed", 4, "-o", cloud)
+    return d, cloud
+
+
+def test_version_matches_cli():
+    out = subprocess.run([CLI, "--version"], capture_output=True, text=True).stdout.strip()
+    assert gsd.version() == out == gsd.__version__
+
+
+def test_read_point_cloud(sphere):
+    _, cloud = sphere
+    points, normals = gsd.read_point_cloud(str(cloud))
+    assert points.shape == (1500, 3) and normals.shape == (1500, 3)
+    assert points.dtype == np.float64
+    # `gsd sample sphere` draws the sphere of radius 0.5 at the origin, normals outward.
+    np.testing.assert_allclose(np.linalg.norm(points, axis=1), 0.5, atol=1e-6)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", points, normals) / 0.5, 1.0, atol=1e-6)
+
+
+def test_pat_matches_cli_grid_and_gradient(sphere):
+    d, cloud = sphere
+    cli("pat", "eval", cloud, "--fitter", "jet", "--device", "cpu", "--grid", 24, *bounds_args(),
+        "-o", d / "phi.npy", "--gradient", d / "grad.npy")
+    points, normals = gsd.read_point_cloud(str(cloud))
+    tori = gsd.fit_tori(points.astype(np.float32), normals, fitter="jet")  # float32 in is fine
+    assert len(tori) == 1500 and tori.fitter == "jet"
+    field = gsd.TorusField(tori, device="cpu")
+    (phi, grad), bounds = field.evaluate_grid(24, bounds=BOUNDS, gradient=True)
+    assert phi.shape == (24, 24, 24) and grad.shape == (24, 24, 24, 3)
+    assert bounds == BOUNDS
+    # float32 points in → the fit sees float32-rounded positions: agreement to float32 level.
+    np.testing.assert_allclose(phi, np.load(d / "phi.npy"), atol=2e-5)
+    np.testing.assert_allclose(grad, np.load(d / "grad.npy"), atol=2e-4)
+    # φ is the signed distance to the sphere (radius 0.5) near it.
+    queries = np.array([[0.3, 0.0, 0.0], [0.0, 0.6, 0.0], [0.0, 0.0, -0.45], [0.2, 0.2, 0.3]])
+    np.testing.assert_allclose(field.evaluate(queries), np.linalg.norm(queries, axis=1) - 0.5, atol=0.01)
+
+
+def test_tori_round_trip_through_the_cli(sphere):
+    d, cloud = sphere
+    cli("pat", "fit", cloud, "--fitter", "jet", "-o", d / "s.tori")
+    tori = gsd.load_tori(str(d / "s.tori"))
+    points, normals = gsd.read_point_cloud(str(cloud))
+    mine = gsd.fit_tori(points, normals, fitter="jet")
+    q = np.random.default_rng(0).uniform(-1.2, 1.2, size=(300, 3))
+    np.testing.assert_allclose(gsd.TorusField(tori, device="cpu").evaluate(q),
+                               gsd.TorusField(mine, device="cpu").evaluate(q), atol=1e-6)
+    mine.save(str(d / "mine.tori"))
+    assert len(gsd.load_tori(str(d / "mine.tori"))) == 1500
+
+
+def test_gpu_matches_cpu_when_a_device_is_there(sphere):
+    _, cloud = sphere
+    if not any(dev["usable"] for dev in gsd.devices()):
+        pytest.skip("no Vulkan device")
+    points, normals = gsd.read_point_cloud(str(cloud))
+    tori = gsd.fit_tori(points, normals, fitter="jet")
+    q = np.random.default_rng(1).uniform(-1.2, 1.2, size=(2000, 3))
+    cpu = gsd.TorusField(tori, device="cpu").evaluate(q)
+    gpu = gsd.TorusField(tori, device="gpu").evaluate(q)
+    assert np.max(np.abs(cpu - gpu)) < 1e-4
+
+
+def test_winding_numbers_match_cli_and_are_one_inside(tmp_path):
+    mesh = tmp_path / "m.obj"
+    cli("mesh", "sphere", "-r", 24, "-o", mesh)
+    v, f = gsd.read_mesh(str(mesh))
+    assert v.shape[1] == 3 and f.shape[1] == 3 and f.dtype == np.int64
+    q = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.1], [3.0, 0.0, 0.0], [0.0, -5.0, 2.0]])
+    w = gsd.winding_numbers(q, vertices=v, faces=f, exact=True, device="cpu")
+    np.testing.assert_allclose(w, [1, 1, 0, 0], atol=1e-9)
+    np.save(tmp_path / "q.npy", q)
+    cli("winding", mesh, "--queries", tmp_path / "q.npy", "--exact", "--device", "cpu", "-o", tmp_path / "w.npy")
+    np.testing.assert_allclose(w, np.load(tmp_path / "w.npy"), atol=1e-6)
+    # Faces as a list of sequences (mixed sizes allowed) give the same numbers.
+    w_list = gsd.winding_numbers(q, vertices=v, faces=[list(x) for x in f], exact=True, device="cpu")
+    np.testing.assert_allclose(w_list, w, atol=0)
+
+
+def test_signed_heat_grid_matches_cli(tmp_path):
+    mesh = tmp_path / "b.obj"
+    cli("mesh", "sphere", "-r", 16, "--holes", 2, "--hole-area", 0.1, "-o", mesh)
+    cli("shm", "grid", mesh, "--grid", 20, *bounds_args(), "--device", "cpu", "-o", tmp_path / "shm.npy")
+    v, f = gsd.read_mesh(str(mesh))
+    phi, bounds = gsd.signed_heat_grid(20, vertices=v, faces=f, bounds=BOUNDS, device="cpu")
+    assert phi.shape == (20, 20, 20) and bounds == BOUNDS
+    np.testing.assert_allclose(phi, np.load(tmp_path / "shm.npy"), atol=1e-6)
+    assert phi[10, 10, 10] < 0 < phi[0, 0, 0]  # inside the broken sphere, outside at the corner
+
+
+def test_surface_methods_match_cli(tmp_path):
+    mesh = tmp_path / "s.obj"
+    curves = tmp_path / "c.txt"
+    cli("mesh", "sphere", "-r", 20, "-o", mesh)
+    cli("curve", mesh, "--plane", 0, 0, 1, 0.3, "-o", curves)
+    v, f = gsd.read_mesh(str(mesh))
+    cli("swn", mesh, "--curves", curves, "-o", tmp_path / "labels.npy")
+    labels, w = gsd.surface_winding_numbers(v, f, str(curves))
+    assert labels.dtype == np.int32 and labels.shape == (f.shape[0],)
+    np.testing.assert_array_equal(labels, np.load(tmp_path / "labels.npy"))
+    cli("shm", "surface", mesh, "--curves", curves, "-o", tmp_path / "phi.npy")
+    phi = gsd.signed_heat_surface(v, f, str(curves))
+    np.testing.assert_allclose(phi, np.load(tmp_path / "phi.npy"), atol=1e-6)
+    # The plane's curve n·x = d has n·x < d on its left (inside): the cap z > 0.3 is outside,
+    # so at the north pole φ > 0, at the south pole φ < 0.
+    assert phi[np.argmax(v[:, 2])] > 0 > phi[np.argmin(v[:, 2])]
+
+
+def test_threads_share_a_field(sphere):
+    _, cloud = sphere
+    points, normals = gsd.read_point_cloud(str(cloud))
+    field = gsd.TorusField(gsd.fit_tori(points, normals, fitter="jet"), device="cpu")
+    q = np.random.default_rng(2).uniform(-1, 1, size=(4000, 3))
+    expect = field.evaluate(q)
+    results = [None] * 4
+
+    def work(i):
+        results[i] = field.evaluate(q)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for r in results:
+        np.testing.assert_array_equal(r, expect)
+
+
+def test_bad_input_raises_gsd_error(tmp_path):
+    with pytest.raises(gsd.Error, match="points: must be an \\(N, 3\\) array"):
+        gsd.fit_tori(np.zeros((5, 2)), np.zeros((5, 2)))
+    with pytest.raises(ValueError, match="missing.ply"):
+        gsd.read_point_cloud(str(tmp_path / "missing.ply"))
+    with pytest.raises(gsd.Error, match="fitter"):
+        p = np.random.default_rng(0).normal(size=(50, 3))
+        gsd.fit_tori(p, p, fitter="magic")
+    with pytest.raises(gsd.Error, match="non-finite|NaN|finite"):
+        p = np.random.default_rng(0).normal(size=(50, 3))
+        p[3, 1] = np.nan
+        gsd.fit_tori(p, p)
+    with pytest.raises(gsd.Error, match="faces"):
+        gsd.winding_numbers(np.zeros((1, 3)), vertices=np.eye(3), faces=np.array([[0, 1, 7]]))
+    with pytest.raises(gsd.Error):
+        gsd.signed_heat_grid(16)
