@@ -79,10 +79,10 @@ def test_tori_round_trip_through_the_cli(sphere):
     assert len(gsd.load_tori(str(d / "mine.tori"))) == 1500
 
 
-def test_gpu_matches_cpu_when_a_device_is_there(sphere):
+def test_gpu_matches_cpu(sphere):
+    # The suite requires a Vulkan device, as the C++ suites do (lavapipe in CI).
     _, cloud = sphere
-    if not any(dev["usable"] for dev in gsd.devices()):
-        pytest.skip("no Vulkan device")
+    assert any(dev["usable"] for dev in gsd.devices()), "no usable Vulkan device (install mesa-vulkan-drivers)"
     points, normals = gsd.read_point_cloud(str(cloud))
     tori = gsd.fit_tori(points, normals, fitter="jet")
     q = np.random.default_rng(1).uniform(-1.2, 1.2, size=(2000, 3))
