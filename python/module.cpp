@@ -196,16 +196,49 @@ PYBIND11_MODULE(_gsd, m) {
     }, py::arg("points"), py::arg("normals"), py::arg("fitter") = "net", py::arg("device") = "",
        "Fits a torus at every point: fitter \"net\" (TorusNet, the default) or \"jet\".");
 
+    py::class_<OutlierOptions>(m, "OutlierOptions", "PAT's outlier defence (docs/pat.md, Outliers); defaults as in C++.")
+        .def(py::init<>())
+        .def_readwrite("enabled", &OutlierOptions::enabled)
+        .def_readwrite("k", &OutlierOptions::k)
+        .def_readwrite("quantile", &OutlierOptions::quantile)
+        .def_readwrite("min_score", &OutlierOptions::min_score)
+        .def_readwrite("mad_factor", &OutlierOptions::mad_factor)
+        .def_readwrite("sparsity_factor", &OutlierOptions::sparsity_factor);
+    m.def("point_confidence", [](const FittedTori& tori, std::optional<OutlierOptions> options) {
+        const OutlierOptions o = options.value_or(OutlierOptions{});
+        PointConfidence c;
+        {
+            py::gil_scoped_release nogil;
+            c = point_confidence(tori, o);
+        }
+        return py::make_tuple(py::array_t<float>(py::ssize_t(c.confidence.size()), c.confidence.data()),
+                              py::array_t<double>(py::ssize_t(c.score.size()), c.score.data()),
+                              py::array_t<double>(py::ssize_t(c.sparsity.size()), c.sparsity.data()));
+    }, py::arg("tori"), py::arg("options") = py::none(),
+       "(confidence (N,) float32, residual (N,), sparsity (N,)): PAT's outlier measures (docs/pat.md, Outliers);\n"
+       "a point is an outlier where confidence < 0.5.");
+
     py::class_<TorusField>(m, "TorusField", "The PAT generalized signed distance of fitted tori.")
-        .def(py::init([](const FittedTori& tori, bool exact, const std::string& device, double r_eval) {
+        .def(py::init([](const FittedTori& tori, bool exact, const std::string& device, double r_eval,
+                         bool keep_outliers, std::optional<OutlierOptions> outliers) {
                  BlendOptions o;
                  o.exact = exact;
                  o.device = device;
                  o.r_eval = r_eval;
+                 OutlierOptions out = outliers.value_or(OutlierOptions{});
+                 if (keep_outliers) out.enabled = false;
                  py::gil_scoped_release nogil;
-                 return std::make_unique<TorusField>(tori, o);
+                 return std::make_unique<TorusField>(tori, o, out);
              }),
-             py::arg("tori"), py::arg("exact") = false, py::arg("device") = "", py::arg("r_eval") = 0.0)
+             py::arg("tori"), py::arg("exact") = false, py::arg("device") = "", py::arg("r_eval") = 0.0,
+             py::arg("keep_outliers") = false, py::arg("outliers") = py::none(),
+             "keep_outliers=True blends every point (disables the outlier defence, for comparison);\n"
+             "outliers: an OutlierOptions to tune the defence.")
+        .def_property_readonly("confidence", [](const TorusField& f) {
+            const std::vector<float>& c = f.confidence().confidence;
+            return py::array_t<float>(py::ssize_t(c.size()), c.data());
+        }, "Per point confidence (N,) float32; points below 0.5 are outliers left out of the blend (empty with keep_outliers).")
+        .def_property_readonly("blended_count", &TorusField::blended_count)
         .def("evaluate", [](const TorusField& f, const DoubleArray& queries, bool gradient) {
             const Points q = points_from(queries, "queries");
             FieldValues v;

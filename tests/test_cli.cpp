@@ -332,3 +332,35 @@ TEST_CASE("grid sidecars: every grid gets GRID.npy.json; contour and slice need 
     CHECK_FALSE(test::file_exists(dir.file("x.obj")));
     CHECK_FALSE(test::file_exists(dir.file("x.png")));
 }
+
+TEST_CASE("PAT's outlier defence on the CLI: --confidence per point, --keep-outliers for comparison") {
+    ScratchDir dir("cli-outliers");
+    const std::string cloud = dir.file("c.npy");
+    REQUIRE(run_cli("sample torus -n 2048 --outliers 0.05 --seed 4 -o " + cloud).exit_code == 0);
+    const auto fit = run_cli("pat fit " + cloud + " -o " + dir.file("c.tori") + " --confidence " + dir.file("conf.npy") +
+                             " --device cpu");
+    REQUIRE(fit.exit_code == 0);
+    CHECK(fit.output.find("points are outliers") != std::string::npos);
+    const io::NpyArray conf = io::read_npy(dir.file("conf.npy"));
+    REQUIRE(conf.shape == std::vector<std::size_t>{2048});
+    std::size_t low = 0;
+    for (std::size_t i = 0; i < conf.size(); ++i) {
+        CHECK(conf.data[i] >= 0);
+        CHECK(conf.data[i] <= 1);
+        low += conf.data[i] < 0.5;
+    }
+    // About 5 % are strays; those near the surface stay (and are harmless).
+    CHECK(low > 20);
+    CHECK(low < 160);
+    // eval writes the same confidences; --keep-outliers changes the field.
+    const std::string common = " --grid 24 --bounds -1 -1 -1 1 1 1 --device cpu --tori " + dir.file("c.tori");
+    REQUIRE(run_cli("pat eval -o " + dir.file("a.npy") + " --confidence " + dir.file("conf2.npy") + common).exit_code == 0);
+    REQUIRE(run_cli("pat eval -o " + dir.file("b.npy") + " --keep-outliers" + common).exit_code == 0);
+    CHECK(max_abs_diff(conf, io::read_npy(dir.file("conf2.npy"))) == 0);
+    CHECK(max_abs_diff(io::read_npy(dir.file("a.npy")), io::read_npy(dir.file("b.npy"))) > 0.05);
+    // Scoring nothing and writing confidences is a contradiction: a usage error, no outputs.
+    CHECK(run_cli("pat eval -o " + dir.file("x.npy") + " --keep-outliers --confidence " + dir.file("y.npy") + common)
+              .exit_code == 2);
+    CHECK_FALSE(std::filesystem::exists(dir.file("x.npy")));
+    CHECK_FALSE(std::filesystem::exists(dir.file("y.npy")));
+}

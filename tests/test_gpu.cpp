@@ -236,6 +236,18 @@ TEST_CASE("real, sparse and corrupted clouds: device agrees with the CPU to 2e-4
     const Diff d = compare(TorusField(f, on("gpu")).evaluate(q).phi, TorusField(f, on("cpu")).evaluate(q).phi, 2e-4);
     MESSAGE("corrupted 512-point box: max |Δφ| = " << d.max_abs);
     CHECK(d.max_abs < 2e-4);
+    // Outliers (5 % uniform in the box): both paths blend the same trusted points.
+    shapes::Corruption strays;
+    strays.outlier_fraction = 0.05;
+    const PointCloud o = shapes::corrupt(shapes::by_name("torus")->sample(2048, 3), strays, 4);
+    const FittedTori fo = JetFitter().fit(o);
+    const TorusField on_gpu(fo, on("gpu")), on_cpu(fo, on("cpu"));
+    REQUIRE(on_cpu.blended_count() < fo.size());
+    CHECK(on_gpu.blended_count() == on_cpu.blended_count());
+    const Points qo = mixed_queries(o, 10);
+    const Diff dout = compare(on_gpu.evaluate(qo).phi, on_cpu.evaluate(qo).phi, 2e-4);
+    MESSAGE("torus with 5 % outliers (" << fo.size() - on_cpu.blended_count() << " left out): max |Δφ| = " << dout.max_abs);
+    CHECK(dout.max_abs < 2e-4);
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 #endif

@@ -146,6 +146,54 @@ private:
     std::shared_ptr<const Impl> impl_;
 };
 
+// ---- outliers -----------------------------------------------------------------------------
+
+/// PAT's defence against outliers (docs/pat.md, "Outliers"). Each point gets two measures:
+/// - its residual: how far it lies from the tori of its k nearest neighbors (the `quantile` of
+///   those distances), in units of the neighbors' own spacing ℓ (the median of their distances
+///   to their k-th neighbor). A point on the surface lies on its neighbors' tori up to noise;
+///   a stray point near the surface does not.
+/// - its sparsity: its own ℓ over the cloud's median ℓ. Stray points far from the surface have
+///   only each other as neighbors, which are many times farther apart than surface samples.
+/// A point whose residual exceeds max(min_score, median + mad_factor·MAD of the cloud's
+/// residuals), or whose sparsity exceeds sparsity_factor, is an outlier and is left out of the
+/// blend.
+struct OutlierOptions {
+    /// Leave outliers out of the blend (TorusField). false: every point is blended, as in the
+    /// thesis (for comparison).
+    bool enabled = true;
+    /// Neighbors whose tori judge each point.
+    int k = 16;
+    /// Which order statistic of the k distances is the score: a low one, so a point needs only
+    /// some of its neighbors' surfaces through it (edges, thin parts, holes).
+    double quantile = 0.25;
+    /// The smallest threshold, in neighbor spacings: on a clean cloud nothing is dropped.
+    double min_score = 0.5;
+    /// The threshold grows with the spread of the cloud's scores (its noise level).
+    double mad_factor = 8.0;
+    /// A point whose k-th neighbor is this many times farther than the cloud's median is an
+    /// outlier (a region that much sparser holds sparsity_factor² times fewer samples per area).
+    double sparsity_factor = 4.0;
+};
+
+/// Per-point outlier scores and confidences of fitted tori.
+struct PointConfidence {
+    std::vector<double> score;      ///< residual: distance to the neighbors' tori, in their spacings
+    std::vector<double> sparsity;   ///< distance to the k-th neighbor over the cloud's median
+    /// 1 / (1 + r⁴) with r = max(score/threshold, sparsity/sparsity_threshold): 1 trusted, ½ at
+    /// a threshold, → 0 far beyond.
+    std::vector<float> confidence;
+    double threshold = 0;           ///< the residual above which a point is an outlier
+    double sparsity_threshold = 0;  ///< the sparsity above which a point is an outlier
+    std::size_t outliers = 0;       ///< how many points are outliers
+
+    bool is_outlier(std::size_t i) const { return score[i] > threshold || sparsity[i] > sparsity_threshold; }
+};
+
+/// Scores every point (multi-threaded; O(n k log n)). Clouds with at most k points are all
+/// trusted (confidence 1). Throws gsd::Error naming the option field on bad options.
+GSD_EXPORT PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& options = {});
+
 // ---- evaluation ---------------------------------------------------------------------------
 
 /// Options shared by every blended field (PAT and the SSPD / signed Hopf–Cole baselines).
@@ -179,7 +227,9 @@ struct FieldValues {
 /// The PAT signed distance field of a set of fitted tori.
 class GSD_EXPORT TorusField {
 public:
-    explicit TorusField(FittedTori tori, BlendOptions options = {});
+    /// Scores the points (point_confidence) unless `outliers.enabled` is false, and blends the
+    /// ones that are not outliers.
+    explicit TorusField(FittedTori tori, BlendOptions options = {}, OutlierOptions outliers = {});
     ~TorusField();
     TorusField(TorusField&&) noexcept;
     TorusField& operator=(TorusField&&) noexcept;
@@ -191,8 +241,14 @@ public:
     FieldValues evaluate(const GridSpec& grid, bool with_gradient = false,
                          const ProgressFn& progress = {}) const;
 
+    /// All the fitted tori, outliers included.
     const FittedTori& tori() const;
+    /// The points' scores and confidences (empty vectors when the defence is disabled).
+    const PointConfidence& confidence() const;
+    /// How many points the blend uses (the tori that are not outliers).
+    Eigen::Index blended_count() const;
     const BlendOptions& options() const;
+    const OutlierOptions& outlier_options() const;
     /// The radius of the accelerated sum actually used.
     double r_eval() const;
 

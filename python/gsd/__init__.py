@@ -19,11 +19,13 @@ Errors in the input raise gsd.Error (a ValueError) naming the argument or file a
 """
 from ._gsd import (  # noqa: F401
     Error,
+    OutlierOptions,
     Tori,
     TorusField,
     devices,
     fit_tori,
     load_tori,
+    point_confidence,
     read_mesh,
     read_point_cloud,
     signed_heat_grid,

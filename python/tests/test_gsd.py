@@ -172,3 +172,27 @@ def test_bad_input_raises_gsd_error(tmp_path):
         gsd.winding_numbers(np.zeros((1, 3)), vertices=np.eye(3), faces=np.array([[0, 1, 7]]))
     with pytest.raises(gsd.Error):
         gsd.signed_heat_grid(16)
+
+
+def test_outlier_defence_matches_cli(tmp_path):
+    cloud = tmp_path / "o.npy"
+    cli("sample", "torus", "-n", 1500, "--outliers", 0.05, "--seed", 2, "-o", cloud)
+    cli("pat", "fit", cloud, "-o", tmp_path / "o.tori", "--confidence", tmp_path / "c.npy", "--device", "cpu")
+    tori = gsd.load_tori(str(tmp_path / "o.tori"))
+    field = gsd.TorusField(tori, device="cpu")
+    conf = np.load(tmp_path / "c.npy")
+    np.testing.assert_array_equal(field.confidence, conf)
+    assert field.blended_count == int((conf >= 0.5).sum()) < len(tori)
+    c, residual, sparsity = gsd.point_confidence(tori)
+    np.testing.assert_array_equal(c, conf)
+    # Disabled: every point blended, nothing scored; a stricter residual threshold drops more.
+    kept = gsd.TorusField(tori, device="cpu", keep_outliers=True)
+    assert kept.blended_count == len(tori) and len(kept.confidence) == 0
+    strict = gsd.OutlierOptions()
+    strict.min_score = 0.02
+    strict.mad_factor = 0
+    assert gsd.TorusField(tori, device="cpu", outliers=strict).blended_count < field.blended_count
+    bad = gsd.OutlierOptions()
+    bad.k = 1
+    with pytest.raises(gsd.Error, match="OutlierOptions::k"):
+        gsd.point_confidence(tori, bad)

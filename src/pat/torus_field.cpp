@@ -1,33 +1,60 @@
 #include <gsd/pat.hpp>
+#include <gsd/spatial.hpp>
 
 #include "blend/blend.hpp"
 
 namespace gsd {
 
+namespace {
+
+// The blend's source: every torus, or only the trusted ones. The spacing (which scales the
+// evaluation radius) is that of the blended points, so outliers, which sit far from everything,
+// do not inflate it.
+blend::Source source_of(const FittedTori& t, const PointConfidence& conf) {
+    blend::Source s;
+    s.kind = blend::Kind::Pat;
+    const std::vector<Torus> all = t.tori();
+    std::vector<Eigen::Index> keep;
+    keep.reserve(std::size_t(t.size()));
+    for (Eigen::Index i = 0; i < t.size(); ++i)
+        if (conf.score.empty() || !conf.is_outlier(std::size_t(i))) keep.push_back(i);
+    const auto m = Eigen::Index(keep.size());
+    s.points.resize(m, 3);
+    s.normals.resize(m, 3);
+    s.tangents.resize(m, 3);
+    for (Eigen::Index r = 0; r < m; ++r) {
+        const Eigen::Index i = keep[std::size_t(r)];
+        s.points.row(r) = t.points.row(i);
+        s.normals.row(r) = t.normals.row(i);
+        s.tangents.row(r) = t.tangents.row(i);
+        s.jets.push_back(t.jets[std::size_t(i)]);
+        s.tori.push_back(all[std::size_t(i)]);
+    }
+    s.spacing = m == t.size() ? t.spacing : mean_spacing(s.points);
+    return s;
+}
+
+}  // namespace
+
 struct TorusField::Impl {
     FittedTori tori;
+    OutlierOptions outliers;
+    PointConfidence confidence;
     blend::Engine engine;
 
-    static blend::Source source_of(const FittedTori& t) {
-        blend::Source s;
-        s.kind = blend::Kind::Pat;
-        s.points = t.points;
-        s.normals = t.normals;
-        s.tangents = t.tangents;
-        s.jets = t.jets;
-        s.tori = t.tori();
-        s.spacing = t.spacing;
-        return s;
-    }
-    Impl(FittedTori t, BlendOptions opt) : tori(std::move(t)), engine(source_of(tori), std::move(opt)) {}
+    Impl(FittedTori t, BlendOptions opt, OutlierOptions out)
+        : tori(std::move(t)),
+          outliers(out),
+          confidence(out.enabled ? point_confidence(tori, out) : PointConfidence{}),
+          engine(source_of(tori, confidence), std::move(opt)) {}
 };
 
-TorusField::TorusField(FittedTori tori, BlendOptions options) {
+TorusField::TorusField(FittedTori tori, BlendOptions options, OutlierOptions outliers) {
     if (tori.size() < 2) throw Error("PAT needs at least 2 fitted points");
     if (tori.jets.size() != std::size_t(tori.size()) || tori.normals.rows() != tori.size() ||
         tori.tangents.rows() != tori.size())
         throw Error("fitted tori have inconsistent counts");
-    impl_ = std::make_unique<Impl>(std::move(tori), std::move(options));
+    impl_ = std::make_unique<Impl>(std::move(tori), std::move(options), outliers);
 }
 
 TorusField::~TorusField() = default;
@@ -45,7 +72,10 @@ FieldValues TorusField::evaluate(const GridSpec& grid, bool with_gradient, const
 }
 
 const FittedTori& TorusField::tori() const { return impl_->tori; }
+const PointConfidence& TorusField::confidence() const { return impl_->confidence; }
+Eigen::Index TorusField::blended_count() const { return impl_->engine.source().points.rows(); }
 const BlendOptions& TorusField::options() const { return impl_->engine.options(); }
+const OutlierOptions& TorusField::outlier_options() const { return impl_->outliers; }
 double TorusField::r_eval() const { return impl_->engine.r_eval(); }
 
 }  // namespace gsd

@@ -108,6 +108,35 @@ struct BlendArgs {
 
 bool is_tori_file(const std::string& path) { return io::extension(path) == ".tori"; }
 
+// PAT's outlier defence (OutlierOptions): on by default; --keep-outliers blends every point as
+// the thesis does, for comparison. --confidence writes each input point's confidence.
+struct OutlierArgs {
+    bool keep = false;
+    std::string confidence;
+    void add_to(CLI::App& app, bool with_keep) {
+        if (with_keep)
+            app.add_flag("--keep-outliers", keep,
+                         "Blend every point, outliers included (disables PAT's outlier defence, for comparison)");
+        app.add_option("--confidence", confidence,
+                       "Also write each point's confidence: (N,) float32 .npy; 1 trusted, below 0.5 an outlier left out of the blend")
+            ->check(output_file({".npy"}));
+    }
+    OutlierOptions options() const {
+        OutlierOptions o;
+        o.enabled = !keep;
+        return o;
+    }
+    // The note every PAT command prints, so a user sees what the defence did.
+    static void report(const PointConfidence& c, Eigen::Index total) {
+        if (c.score.empty()) return;
+        note(std::to_string(c.outliers) + " of " + std::to_string(total) +
+             " points are outliers (off their neighbors' tori, or isolated) and are not blended" + (c.outliers ? "; --keep-outliers blends them" : ""));
+    }
+    static void write(const std::string& path, const PointConfidence& c) {
+        io::write_npy(path, {c.confidence.size()}, c.confidence);
+    }
+};
+
 // Evaluates a field over a domain and writes the outputs; Field has evaluate(Points|GridSpec, ...).
 template <class EvalPoints, class EvalGrid>
 void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
@@ -149,15 +178,25 @@ void add_pat(CLI::App& app) {
         auto input = std::make_shared<std::string>();
         auto output = std::make_shared<std::string>();
         auto args = std::make_shared<FitArgs>();
+        auto outliers = std::make_shared<OutlierArgs>();
         fit->add_option("INPUT", *input, "Point cloud with normals (.ply .xyz .xyzn .txt .pc .obj .npy)")->required();
         fit->add_option("-o,--output", *output, "Output .tori file")->required()->check(output_file({".tori"}));
         args->add_to(*fit, true);
+        outliers->add_to(*fit, false);
         fit->callback([=] {
             args->check();
             const PointCloud cloud = io::read_point_cloud(*input);
             const FittedTori t = args->fit(cloud, *input);
-            save_tori(*output, t);
-            note("wrote " + std::to_string(t.size()) + " tori to " + *output);
+            // The .tori file keeps every point; TorusField scores them again when it loads them.
+            std::optional<PointConfidence> conf;
+            if (!outliers->confidence.empty()) {
+                conf = point_confidence(t);
+                OutlierArgs::report(*conf, t.size());
+            }
+            write_all({{*output, [&] { save_tori(*output, t); }},
+                       {outliers->confidence, [&] { OutlierArgs::write(outliers->confidence, *conf); }}});
+            note("wrote " + std::to_string(t.size()) + " tori to " + *output +
+                 (conf ? " and confidences to " + outliers->confidence : ""));
         });
     }
     {
@@ -169,6 +208,7 @@ void add_pat(CLI::App& app) {
         auto domain = std::make_shared<Domain>();
         auto fit = std::make_shared<FitArgs>();
         auto blend = std::make_shared<BlendArgs>();
+        auto outliers = std::make_shared<OutlierArgs>();
         auto* in = eval->add_option("INPUT", *input, "Point cloud with normals (or a .tori file)");
         auto* tin = eval->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
         in->excludes(tin);
@@ -177,8 +217,11 @@ void add_pat(CLI::App& app) {
         domain->add_to(*eval, true);
         fit->add_to(*eval, false);
         blend->add_to(*eval);
+        outliers->add_to(*eval, true);
         eval->callback([=] {
             if (input->empty() && tori->empty()) throw CLI::RequiredError("INPUT or --tori");
+            if (outliers->keep && !outliers->confidence.empty())
+                throw CLI::ValidationError("--confidence", "--keep-outliers scores no points");
             fit->check();
             fit->device = blend->device;  // one --device for the fit and the blend
             if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
@@ -186,13 +229,25 @@ void add_pat(CLI::App& app) {
             std::string source = !tori->empty() ? *tori : *input;
             FittedTori fitted = is_tori_file(source) ? load_tori(source) : fit->fit(io::read_point_cloud(source), source);
             const std::optional<Box> box = bounding_box(fitted.points);
-            const TorusField field(std::move(fitted), blend->options());
+            const Eigen::Index total = fitted.size();
+            const TorusField field(std::move(fitted), blend->options(), outliers->options());
+            OutlierArgs::report(field.confidence(), total);
             const bool want_gradient = !gradient->empty();
             evaluate_and_write(
                 *domain, box, *output, *gradient,
                 [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, want_gradient, p); },
                 [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, want_gradient, p); },
                 "pat eval", "pat");
+            if (!outliers->confidence.empty()) {
+                try {
+                    OutlierArgs::write(outliers->confidence, field.confidence());
+                } catch (...) {  // all outputs or none
+                    remove_output(*output);
+                    if (!gradient->empty()) remove_output(*gradient);
+                    throw;
+                }
+                note("wrote " + outliers->confidence);
+            }
         });
     }
 }
