@@ -156,8 +156,8 @@ private:
 /// - its sparsity: its own ℓ over the cloud's median ℓ. Stray points far from the surface have
 ///   only each other as neighbors, which are many times farther apart than surface samples.
 /// A point whose residual exceeds max(min_score, median + mad_factor·MAD of the cloud's
-/// residuals), or whose sparsity exceeds sparsity_factor, is an outlier and is left out of the
-/// blend.
+/// residuals), or whose sparsity exceeds max(sparsity_factor, median + mad_factor·MAD of the
+/// cloud's sparsities), is an outlier and is left out of the blend.
 struct OutlierOptions {
     /// Leave outliers out of the blend (TorusField). false: every point is blended, as in the
     /// thesis (for comparison).
@@ -169,11 +169,13 @@ struct OutlierOptions {
     double quantile = 0.25;
     /// The smallest threshold, in neighbor spacings: on a clean cloud nothing is dropped.
     double min_score = 0.5;
-    /// The threshold grows with the spread of the cloud's scores (its noise level).
+    /// The thresholds grow with the spread of the cloud's residuals (its noise level) and
+    /// sparsities (how unevenly it is sampled).
     double mad_factor = 8.0;
-    /// A point whose k-th neighbor is this many times farther than the cloud's median is an
-    /// outlier (a region that much sparser holds sparsity_factor² times fewer samples per area).
-    double sparsity_factor = 4.0;
+    /// The smallest sparsity threshold: a point whose k-th neighbor is this many times farther
+    /// than the cloud's median is an outlier (a region that much sparser holds
+    /// sparsity_factor² times fewer samples per area).
+    double sparsity_factor = 3.0;
 };
 
 /// Per-point outlier scores and confidences of fitted tori.

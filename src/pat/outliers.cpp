@@ -81,9 +81,9 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
             len.clear();
             for (std::size_t m = 0; m < k; ++m) {
                 const std::uint32_t j = nbrs[std::size_t(i) * k + m];
+                len.push_back(ell[j]);
                 const double g = std::abs(torus_sdf(t[j], p));
                 dist.push_back(std::isfinite(g) ? g : std::numeric_limits<double>::max());
-                len.push_back(ell[j]);
             }
             const double scale = quantile(len, 0.5);
             const double d = quantile(dist, options.quantile);
@@ -103,12 +103,19 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
     // pass near random points often enough to vouch for each other; what gives them away is
     // that they are sparse: their k-th neighbor is many times farther than the cloud's typical
     // one (which the surface points set).
+    // Its threshold adapts like the residual's, so a cloud sampled unevenly on purpose (a scan,
+    // denser near the scanner) keeps its sparse parts.
     tmp = ell;
     const double typical = quantile(tmp, 0.5);
-    out.sparsity_threshold = options.sparsity_factor;
     out.sparsity.resize(std::size_t(n));
-    for (std::size_t i = 0; i < std::size_t(n); ++i) {
+    for (std::size_t i = 0; i < std::size_t(n); ++i)
         out.sparsity[i] = typical > 0 ? ell[i] / typical : (ell[i] > 0 ? std::numeric_limits<double>::max() : 1.0);
+    tmp = out.sparsity;
+    const double sparsity_med = quantile(tmp, 0.5);
+    for (double& v : tmp) v = std::abs(v - sparsity_med);
+    const double sparsity_mad = 1.4826 * quantile(tmp, 0.5);
+    out.sparsity_threshold = std::max(options.sparsity_factor, sparsity_med + options.mad_factor * sparsity_mad);
+    for (std::size_t i = 0; i < std::size_t(n); ++i) {
         out.score[i] = score[i];
         const double r = std::max(score[i] / out.threshold, out.sparsity[i] / out.sparsity_threshold);
         // A smooth confidence, 1/2 exactly at the threshold; points below 1/2 are outliers.

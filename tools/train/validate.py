@@ -101,15 +101,23 @@ def save_cloud(dir_, name, p, q):
     np.save(os.path.join(dir_, name + '.npy'), np.concatenate([p, q], 1).astype(np.float32))
 
 
-def make_rows(args):
-    """The robustness table's clouds: every ROWS corruption alone, at ROW_DENSITIES."""
+def validation_shapes(args):
+    """Yields (index, rng, shape, φ) for the validation stream's shapes, φ (exact SDF on the
+    grid) saved as s{index}_phi.npy in args.dir."""
     os.makedirs(args.dir, exist_ok=True)
     nodes = grid_nodes()
-    index = []
     for s in range(args.shapes):
         rng = dataset.example_rng(args.seed, VALIDATION_STREAM, s)
         shape = shapes.random_shape(rng)
-        np.save(os.path.join(args.dir, f's{s}_phi.npy'), shape.exact_sdf(nodes).reshape((GRID,) * 3).astype(np.float32))
+        phi = shape.exact_sdf(nodes).reshape(GRID, GRID, GRID).astype(np.float32)
+        np.save(os.path.join(args.dir, f's{s}_phi.npy'), phi)
+        yield s, rng, shape, phi
+
+
+def make_rows(args):
+    """The robustness table's clouds: every ROWS corruption alone, at ROW_DENSITIES."""
+    index = []
+    for s, rng, shape, _ in validation_shapes(args):
         for n in ROW_DENSITIES:
             pts, nrm = shape.sample_surface(rng, n)
             for label, (kind, amount) in ROWS.items():
@@ -151,20 +159,14 @@ def grid_nodes():
 
 
 def make(args):
-    os.makedirs(args.dir, exist_ok=True)
-    nodes = grid_nodes()
     index = []
-    for s in range(args.shapes):
-        rng = dataset.example_rng(args.seed, VALIDATION_STREAM, s)
-        shape = shapes.random_shape(rng)
-        phi = shape.exact_sdf(nodes).reshape(GRID, GRID, GRID).astype(np.float32)
-        np.save(os.path.join(args.dir, f's{s}_phi.npy'), phi)
+    for s, rng, shape, phi in validation_shapes(args):
         for n in DENSITIES:
             pts, nrm = shape.sample_surface(rng, n)
             for corrupted in (False, True):
                 p, q = corrupt_fixed(rng, pts, nrm, args.outliers) if corrupted else (pts, nrm)
                 name = f's{s}_n{n}_{"corrupt" if corrupted else "clean"}'
-                np.save(os.path.join(args.dir, name + '.npy'), np.concatenate([p, q], 1).astype(np.float32))
+                save_cloud(args.dir, name, p, q)
                 index.append(dict(name=name, shape=s, points=n, corrupted=corrupted,
                                   primitives=[type(pr).__name__ for pr in shape.prims]))
         print(f'shape {s}: {len(shape.prims)} primitives, certified nodes {np.isfinite(phi).mean():.3f}', flush=True)
