@@ -168,7 +168,7 @@ struct OutlierOptions {
     /// some of its neighbors' surfaces through it (edges, thin parts, holes).
     double quantile = 0.25;
     /// The smallest threshold, in neighbor spacings: on a clean cloud nothing is dropped.
-    double min_score = 0.5;
+    double min_score = 0.35;
     /// The thresholds grow with the spread of the cloud's residuals (its noise level) and
     /// sparsities (how unevenly it is sampled).
     double mad_factor = 8.0;
