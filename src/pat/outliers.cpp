@@ -26,6 +26,14 @@ double quantile(std::vector<double>& v, double q) {
     return v[k];
 }
 
+// max(floor, median + f·MAD) of v: a threshold that follows the bulk of the values (the inliers,
+// as long as they are the majority) but never drops below `floor`.
+double robust_threshold(std::vector<double> v, double floor, double f) {
+    const double med = quantile(v, 0.5);
+    for (double& x : v) x = std::abs(x - med);
+    return std::max(floor, med + f * 1.4826 * quantile(v, 0.5));
+}
+
 void check(const OutlierOptions& o) {
     if (o.k < 4 || o.k > 256) throw Error("OutlierOptions::k", "must be in [4, 256]");
     if (!(o.quantile > 0 && o.quantile < 1)) throw Error("OutlierOptions::quantile", "must be in (0, 1)");
@@ -50,9 +58,9 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
     const std::vector<Torus> t = tori.tori();
     const KdTree tree(tori.points);
     const auto k = std::size_t(options.k);
-    // ℓ_j: distance from p_j to its k-th neighbor, a local length that adapts to density.
     // The k nearest other points of each point, k per row (k + 1 are asked for and the point
-    // itself, wherever a duplicate put it, is skipped).
+    // itself, wherever a duplicate put it, is skipped), and ℓ_i, the distance to the k-th: a
+    // local length that adapts to density.
     std::vector<double> ell(static_cast<std::size_t>(n));
     std::vector<std::uint32_t> nbrs(static_cast<std::size_t>(n) * k);
 #pragma omp parallel
@@ -91,30 +99,19 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
             score[std::size_t(i)] = scale > 0 ? d / scale : (d > 0 ? std::numeric_limits<double>::max() : 0.0);
         }
     }
-    // The residual threshold adapts to the cloud's own noise (robust: median + f·MAD of the
-    // scores, which the inliers dominate as long as they are the majority) but never drops below
-    // min_score, so a clean cloud, whose residuals are all tiny, keeps its points.
-    std::vector<double> tmp = score;
-    const double med = quantile(tmp, 0.5);
-    for (double& v : tmp) v = std::abs(v - med);
-    const double mad = 1.4826 * quantile(tmp, 0.5);
-    out.threshold = std::max(options.min_score, med + options.mad_factor * mad);
+    // The residual threshold adapts to the cloud's own noise, so a noisy scan keeps its points;
+    // the floor min_score keeps a clean cloud, whose residuals are all tiny, whole.
+    out.threshold = robust_threshold(score, options.min_score, options.mad_factor);
     // Outliers far from the surface have only each other as neighbors, and random points' tori
     // pass near random points often enough to vouch for each other; what gives them away is
     // that they are sparse: their k-th neighbor is many times farther than the cloud's typical
-    // one (which the surface points set).
-    // Its threshold adapts like the residual's, so a cloud sampled unevenly on purpose (a scan,
-    // denser near the scanner) keeps its sparse parts.
-    tmp = ell;
+    // one (which the surface points set). That threshold adapts too, so a cloud sampled
+    // unevenly on purpose (a scan, denser near the scanner) keeps its sparse parts.
+    std::vector<double> tmp = ell;
     const double typical = quantile(tmp, 0.5);
-    out.sparsity.resize(std::size_t(n));
     for (std::size_t i = 0; i < std::size_t(n); ++i)
         out.sparsity[i] = typical > 0 ? ell[i] / typical : (ell[i] > 0 ? std::numeric_limits<double>::max() : 1.0);
-    tmp = out.sparsity;
-    const double sparsity_med = quantile(tmp, 0.5);
-    for (double& v : tmp) v = std::abs(v - sparsity_med);
-    const double sparsity_mad = 1.4826 * quantile(tmp, 0.5);
-    out.sparsity_threshold = std::max(options.sparsity_factor, sparsity_med + options.mad_factor * sparsity_mad);
+    out.sparsity_threshold = robust_threshold(out.sparsity, options.sparsity_factor, options.mad_factor);
     for (std::size_t i = 0; i < std::size_t(n); ++i) {
         out.score[i] = score[i];
         const double r = std::max(score[i] / out.threshold, out.sparsity[i] / out.sparsity_threshold);

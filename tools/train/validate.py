@@ -273,14 +273,13 @@ def row_table(results, methods):
 def landscape_tables(results, methods):
     out = []
     for kind in ('sphere', 'cylinder'):
+        if not any(r['landscape'] == kind for r in results):
+            continue
+        out.append(f'\n{kind} ({LANDSCAPE_POINTS} points), mean |φ − φ_true|:\n')
+        out.append(f'| {kind}: input | radius | ' + ' | '.join(methods) + ' |')
+        out.append('|---|---|' + '---|' * len(methods))
         for label in LANDSCAPE_ROWS:
             rows = [r for r in results if r['landscape'] == kind and r['row'] == label]
-            if not rows:
-                continue
-            if not out or not out[-1].startswith('| ' + kind):
-                out.append(f'\n{kind} ({LANDSCAPE_POINTS} points), mean |φ − φ_true| by radius:\n')
-                out.append(f'| {kind}: input | radius | ' + ' | '.join(methods) + ' |')
-                out.append('|---|---|' + '---|' * len(methods))
             for r in LANDSCAPE_RADII:
                 rr = [x for x in rows if x['radius'] == r]
                 if rr:
