@@ -8,7 +8,8 @@
 // Using the neighbors' tori (not the point's own, which is fitted to whatever surrounds it)
 // keeps the score meaningful at sharp edges (an edge point lies on both faces' tori), under
 // flipped normals (|g| ignores the orientation) and next to holes.
-#include <gsd/pat.hpp>
+#include "pat/outliers.hpp"
+
 #include <gsd/spatial.hpp>
 
 #include <algorithm>
@@ -46,7 +47,8 @@ void check(const OutlierOptions& o) {
 
 }  // namespace
 
-PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& options) {
+PointConfidence detail::score_points(const FittedTori& tori, const std::vector<Torus>& t,
+                                     const OutlierOptions& options) {
     check(options);
     const Eigen::Index n = tori.size();
     PointConfidence out;
@@ -55,7 +57,6 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
     out.confidence.assign(std::size_t(n), 1.0f);
     if (n < options.k + 1) return out;  // too few points to judge any of them: trust all
 
-    const std::vector<Torus> t = tori.tori();
     const KdTree tree(tori.points);
     const auto k = std::size_t(options.k);
     // The k nearest other points of each point, k per row (k + 1 are asked for and the point
@@ -120,6 +121,10 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
         if (out.is_outlier(i)) ++out.outliers;
     }
     return out;
+}
+
+PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& options) {
+    return detail::score_points(tori, tori.tori(), options);
 }
 
 }  // namespace gsd

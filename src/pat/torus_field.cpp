@@ -2,6 +2,7 @@
 #include <gsd/spatial.hpp>
 
 #include "blend/blend.hpp"
+#include "pat/outliers.hpp"
 
 namespace gsd {
 
@@ -10,10 +11,9 @@ namespace {
 // The blend's source: every torus, or only the trusted ones. The spacing (which scales the
 // evaluation radius) is that of the blended points, so outliers, which sit far from everything,
 // do not inflate it.
-blend::Source source_of(const FittedTori& t, const PointConfidence& conf) {
+blend::Source source_of(const FittedTori& t, std::vector<Torus> all, const PointConfidence& conf) {
     blend::Source s;
     s.kind = blend::Kind::Pat;
-    const std::vector<Torus> all = t.tori();
     std::vector<Eigen::Index> keep;
     keep.reserve(std::size_t(t.size()));
     for (Eigen::Index i = 0; i < t.size(); ++i)
@@ -28,7 +28,7 @@ blend::Source source_of(const FittedTori& t, const PointConfidence& conf) {
         s.normals.row(r) = t.normals.row(i);
         s.tangents.row(r) = t.tangents.row(i);
         s.jets.push_back(t.jets[std::size_t(i)]);
-        s.tori.push_back(all[std::size_t(i)]);
+        s.tori.push_back(std::move(all[std::size_t(i)]));
     }
     s.spacing = m == t.size() ? t.spacing : mean_spacing(s.points);
     return s;
@@ -42,11 +42,12 @@ struct TorusField::Impl {
     PointConfidence confidence;
     blend::Engine engine;
 
-    Impl(FittedTori t, BlendOptions opt, OutlierOptions out)
+    // `all` = t.tori(), built once for the scores and the blend.
+    Impl(FittedTori t, std::vector<Torus> all, BlendOptions opt, OutlierOptions out)
         : tori(std::move(t)),
           outliers(out),
-          confidence(out.enabled ? point_confidence(tori, out) : PointConfidence{}),
-          engine(source_of(tori, confidence), std::move(opt)) {}
+          confidence(out.enabled ? detail::score_points(tori, all, out) : PointConfidence{}),
+          engine(source_of(tori, std::move(all), confidence), std::move(opt)) {}
 };
 
 TorusField::TorusField(FittedTori tori, BlendOptions options, OutlierOptions outliers) {
@@ -54,7 +55,8 @@ TorusField::TorusField(FittedTori tori, BlendOptions options, OutlierOptions out
     if (tori.jets.size() != std::size_t(tori.size()) || tori.normals.rows() != tori.size() ||
         tori.tangents.rows() != tori.size())
         throw Error("fitted tori have inconsistent counts");
-    impl_ = std::make_unique<Impl>(std::move(tori), std::move(options), outliers);
+    std::vector<Torus> all = tori.tori();
+    impl_ = std::make_unique<Impl>(std::move(tori), std::move(all), std::move(options), outliers);
 }
 
 TorusField::~TorusField() = default;
