@@ -395,9 +395,26 @@ TEST_CASE("degenerate input gets a clear error") {
     one.normals(0, 2) = 1;
     CHECK_THROWS_AS(shm_source(one), Error);
     const ShmSource ok = shm_source(shapes::by_name("sphere")->sample(200, 1));
+    // The library names the option field at fault (the CLI reports the flag that sets it).
+    auto field_at_fault = [&](ShmOptions bad, GridSpec grid = GridSpec::cube(8, kCube)) {
+        try {
+            SignedHeatGrid g(ok, grid, bad);
+        } catch (const Error& e) {
+            return e.where();
+        }
+        return std::string("no error");
+    };
     ShmOptions bad;
     bad.t_coef = 0;
-    CHECK_THROWS_AS(SignedHeatGrid(ok, GridSpec::cube(8, kCube), bad), Error);
+    CHECK(field_at_fault(bad) == "ShmOptions::t_coef");
+    bad = {};
+    bad.fit_zero_set = -1;
+    CHECK(field_at_fault(bad) == "ShmOptions::fit_zero_set");
+    bad = {};
+    bad.sum_tolerance = 2;
+    CHECK(field_at_fault(bad) == "ShmOptions::sum_tolerance");
+    CHECK(field_at_fault({}, GridSpec::cube(1, kCube)) == "GridSpec");
+    CHECK(field_at_fault({}, GridSpec::cube(8, Box{{0, 0, 0}, {1e31, 1, 1}})) == "GridSpec::box");
     // A grid that does not contain the source cannot be shifted to it.
     ShmOptions o;
     o.device = "cpu";
@@ -427,4 +444,9 @@ TEST_CASE("CLI: gsd shm grid on a broken mesh, a cloud, and both; bad input exit
     CHECK(bad.output.find("flat.obj") != std::string::npos);
     CHECK_FALSE(test::file_exists(dir.file("f.npy")));
     CHECK(test::run_cli("shm grid " + dir.file("c.ply") + " --grid 16 --solver magic -o " + dir.file("x.npy")).exit_code == 2);
+    // Errors the library raises about an option field name the flag here.
+    const auto t0 = test::run_cli("shm grid " + dir.file("c.ply") + " --grid 16 --bounds 0 0 0 1e31 1 1 -o " + dir.file("t.npy"));
+    CHECK(t0.exit_code == 1);
+    CHECK(t0.output.find("error: --bounds:") != std::string::npos);
+    CHECK_FALSE(test::file_exists(dir.file("t.npy")));
 }

@@ -176,6 +176,40 @@ TEST_CASE("fast winding numbers: within 1e-3 of the exact sum beyond one edge le
     CHECK(std::abs(r.w[1]) < 0.01);
 }
 
+TEST_CASE("fast winding numbers: a query's result does not depend on the packet it walks the tree in") {
+    const PolygonMesh m = broken("torus", 24, 3);
+    const OrientedElements e = OrientedElements::from_mesh(m);
+    const detail::SumTree tree(e);
+    const Points q = random_queries(203, 1.0, 5);
+    // Each query alone, then in packets of every size with different companions: bit-equal,
+    // and within the tolerance of the exact sum (the packet walk is not a different method).
+    std::vector<double> alone(std::size_t(q.rows()));
+    std::size_t terms_alone = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) alone[std::size_t(i)] = tree.winding(q.row(i).transpose(), 1.5, 5e-3, terms_alone);
+    for (int size = 2; size <= detail::SumTree::kLanes; size += 3) {
+        CAPTURE(size);
+        std::size_t terms = 0;
+        for (Eigen::Index first = 0; first < q.rows(); first += size) {
+            const int n = int(std::min<Eigen::Index>(size, q.rows() - first));
+            double x[detail::SumTree::kLanes], y[detail::SumTree::kLanes], z[detail::SumTree::kLanes], w[detail::SumTree::kLanes];
+            for (int l = 0; l < n; ++l) {
+                x[l] = q(first + l, 0);
+                y[l] = q(first + l, 1);
+                z[l] = q(first + l, 2);
+            }
+            tree.winding(x, y, z, n, 1.5, 5e-3, w, terms);
+            for (int l = 0; l < n; ++l) REQUIRE(w[l] == alone[std::size_t(first + l)]);
+        }
+        CHECK(terms == terms_alone);
+    }
+    double worst = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        if (tree.nearest_distance(q.row(i).transpose()) > mean_edge(m))
+            worst = std::max(worst, std::abs(alone[std::size_t(i)] - tree.winding_exact(q.row(i).transpose())));
+    CHECK(worst <= 1e-3);
+    CHECK_THROWS_AS(tree.winding(nullptr, nullptr, nullptr, detail::SumTree::kLanes + 1, 1.5, 5e-3, nullptr, terms_alone), Error);
+}
+
 TEST_CASE("fast winding numbers: bad input is refused") {
     OrientedElements e;
     Points q = Points::Zero(1, 3);

@@ -7,8 +7,8 @@
 namespace gsd::blend {
 
 Params resolve(const BlendOptions& opt, const Source& src, bool gradient) {
-    if (!(opt.C > 0 && opt.C <= 87)) throw Error("C", "C must be in (0, 87] (exp(−C) must stay a float32 normal)");
-    if (opt.fallback_k < 1) throw Error("fallback_k", "the fallback neighbor count must be ≥ 1");
+    if (!(opt.C > 0 && opt.C <= 87)) throw Error("BlendOptions::C", "C must be in (0, 87] (exp(−C) must stay a float32 normal)");
+    if (opt.fallback_k < 1) throw Error("BlendOptions::fallback_k", "the fallback neighbor count must be ≥ 1");
     Params p;
     p.exact = opt.exact;
     p.C = opt.C;

@@ -37,11 +37,11 @@ Points GridSpec::nodes() const {
 
 void GridSpec::validate() const {
     if (nx < 2 || ny < 2 || nz < 2)
-        throw Error("--grid", "grid needs at least 2 nodes per axis");
+        throw Error("GridSpec", "grid needs at least 2 nodes per axis");
     // 2^31 nodes is 8 GiB of float32: far past what one .npy grid on this library's path can hold.
     if (double(nx) * double(ny) * double(nz) > double(1u << 31))
-        throw Error("--grid", "grid has more than 2^31 nodes");
-    validate_box(box, "--bounds");
+        throw Error("GridSpec", "grid has more than 2^31 nodes");
+    validate_box(box, "GridSpec::box");
 }
 
 Box bounding_box(const Points& p) {

@@ -286,9 +286,9 @@ Selection select(const std::string& requested) {
             if (numeric ? std::to_string(d.index) == choice : lower(d.name).find(choice) != std::string::npos) pick = &d;
         }
         if (!pick)
-            throw Error("--device", "no Vulkan device matches '" + requested + "' (devices: " + device_list(inv) +
+            throw Error("device", "no Vulkan device matches '" + requested + "' (devices: " + device_list(inv) +
                                         (inv.problem.empty() ? "" : "; " + inv.problem) + ")");
-        if (!pick->usable) throw Error("--device", pick->name + " cannot run gsd: " + pick->why_not);
+        if (!pick->usable) throw Error("device", pick->name + " cannot run gsd: " + pick->why_not);
     }
     try {
         sel.context = rt.context(pick->index);

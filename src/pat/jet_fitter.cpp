@@ -73,7 +73,7 @@ Jet fit_one(const PointCloud& cloud, Eigen::Index i, const Eigen::Vector3d& s,
 }  // namespace
 
 JetFitter::JetFitter(JetFitterOptions options) : options_(options) {
-    if (options_.k < 6) throw Error("--k", "the jet fit needs k ≥ 6 neighbors (6 coefficients)");
+    if (options_.k < 6) throw Error("JetFitterOptions::k", "the jet fit needs k ≥ 6 neighbors (6 coefficients)");
     if (!(options_.sigma_factor > 0)) throw Error("jet sigma factor must be > 0");
 }
 

@@ -283,7 +283,7 @@ struct GridPoissonSolver::Impl {
         // Pin node 0 (the constant nullspace), factor the rest with CHOLMOD, then re-center.
         const auto n = Eigen::Index(b.size());
         if (n > 64 * 64 * 64 * 2)
-            throw Error("--solver", "the direct solver is for small grids (≤ 2·64³ nodes); use mg or cg");
+            throw Error("ShmOptions::solver", "the direct solver is for small grids (≤ 2·64³ nodes); use mg or cg");
         std::vector<Eigen::Triplet<double>> t;
         t.reserve(std::size_t(n) * 7);
         auto add = [&](Eigen::Index p, Eigen::Index q, double v) {
@@ -298,7 +298,7 @@ struct GridPoissonSolver::Impl {
         Eigen::SparseMatrix<double> A(n - 1, n - 1);
         A.setFromTriplets(t.begin(), t.end());
         Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> chol(A);
-        if (chol.info() != Eigen::Success) throw Error("--solver", "CHOLMOD could not factor the Poisson matrix");
+        if (chol.info() != Eigen::Success) throw Error("ShmOptions::solver", "CHOLMOD could not factor the Poisson matrix");
         Eigen::VectorXd rhs = Eigen::Map<const Eigen::VectorXd>(b.data() + 1, n - 1);
         const Eigen::VectorXd sol = chol.solve(rhs);
         std::vector<double> x(std::size_t(n), 0.0);

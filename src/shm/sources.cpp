@@ -115,7 +115,7 @@ PoissonSolver poisson_solver_from_name(const std::string& name) {
     if (name == "mg") return PoissonSolver::Multigrid;
     if (name == "cg") return PoissonSolver::CG;
     if (name == "direct") return PoissonSolver::Direct;
-    throw Error("--solver", "unknown solver '" + name + "' (mg, cg, direct)");
+    throw Error("solver", "unknown solver '" + name + "' (mg, cg, direct)");
 }
 
 namespace shm_detail {

@@ -39,13 +39,20 @@ double quad(const double* s, const Vec3& u) {
 }
 double trace(const double* s) { return s[0] + s[1] + s[2]; }
 
-/// Second-order expansion of Σ v·∇Φ(x − y), Φ = 1/(4πr), about c, d = x − c. With radial
-/// derivatives f1..f3 of Φ: ∂_aΦ = f1 u_a, ∂_aiΦ = A u_a u_i + B δ_ai,
+#if defined(__GNUC__)
+#define GSD_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define GSD_ALWAYS_INLINE inline
+#endif
+
+/// Second-order expansion of Σ v·∇Φ(x − y), Φ = 1/(4πr), about c, d = x − c, ir = 1/|d|. With
+/// radial derivatives f1..f3 of Φ: ∂_aΦ = f1 u_a, ∂_aiΦ = A u_a u_i + B δ_ai,
 /// ∂_aijΦ = C u_a u_i u_j + D (u_a δ_ij + u_i δ_aj + u_j δ_ai), so
 /// w = f1 M0·u − (A uᵀS1u + B tr S1) + ½ (C T3(u) + D p·u).
-double winding_expansion(const SumTree::WindingNode& n, const Vec3& d) {
-    const double r2 = d.squaredNorm(), ir = 1 / std::sqrt(r2), ir2 = ir * ir;
-    const double ux = d[0] * ir, uy = d[1] * ir, uz = d[2] * ir;
+/// Scalar code that the packet walk runs on every lane at once.
+GSD_ALWAYS_INLINE double winding_expansion(const SumTree::WindingNode& n, double dx, double dy, double dz, double ir) {
+    const double ir2 = ir * ir;
+    const double ux = dx * ir, uy = dy * ir, uz = dz * ir;
     constexpr double k = 1 / kFourPi;
     const double f1 = -k * ir2, f2 = 2 * k * ir2 * ir, f3 = -6 * k * ir2 * ir2;
     const double A = f2 - f1 * ir, B = f1 * ir, C = f3 - 3 * f2 * ir + 3 * f1 * ir2, D = A * ir;
@@ -199,7 +206,12 @@ SumTree::SumTree(const OrientedElements& e) {
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::size_t i = 0; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
     wnodes_.resize(nodes_.size());
-    for (std::size_t i = 0; i < nodes_.size(); ++i) wnodes_[i] = winding_node(nodes_[i]);
+    wtests_.resize(nodes_.size());
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+        const Node& nd = nodes_[i];
+        wnodes_[i] = winding_node(nd);
+        wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, nd.area * nd.rho * nd.rho * nd.rho};
+    }
     hot_.resize(nodes_.size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
         const Node& nd = nodes_[i];
@@ -271,26 +283,114 @@ void SumTree::compute_node(std::uint32_t i) {
     nd.area = area;
 }
 
-double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_t& terms) const {
-    double w = 0;
-    std::uint32_t stack[kStack];
+// The packet walk. Lanes are arrays of kLanes doubles, and every per-lane loop is a `simd`
+// loop of fixed length, so the compiler turns it into vector code (2 lanes per SSE2 register,
+// 4 per AVX2 one; -fno-math-errno lets sqrt vectorize). An entry on the stack carries the node
+// and the lanes that still need it; at a node, the lanes that accept it add its expansion,
+// the rest go on to its children (or sum its elements exactly, lane by lane, at a leaf).
+template <int Isa>
+GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, const double* z, int n, double beta,
+                                              double tolerance, double* w, std::size_t& terms) const {
+    (void)Isa;  // only selects the instruction set the caller is compiled for
+    constexpr int L = kLanes;
+    alignas(64) double X[L], Y[L], Z[L], W[L];
+    for (int l = 0; l < L; ++l) {
+        const int s = l < n ? l : 0;  // idle lanes repeat lane 0 and are masked off
+        X[l] = x[s];
+        Y[l] = y[s];
+        Z[l] = z[s];
+        W[l] = 0;
+    }
+    const double b2 = beta * beta, bound = tolerance * M_PI;
+    const bool beta_only = !(tolerance > 0);
+    struct Entry {
+        std::uint32_t node, lanes;
+    };
+    Entry stack[kStack];
     int top = 0;
-    stack[top++] = 0;
+    stack[top++] = {0, (1u << n) - 1};
+    std::size_t count = 0;
     while (top > 0) {
-        const std::uint32_t i = stack[--top];
-        const WindingNode& nd = wnodes_[i];
-        const Vec3 d = x - vec(nd.c);
-        if (sums::accept_winding(nd.rho, d.squaredNorm(), nd.area, beta, tolerance)) {
-            w += winding_expansion(nd, d);
-            ++terms;
-        } else if (i >= first_leaf_) {
-            for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) w += element_winding(x, j);
-            terms += hot_[i].end - hot_[i].begin;
+        const Entry e = stack[--top];
+        const WindingTest& t = wtests_[e.node];
+        const double rho = t.rho, lim = b2 * rho * rho, k = t.area_rho3;
+        alignas(64) double dx[L], dy[L], dz[L], ir[L], term[L];
+        alignas(64) std::int64_t ok[L];
+#pragma omp simd
+        for (int l = 0; l < L; ++l) {
+            dx[l] = X[l] - t.c[0];
+            dy[l] = Y[l] - t.c[1];
+            dz[l] = Z[l] - t.c[2];
+            const double d2 = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l], r = std::sqrt(d2);
+            const double g = r - rho, g2 = g * g;
+            ir[l] = 1 / r;
+            // sums::accept_winding, branch-free
+            ok[l] = (d2 > lim) & (beta_only | (k <= bound * g2 * g2 * g));
+        }
+        std::uint32_t accepted = 0;
+        for (int l = 0; l < L; ++l) accepted |= std::uint32_t(ok[l] & 1) << l;
+        accepted &= e.lanes;
+        if (accepted) {
+            const WindingNode& nd = wnodes_[e.node];
+#pragma omp simd
+            for (int l = 0; l < L; ++l) term[l] = winding_expansion(nd, dx[l], dy[l], dz[l], ir[l]);
+            for (int l = 0; l < L; ++l) W[l] += (accepted >> l & 1) ? term[l] : 0.0;
+            count += std::size_t(__builtin_popcount(accepted));
+        }
+        const std::uint32_t rest = e.lanes & ~accepted;
+        if (!rest) continue;
+        if (e.node >= first_leaf_) {
+            const Hot& h = hot_[e.node];
+            for (int l = 0; l < L; ++l) {
+                if (!(rest >> l & 1)) continue;
+                const Vec3 q(X[l], Y[l], Z[l]);
+                for (std::uint32_t j = h.begin; j < h.end; ++j) W[l] += element_winding(q, j);
+                count += h.end - h.begin;
+            }
         } else {
-            stack[top++] = 2 * i + 1;
-            stack[top++] = 2 * i + 2;
+            stack[top++] = {2 * e.node + 1, rest};
+            stack[top++] = {2 * e.node + 2, rest};
         }
     }
+    for (int l = 0; l < n; ++l) w[l] = W[l];
+    terms += count;
+}
+
+// One build for every x86-64 and one for CPUs with AVX2 and FMA, chosen once at run time.
+struct WindingDispatch {
+    static void generic(const SumTree& t, const double* x, const double* y, const double* z, int n, double beta, double tol,
+                        double* w, std::size_t& terms) {
+        t.winding_lanes<0>(x, y, z, n, beta, tol, w, terms);
+    }
+#if defined(__x86_64__) && defined(__GNUC__)
+    __attribute__((target("avx2,fma"))) static void avx2(const SumTree& t, const double* x, const double* y, const double* z,
+                                                         int n, double beta, double tol, double* w, std::size_t& terms) {
+        t.winding_lanes<1>(x, y, z, n, beta, tol, w, terms);
+    }
+    static bool has_avx2() {
+        static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+        return yes;
+    }
+#else
+    static void avx2(const SumTree& t, const double* x, const double* y, const double* z, int n, double beta, double tol,
+                     double* w, std::size_t& terms) {
+        generic(t, x, y, z, n, beta, tol, w, terms);
+    }
+    static bool has_avx2() { return false; }
+#endif
+};
+
+void SumTree::winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
+                      std::size_t& terms) const {
+    if (n <= 0) return;
+    if (n > kLanes) throw Error("packet", "more than " + std::to_string(kLanes) + " queries");
+    if (WindingDispatch::has_avx2()) WindingDispatch::avx2(*this, x, y, z, n, beta, tolerance, w, terms);
+    else WindingDispatch::generic(*this, x, y, z, n, beta, tolerance, w, terms);
+}
+
+double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_t& terms) const {
+    double w = 0;
+    winding(&x[0], &x[1], &x[2], 1, beta, tolerance, &w, terms);
     return w;
 }
 

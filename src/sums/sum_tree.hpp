@@ -55,6 +55,10 @@ public:
         double c[3], rho, area;
         double m0[3], s1[6], t3[10], p[3];
     };
+    /// What the winding walk's acceptance test reads (40 bytes): center, ρ and A·ρ³.
+    struct WindingTest {
+        double c[3], rho, area_rho3;
+    };
 
     explicit SumTree(const OrientedElements& elements);
     /// Caches e^(−λρ) per node and element for screened sums with this λ (optional: screened()
@@ -78,6 +82,14 @@ public:
     /// allows by their expansion, the rest exactly (triangles by their solid angle). terms: +1
     /// per node expansion or element summed.
     double winding(const Eigen::Vector3d& x, double beta, double tolerance, std::size_t& terms) const;
+    /// The same for a packet of up to kLanes nearby queries (x, y, z: n ≤ kLanes coordinates),
+    /// which walk the tree together: a node is read once for the packet, and the acceptance
+    /// tests and expansions run on every lane at once (SIMD; AVX2 where the CPU has it). Each
+    /// lane visits the nodes its own walk would, in the same order, with the same arithmetic:
+    /// its result does not depend on the other lanes.
+    static constexpr int kLanes = 8;
+    void winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
+                 std::size_t& terms) const;
     /// The exact sum over every element (the reference).
     double winding_exact(const Eigen::Vector3d& x) const;
 
@@ -107,6 +119,11 @@ private:
     std::vector<Node> nodes_;
     std::vector<Hot> hot_;
     std::vector<WindingNode> wnodes_;
+    std::vector<WindingTest> wtests_;
+    template <int Isa>
+    void winding_lanes(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
+                       std::size_t& terms) const;
+    friend struct WindingDispatch;
     std::vector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
     double decay_lambda_ = -1;
     std::uint32_t first_leaf_ = 0;

@@ -111,8 +111,8 @@ std::vector<std::uint32_t> spatial_order(const Points& q) {
 
 WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries, const WindingOptions& opt,
                                    const ProgressFn& progress) {
-    if (!(opt.beta > 1) || !std::isfinite(opt.beta)) throw Error("beta", "the opening criterion β must be > 1");
-    if (!(opt.tolerance >= 0) || !std::isfinite(opt.tolerance)) throw Error("tolerance", "the error tolerance must be ≥ 0");
+    if (!(opt.beta > 1) || !std::isfinite(opt.beta)) throw Error("WindingOptions::beta", "the opening criterion β must be > 1");
+    if (!(opt.tolerance >= 0) || !std::isfinite(opt.tolerance)) throw Error("WindingOptions::tolerance", "the error tolerance must be ≥ 0");
     if (!queries.allFinite()) throw Error("queries", "non-finite query coordinates");
     if (queries.rows() >= (Eigen::Index(1) << 32)) throw Error("queries", "more than 2^32 queries");
     const detail::SumTree tree(elements);
@@ -132,21 +132,30 @@ WindingResult fast_winding_numbers(const OrientedElements& elements, const Point
     out.device = "cpu";
     const auto n = std::size_t(queries.rows());
     const std::vector<std::uint32_t> order = spatial_order(queries);
-    // Queries in blocks so progress can be reported; within a block, dynamic scheduling.
+    // Packets of kLanes consecutive queries in that order walk the tree together; blocks of
+    // packets so progress can be reported; within a block, dynamic scheduling.
+    constexpr std::size_t lanes = detail::SumTree::kLanes;
     const std::size_t block = 65536;
     std::size_t terms = 0;
     for (std::size_t first = 0; first < n; first += block) {
         const std::size_t last = std::min(n, first + block);
-#pragma omp parallel for schedule(dynamic, 256) reduction(+ : terms)
-        for (std::size_t m = first; m < last; ++m) {
-            const std::size_t q = order[m];
-            const Eigen::Vector3d x = queries.row(Eigen::Index(q)).transpose();
-            if (opt.exact) {
-                out.w[q] = tree.winding_exact(x);
-                terms += tree.size();
-            } else {
-                out.w[q] = tree.winding(x, opt.beta, opt.tolerance, terms);
+#pragma omp parallel for schedule(dynamic, 32) reduction(+ : terms)
+        for (std::size_t p = first; p < last; p += lanes) {
+            const int m = int(std::min(lanes, last - p));
+            double x[lanes], y[lanes], z[lanes], w[lanes];
+            for (int l = 0; l < m; ++l) {
+                const auto q = Eigen::Index(order[p + std::size_t(l)]);
+                x[l] = queries(q, 0);
+                y[l] = queries(q, 1);
+                z[l] = queries(q, 2);
             }
+            if (opt.exact) {
+                for (int l = 0; l < m; ++l) w[l] = tree.winding_exact(Eigen::Vector3d(x[l], y[l], z[l]));
+                terms += std::size_t(m) * tree.size();
+            } else {
+                tree.winding(x, y, z, m, opt.beta, opt.tolerance, w, terms);
+            }
+            for (int l = 0; l < m; ++l) out.w[order[p + std::size_t(l)]] = w[l];
         }
         if (progress) progress("winding", double(last) / double(n));
     }

@@ -566,6 +566,31 @@ void add_info(CLI::App& app) {
 
 }  // namespace
 
+namespace {
+
+// The library's errors name the option field at fault (ShmOptions::t_coef); the CLI reports
+// the flag that sets it.
+std::string flag_for(const std::string& where) {
+    static const std::pair<const char*, const char*> flags[] = {
+        {"GridSpec", "--grid"},
+        {"GridSpec::box", "--bounds"},
+        {"ShmOptions::t_coef", "--t-coef"},
+        {"ShmOptions::fit_zero_set", "--fit-zero-set"},
+        {"ShmOptions::sum_tolerance", "--sum-tolerance"},
+        {"ShmOptions::solver", "--solver"},
+        {"solver", "--solver"},
+        {"JetFitterOptions::k", "--k"},
+        {"WindingOptions::beta", "--beta"},
+        {"WindingOptions::tolerance", "--tolerance"},
+        {"device", "--device"},
+    };
+    for (const auto& [field, flag] : flags)
+        if (where == field) return flag;
+    return where;
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
     CLI::App app{"gsd — generalized signed distance and winding numbers from imperfect geometry"};
     app.set_version_flag("--version", std::string(version()));
@@ -599,7 +624,7 @@ int main(int argc, char** argv) {
         return kUsage;
     } catch (const Error& e) {
         if (e.where().empty()) std::fprintf(stderr, "gsd: error: %s\n", e.what());
-        else std::fprintf(stderr, "gsd: error: %s: %s\n", e.where().c_str(), e.what());
+        else std::fprintf(stderr, "gsd: error: %s: %s\n", flag_for(e.where()).c_str(), e.what());
         return kDataError;
     } catch (const std::bad_alloc&) {
         std::fprintf(stderr, "gsd: error: out of memory\n");
