@@ -43,8 +43,9 @@ inline const std::string& temp_dir() {
 
 inline void remove_temp_dir() {
     // Only the names write_input makes; the folder is ours (mkdtemp).
-    for (const char* ext : {".ply", ".xyz", ".pc", ".obj", ".npy", ".off", ".stl", ".tori", ".safetensors", ".txt"})
+    for (const char* ext : {".ply", ".xyz", ".pc", ".obj", ".npy", ".off", ".stl", ".tori", ".safetensors", ".txt", ".npy.json"})
         ::unlink((temp_dir() + "/input" + ext).c_str());
+    ::unlink((temp_dir() + "/copy.npy.json").c_str());
     ::rmdir(temp_dir().c_str());
 }
 

@@ -15,7 +15,7 @@ cd "$(dirname "$script")/.."
 root=$PWD
 seconds=${1:-60}
 [[ $seconds =~ ^[0-9]+$ ]] || { echo "usage: scripts/fuzz.sh [SECONDS]" >&2; exit 2; }
-all_targets=(point_cloud mesh npy tori safetensors curve)
+all_targets=(point_cloud mesh npy tori safetensors curve grid_metadata)
 read -r -a targets <<< "${FUZZ_TARGETS:-${all_targets[*]}}"
 build=build-san
 
@@ -36,7 +36,7 @@ export OMP_NUM_THREADS=1
 seeds=$build/seeds
 make_seeds() {
   local gsd=$root/$build/bin/gsd tmp=$build/seeds.tmp
-  rm -rf "$tmp" && mkdir -p "$tmp"/{work,point_cloud,mesh,npy,tori,safetensors,curve}
+  rm -rf "$tmp" && mkdir -p "$tmp"/{work,point_cloud,mesh,npy,tori,safetensors,curve,grid_metadata}
   local w=$tmp/work
   seed() { local sel=$1 file=$2 out=$3; { printf "\\x$(printf %02x "$sel")"; cat "$file"; } > "$out"; }
 
@@ -111,6 +111,7 @@ PY
   $gsd -q sample sphere -n 16 -o "$tmp/npy/cloud-16x6.npy"
   $gsd -q pat eval --tori "$tmp/tori/jet-48.tori" --grid 3 --device cpu -o "$tmp/npy/grid-3.npy" \
     --gradient "$tmp/npy/grid-gradient-3.npy"
+  mv "$tmp"/npy/*.npy.json "$tmp/grid_metadata/"  # the sidecars of those two grids
   $gsd -q pat eval --tori "$tmp/tori/jet-48.tori" --queries "$tmp/npy/queries-f8.npy" --device cpu \
     -o "$tmp/npy/phi-2.npy" --gradient "$tmp/npy/gradient-2x3.npy"
   $gsd -q mesh torus -r 8 -o "$w/torus8.obj"

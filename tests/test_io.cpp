@@ -925,13 +925,20 @@ TEST_CASE("grid metadata round-trips exactly; absent is nullopt; bad options and
     m.options_json = "{";
     CHECK_THROWS_AS(io::write_grid_metadata(grid, m), Error);
     m.options_json = "{}";
+    m.components = 2;
+    CHECK_THROWS_AS(io::write_grid_metadata(grid, m), Error);
+    m.components = 1;
     m.grid.nx = 1;
     CHECK_THROWS_AS(io::write_grid_metadata(grid, m), Error);
     for (const char* bad : {"", "[]", R"({"shape": [4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})",
                             R"({"shape": [4, 4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,"x"]}})",
                             R"({"shape": [4, 4, 4.5], "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})",
                             R"({"shape": [4, 4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,1e400]}})",
-                            R"({"shape": [4, 4, 4]})"}) {
+                            R"({"shape": [4, 4, 4]})",
+                            // components: required, 1 or 3 (2 passed before fuzz/grid_metadata.cpp)
+                            R"({"shape": [4, 4, 4], "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})",
+                            R"({"shape": [4, 4, 4], "components": 2, "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})",
+                            R"({"shape": [4, 4, 4], "components": 1.0, "bounds": {"lo": [0,0,0], "hi": [1,1,1]}})"}) {
         CAPTURE(bad);
         write_bytes(io::grid_metadata_path(grid), bad);
         try {

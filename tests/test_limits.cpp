@@ -81,6 +81,38 @@ TEST_CASE("memory budget: GSD_MEMORY_LIMIT is read, and work past it is refused 
     CHECK(memory_budget() > (std::size_t(1) << 26));
 }
 
+TEST_CASE("memory budget: fitting, blending and the surface commands estimate their memory from the input first") {
+    test::ScratchDir dir("limits-memory");
+    const std::string d = dir.file("");
+    REQUIRE(test::run_cli("sample torus -n 3000 -o " + d + "c.ply").exit_code == 0);
+    REQUIRE(test::run_cli("mesh torus -r 24 -o " + d + "t.obj").exit_code == 0);
+    REQUIRE(test::run_cli("curve " + d + "t.obj --plane 0 1 0 0 --near 0.5 0 0 -o " + d + "loop.txt").exit_code == 0);
+    // 3000 points need ~1.5 MiB for the jet fit, ~6 MiB for TorusNet; the torus mesh (a few
+    // thousand vertices) tens of MiB for the surface methods. A 1 MiB budget refuses each, by
+    // name, with no output; the default budget runs them.
+    const std::vector<std::pair<std::string, std::string>> runs = {
+        {"pat fit " + d + "c.ply --fitter jet -o " + d + "j.tori", "fitting jets to 3000 points"},
+        {"pat fit " + d + "c.ply --fitter net --device cpu -o " + d + "n.tori", "fitting TorusNet to 3000 points"},
+        {"shm surface " + d + "t.obj --curves " + d + "loop.txt -o " + d + "s.npy", "Signed Heat Method on"},
+        {"swn " + d + "t.obj --curves " + d + "loop.txt -o " + d + "w.npy", "Surface Winding Numbers on"},
+    };
+    for (const auto& [args, what] : runs) {
+        CAPTURE(args);
+        const auto refused = test::run_shell("GSD_MEMORY_LIMIT=1M " GSD_CLI " " + args);
+        CHECK(refused.exit_code == 1);
+        CHECK(refused.output.find(what) != std::string::npos);
+        CHECK(refused.output.find("memory budget") != std::string::npos);
+        CHECK_FALSE(test::file_exists(args.substr(args.rfind(' ') + 1)));
+        CHECK(test::run_cli(args).exit_code == 0);
+    }
+    // The blend of already fitted tori (pat eval --tori) is estimated too.
+    io::write_npy(d + "q.npy", {1, 3}, std::vector<float>{0, 0, 0});
+    const auto blend = test::run_shell("GSD_MEMORY_LIMIT=1M " GSD_CLI " pat eval --tori " + d + "j.tori --queries " + d +
+                                       "q.npy -o " + d + "e.npy");
+    CHECK(blend.exit_code == 1);
+    CHECK(blend.output.find("a torus field of 3000 points") != std::string::npos);
+}
+
 TEST_CASE("coordinates: beyond ±1e30, or one element 1e12× the bulk's size away, are refused with the element named") {
     PointCloud c;
     c.points = Points::Random(50, 3);

@@ -13,7 +13,7 @@ std::string grid_metadata_path(const std::string& grid_path) { return grid_path 
 void write_grid_metadata(const std::string& grid_path, const GridMetadata& meta) {
     const std::string path = grid_metadata_path(grid_path);
     meta.grid.validate();
-    if (meta.components < 1) throw Error(path, "components must be at least 1");
+    if (meta.components != 1 && meta.components != 3) throw Error(path, "components must be 1 (values) or 3 (a gradient)");
     nlohmann::json options;
     try {
         options = nlohmann::json::parse(meta.options_json.empty() ? "{}" : meta.options_json);
@@ -87,11 +87,13 @@ std::optional<GridMetadata> read_grid_metadata(const std::string& grid_path) {
         } catch (const Error& e) {
             detail::fail(path, e.what());
         }
-        if (auto it = j.find("components"); it != j.end()) {
-            if (!it->is_number_integer() || it->get<long long>() < 1 || it->get<long long>() > 1024)
-                detail::fail(path, "\"components\" must be a positive integer");
-            m.components = int(it->get<long long>());
-        }
+        // Required, and 1 or 3: the only grids gsd writes are values and gradients (found by
+        // fuzz/grid_metadata.cpp: 2 used to pass).
+        const auto comp = j.find("components");
+        if (comp == j.end()) detail::fail(path, "lacks \"components\"");
+        if (!comp->is_number_integer() || (comp->get<long long>() != 1 && comp->get<long long>() != 3))
+            detail::fail(path, "\"components\" must be 1 (values) or 3 (a gradient)");
+        m.components = int(comp->get<long long>());
         if (auto it = j.find("method"); it != j.end() && it->is_string()) m.method = it->get<std::string>();
         if (auto it = j.find("options"); it != j.end() && it->is_object()) m.options_json = it->dump();
         if (auto it = j.find("command"); it != j.end() && it->is_array())

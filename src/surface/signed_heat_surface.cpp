@@ -435,8 +435,12 @@ double SignedHeatSurface::Impl::source_mean(const std::vector<double>& phi, cons
     return S.points.empty() ? 0.0 : sum / double(S.points.size());
 }
 
-SignedHeatSurface::SignedHeatSurface(SurfaceMesh mesh, SurfaceShmSetup setup)
-    : impl_(std::make_unique<Impl>(std::move(mesh), setup)) {}
+SignedHeatSurface::SignedHeatSurface(SurfaceMesh mesh, SurfaceShmSetup setup) {
+    // Measured: ~4.4 KiB per vertex (operators, their factorizations, the solves); docs/io.md.
+    check_memory(6144.0 * double(mesh.vertex_count()), "mesh",
+                 "the surface Signed Heat Method on " + std::to_string(mesh.vertex_count()) + " vertices");
+    impl_ = std::make_unique<Impl>(std::move(mesh), setup);
+}
 SignedHeatSurface::~SignedHeatSurface() = default;
 SignedHeatSurface::SignedHeatSurface(SignedHeatSurface&&) noexcept = default;
 SignedHeatSurface& SignedHeatSurface::operator=(SignedHeatSurface&&) noexcept = default;
