@@ -333,6 +333,23 @@ TEST_CASE("grid sidecars: every grid gets GRID.npy.json; contour and slice need 
     CHECK_FALSE(test::file_exists(dir.file("x.png")));
 }
 
+TEST_CASE("-o GRID.vdb: OpenVDB output for grids; queries and gradients are usage errors with no output") {
+    ScratchDir dir("cli-vdb");
+    REQUIRE(run_cli("sample torus -n 800 -o " + dir.file("c.ply")).exit_code == 0);
+    const auto ok = run_cli("pat eval " + dir.file("c.ply") + " --fitter jet --grid 16 --device cpu -o " + dir.file("g.vdb"));
+    CHECK(ok.exit_code == (io::vdb_available() ? 0 : 1));
+    CHECK(test::file_exists(dir.file("g.vdb")) == io::vdb_available());
+    CHECK_FALSE(test::file_exists(dir.file("g.vdb.json")));  // the transform is inside the .vdb
+    io::write_npy(dir.file("q.npy"), {1, 3}, std::vector<float>{0, 0, 0});
+    CHECK(run_cli("pat eval " + dir.file("c.ply") + " --fitter jet --queries " + dir.file("q.npy") + " -o " + dir.file("q.vdb"))
+              .exit_code == 2);
+    CHECK_FALSE(test::file_exists(dir.file("q.vdb")));
+    CHECK(run_cli("pat eval " + dir.file("c.ply") + " --fitter jet --grid 8 -o " + dir.file("p.npy") + " --gradient " +
+                  dir.file("d.vdb"))
+              .exit_code == 2);
+    CHECK_FALSE(test::file_exists(dir.file("p.npy")));
+}
+
 TEST_CASE("PAT's outlier defence on the CLI: --confidence per point, --keep-outliers for comparison") {
     ScratchDir dir("cli-outliers");
     const std::string cloud = dir.file("c.npy");

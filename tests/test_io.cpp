@@ -896,6 +896,45 @@ TEST_CASE("every real mesh loads; polygon-bear keeps its polygons") {
 }
 #endif
 
+TEST_CASE("write_vdb: a VDB file from a valid scalar grid; bad grids and options are refused with no output") {
+    ScratchDir dir("io-vdb");
+    const std::string path = dir.file("g.vdb");
+    GridSpec g = GridSpec::cube(6, Box{{-1, -2, 0}, {1, 0, 2}});
+    std::vector<float> v(g.node_count());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = float(i % 7) * 0.3f - 0.9f;
+    if (!io::vdb_available()) {
+        CHECK_THROWS_AS(io::write_vdb(path, g, v), Error);
+        CHECK_FALSE(test::file_exists(path));
+        return;
+    }
+    io::write_vdb(path, g, v);
+    std::ifstream in(path, std::ios::binary);
+    char magic[8] = {};
+    in.read(magic, 8);
+    CHECK(std::string(magic, 4) == " BDV");  // OpenVDB's magic number 0x56444220, little-endian
+    auto refused = [&](const GridSpec& grid, const std::vector<float>& values, const io::VdbOptions& o, const char* why) {
+        CAPTURE(why);
+        const std::string out = dir.file("bad.vdb");
+        CHECK_THROWS_AS(io::write_vdb(out, grid, values, o), Error);
+        CHECK_FALSE(test::file_exists(out));
+    };
+    refused(g, std::vector<float>(v.size() - 1), {}, "a value short");
+    std::vector<float> nan = v;
+    nan[5] = std::nanf("");
+    refused(g, nan, {}, "NaN");
+    const GridSpec slab{6, 6, 3, Box{{0, 0, 0}, {1, 1, 1}}};  // spacing 0.2, 0.2, 0.5
+    refused(slab, std::vector<float>(slab.node_count(), 0.5f), {}, "a level set on non-cubic voxels");
+    io::VdbOptions plain;
+    plain.level_set = false;
+    CHECK_NOTHROW(io::write_vdb(dir.file("slab.vdb"), slab, std::vector<float>(slab.node_count(), 0.5f), plain));
+    io::VdbOptions narrow;
+    narrow.half_width = 0.5;
+    refused(g, v, narrow, "a band under one voxel");
+    io::VdbOptions nameless;
+    nameless.name = "";
+    refused(g, v, nameless, "no name");
+}
+
 TEST_CASE("grid metadata round-trips exactly; absent is nullopt; bad options and grids are refused") {
     ScratchDir dir("io-grid-meta");
     const std::string grid = dir.file("g.npy");

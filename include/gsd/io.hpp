@@ -122,6 +122,29 @@ GSD_EXPORT void write_grid_metadata(const std::string& grid_path, const GridMeta
 /// sidecar when it is not valid JSON, lacks a field, or describes an invalid grid.
 GSD_EXPORT std::optional<GridMetadata> read_grid_metadata(const std::string& grid_path);
 
+// ---- OpenVDB (.vdb) --------------------------------------------------------------------
+/// How a scalar grid goes into a .vdb file (docs/formats.md).
+struct VdbOptions {
+    /// Grid name: "surface" is what Houdini and Blender look for in a level set.
+    std::string name = "surface";
+    /// true: φ as a narrow-band level set (GRID_LEVEL_SET; signed distance, negative inside, as
+    /// in gsd): nodes with |φ| < half_width voxels are active, the rest inactive at ±half_width
+    /// voxels by their sign; needs cubic voxels. false: every node's value, active (winding
+    /// numbers, any other field; background 0).
+    bool level_set = true;
+    double half_width = 3;
+    /// Stored as the grid's "gsd_method" metadata ("pat", "shm", "winding", …).
+    std::string method;
+};
+/// Whether this gsd was built with OpenVDB (libopenvdb-dev); without it write_vdb throws.
+GSD_EXPORT bool vdb_available();
+/// Writes a scalar grid (values in C order, one per node: GridSpec's layout) as an OpenVDB
+/// FloatGrid whose index-to-world transform puts voxel (i, j, k) at the node's position
+/// (box.lo + (i, j, k)·step). Atomic, like every writer. Throws Error on a size mismatch,
+/// non-finite values, non-cubic voxels for a level set, or when vdb_available() is false.
+GSD_EXPORT void write_vdb(const std::string& path, const GridSpec& grid, const std::vector<float>& values,
+                          const VdbOptions& options = {});
+
 /// Lower-cased extension including the dot (".ply"), or "" if none.
 GSD_EXPORT std::string extension(const std::string& path);
 

@@ -196,3 +196,42 @@ def test_outlier_defence_matches_cli(tmp_path):
     bad.k = 1
     with pytest.raises(gsd.Error, match="OutlierOptions::k"):
         gsd.point_confidence(tori, bad)
+
+
+def test_vdb_output_opens_in_openvdb_with_the_nodes_transform(sphere, tmp_path):
+    """`-o X.vdb`: Debian's python3-openvdb reads a level set named "surface" whose voxel
+    (i, j, k) sits on the grid's node (i, j, k), holding φ in the narrow band and ±background
+    by φ's sign outside; winding numbers go in as a plain float grid."""
+    import pyopenvdb as vdb
+
+    _, cloud = sphere
+    cli("pat", "eval", cloud, "--fitter", "jet", "--device", "cpu", "--grid", 24, *bounds_args(), "-o", tmp_path / "p.npy")
+    cli("pat", "eval", cloud, "--fitter", "jet", "--device", "cpu", "--grid", 24, *bounds_args(), "-o", tmp_path / "p.vdb")
+    phi = np.load(tmp_path / "p.npy")
+    grids, _ = vdb.readAll(str(tmp_path / "p.vdb"))
+    assert len(grids) == 1
+    g = grids[0]
+    assert g.name == "surface" and g.gridClass == "level set" and g.metadata["gsd_method"] == "pat"
+    lo, hi = np.array(BOUNDS[:3]), np.array(BOUNDS[3:])
+    step = (hi - lo) / 23
+    np.testing.assert_allclose(g.transform.voxelSize(), step, rtol=1e-12)
+    for ijk in [(0, 0, 0), (23, 23, 23), (3, 17, 9)]:
+        np.testing.assert_allclose(g.transform.indexToWorld(ijk), lo + np.array(ijk) * step, rtol=0, atol=1e-12)
+    assert g.background == pytest.approx(3 * step[0], rel=1e-6)
+    values = np.zeros(phi.shape, np.float32)
+    g.copyToArray(values)
+    band = np.abs(phi) < g.background
+    assert band.sum() > 100
+    np.testing.assert_array_equal(values[band], phi[band])
+    assert np.all(np.sign(values[~band]) == np.sign(phi[~band]))
+    assert np.all(np.abs(values[~band]) == np.float32(g.background))
+
+    mesh = tmp_path / "m.obj"
+    cli("mesh", "sphere", "-r", 16, "-o", mesh)
+    cli("winding", mesh, "--grid", 12, *bounds_args(), "-o", tmp_path / "w.npy")
+    cli("winding", mesh, "--grid", 12, *bounds_args(), "-o", tmp_path / "w.vdb")
+    w = vdb.readAll(str(tmp_path / "w.vdb"))[0][0]
+    assert w.name == "winding" and w.gridClass == "unknown"
+    values = np.zeros((12, 12, 12), np.float32)
+    w.copyToArray(values)
+    np.testing.assert_array_equal(values, np.load(tmp_path / "w.npy"))

@@ -4,6 +4,7 @@
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/gpu.hpp>
+#include <gsd/io.hpp>
 
 #include <vulkan/vulkan.h>
 
@@ -11,7 +12,7 @@
 #include <cstdio>
 #include <random>
 
-int main() {
+int main(int argc, char** argv) {
     // The application's own use of the loader: these resolve to libvulkan, not to anything in
     // libgsd (which keeps its loader's function pointers to itself).
     std::uint32_t api = 0;
@@ -60,6 +61,23 @@ int main() {
         ok = false;
     } catch (const gsd::Error& e) {  // gsd's exception type crosses the library boundary
         std::printf("consumer: caught gsd::Error: %s\n", e.what());
+    }
+    // A level set through the shared library's OpenVDB writer (when built with it).
+    if (gsd::io::vdb_available()) {
+        const gsd::GridSpec g = gsd::GridSpec::cube(24, gsd::Box{{-1, -1, -1}, {1, 1, 1}});
+        const std::vector<float> phi = gsd::TorusField(tori, cpu_options).evaluate(g).phi;
+        const std::string out = argc > 1 ? std::string(argv[1]) + "/consumer.vdb" : "consumer.vdb";
+        gsd::io::write_vdb(out, g, phi);
+        std::FILE* f = std::fopen(out.c_str(), "rb");
+        char magic[4] = {};
+        const bool read = f && std::fread(magic, 1, 4, f) == 4;
+        if (f) std::fclose(f);
+        if (!read || std::string(magic, 4) != " BDV") {
+            std::fprintf(stderr, "consumer: %s is not a VDB file\n", out.c_str());
+            ok = false;
+        } else {
+            std::printf("consumer: wrote %s\n", out.c_str());
+        }
     }
     return ok ? 0 : 1;
 }

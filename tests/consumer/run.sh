@@ -30,7 +30,7 @@ fi
 cmake -S "$here" -B "$work/cmake-build" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$work/cmake-build" >/dev/null
 libdir=$(dirname "${lib:-$prefix/lib/x}")
-LD_LIBRARY_PATH="$libdir" "$work/cmake-build/consumer" 2>&1 | tee "$work/out.txt"
+LD_LIBRARY_PATH="$libdir" "$work/cmake-build/consumer" "$work" 2>&1 | tee "$work/out.txt"
 if grep -qi "validation error" "$work/out.txt"; then echo "FAIL: Vulkan validation errors"; exit 1; fi
 
 # 2. pkg-config.
@@ -39,7 +39,7 @@ static=""
 [ -z "$lib" ] && static=--static   # a static libgsd (GSD_SHARED=OFF) brings its dependencies
 flags=$(PKG_CONFIG_PATH="$pcdir" pkg-config $static --cflags --libs gsd)
 g++ -std=c++20 -O1 "$here/main.cpp" -o "$work/consumer-pc" $flags -lvulkan
-LD_LIBRARY_PATH="$libdir" "$work/consumer-pc" >/dev/null
+LD_LIBRARY_PATH="$libdir" "$work/consumer-pc" "$work" >/dev/null
 echo "ok: pkg-config build ran"
 
 # 3. The Python module, when it was built (GSD_PYTHON=ON): importable from the prefix alone.

@@ -209,8 +209,22 @@ bool writes_regular_file(const std::string& path) {
 
 }  // namespace
 
+void check_grid_output(const std::string& path, bool is_grid) {
+    if (io::extension(path) != ".vdb") return;
+    if (!is_grid) throw CLI::ValidationError("--output", ".vdb holds grids (--grid); write --queries results to a .npy");
+    if (!io::vdb_available()) throw Error(path, "this gsd was built without OpenVDB (libopenvdb-dev); write a .npy");
+}
+
 void write_grid(const std::string& path, const GridSpec& g, const std::vector<float>& values, int components,
                 const std::string& method) {
+    if (io::extension(path) == ".vdb") {
+        if (components != 1) throw Error(path, ".vdb output takes values, not gradients; write those to a .npy");
+        io::VdbOptions o;
+        o.level_set = method != "winding";  // signed distances are level sets; winding numbers are not
+        o.name = o.level_set ? "surface" : "winding";
+        o.method = method;
+        return io::write_vdb(path, g, values, o);
+    }
     std::vector<std::size_t> shape{std::size_t(g.nx), std::size_t(g.ny), std::size_t(g.nz)};
     if (components > 1) shape.push_back(std::size_t(components));
     io::GridMetadata meta;

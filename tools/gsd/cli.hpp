@@ -65,7 +65,10 @@ Box bounds_from(const std::vector<double>& v, const std::string& option);
 std::string bounds_text(const Box& b);
 
 /// Writes a grid's float32 values, (nx,ny,nz[,components]), and its sidecar GRID.npy.json
-/// (bounds, shape, `method`, the options given, the command line): both or neither.
+/// (bounds, shape, `method`, the options given, the command line): both or neither. A `.vdb`
+/// path gets an OpenVDB grid instead (values only; φ as a level set, winding numbers as they
+/// are), whose own transform says where the nodes are.
+void check_grid_output(const std::string& path, bool is_grid);
 void write_grid(const std::string& path, const GridSpec& g, const std::vector<float>& values, int components,
                 const std::string& method);
 

@@ -142,6 +142,7 @@ template <class EvalPoints, class EvalGrid>
 void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
                         const std::string& gradient_out, EvalPoints eval_points, EvalGrid eval_grid,
                         const std::string& what, const std::string& method) {
+    check_grid_output(out, domain.is_grid());  // before the work
     GridSpec grid;
     Points queries;
     if (domain.is_grid()) grid = domain.grid_spec(input_box);
@@ -212,7 +213,7 @@ void add_pat(CLI::App& app) {
         auto* in = eval->add_option("INPUT", *input, "Point cloud with normals (or a .tori file)");
         auto* tin = eval->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
         in->excludes(tin);
-        eval->add_option("-o,--output", *output, "Output .npy: (N,N,N) for a grid, (M,) for queries")->required()->check(output_file({".npy"}));
+        eval->add_option("-o,--output", *output, "Output .npy: (N,N,N) for a grid, (M,) for queries; or .vdb (a grid: φ as an OpenVDB level set)")->required()->check(output_file({".npy", ".vdb"}));
         eval->add_option("--gradient", *gradient, "Also write ∇φ: (N,N,N,3) or (M,3) .npy")->check(output_file({".npy"}));
         domain->add_to(*eval, true);
         fit->add_to(*eval, false);
@@ -261,7 +262,7 @@ void add_baseline(CLI::App& app) {
     auto blend = std::make_shared<BlendArgs>();
     base->add_option("METHOD", *kind, "sspd | shc")->required()->check(CLI::IsMember({"sspd", "shc"}));
     base->add_option("INPUT", *input, "Point cloud with normals")->required();
-    base->add_option("-o,--output", *output, "Output .npy")->required()->check(output_file({".npy"}));
+    base->add_option("-o,--output", *output, "Output .npy, or .vdb for a grid (an OpenVDB level set)")->required()->check(output_file({".npy", ".vdb"}));
     domain->add_to(*base, true);
     blend->add_to(*base);
     base->callback([=] {
@@ -373,7 +374,7 @@ void add_shm(CLI::App& app) {
     grid->add_option("INPUT", *inputs, "Mesh(es) and/or point cloud(s); several are combined into one source")->required();
     grid->add_option("--grid", *n, "Grid nodes per axis")->required()->check(CLI::Range(4, 2048));
     grid->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)")->expected(6);
-    grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy")->required()->check(output_file({".npy"}));
+    grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy, or .vdb (φ as an OpenVDB level set)")->required()->check(output_file({".npy", ".vdb"}));
     grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
         ->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--sum-tolerance", opt->sum_tolerance, "Step 1 accuracy: error bound of each expansion, as a fraction of a sheet's field (smaller: slower, closer to the exact integral)")
@@ -387,6 +388,7 @@ void add_shm(CLI::App& app) {
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     grid->callback([=] {
+        check_grid_output(*output, true);
         // Sources: each input by its kind (a mesh's triangles, a cloud's points).
         ShmSource src;
         std::vector<std::pair<std::string, bool>> kinds;
@@ -510,7 +512,7 @@ void add_winding(CLI::App& app) {
     auto domain = std::make_shared<Domain>();
     auto opt = std::make_shared<WindingOptions>();
     wn->add_option("INPUT", *input, "Mesh (a file with faces: any holes, flips, self-intersections) or point cloud with normals")->required();
-    wn->add_option("-o,--output", *output, "Output float32 .npy: (N,N,N) for a grid, (M,) for queries")->required()->check(output_file({".npy"}));
+    wn->add_option("-o,--output", *output, "Output float32 .npy: (N,N,N) for a grid, (M,) for queries; or .vdb for a grid (a float grid named winding)")->required()->check(output_file({".npy", ".vdb"}));
     domain->add_to(*wn, true);
     wn->add_flag("--exact", opt->exact, "Sum every element exactly (O(queries × elements)): the reference");
     wn->add_option("--beta", opt->beta, "Opening criterion: a cluster is summed by its expansion only farther than β × its radius")
