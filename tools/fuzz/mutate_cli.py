@@ -1154,6 +1154,9 @@ Format = namedtuple("Format", "name seed mutator commands")
 
 
 def C(template, *outputs):
+    # Every grid the CLI writes as .npy gets its sidecar, GRID.npy.json (docs/formats.md).
+    if "--grid" in template.split():
+        outputs += tuple(o + ".json" for o in outputs if o.endswith(".npy"))
     return Command(template.split(), outputs)
 
 
@@ -1163,6 +1166,7 @@ CLOUD_CMDS = [
     C("pat eval {in} --fitter jet --grid 8 -o out.npy DEV", "out.npy"),
     C("winding {in} --grid 8 -o out.npy DEV", "out.npy"),
     C("baseline sspd {in} --grid 8 -o out.npy DEV", "out.npy"),
+    C("pat eval {in} --fitter jet --grid 8 -o out.vdb DEV", "out.vdb"),
 ]
 
 
@@ -1171,6 +1175,7 @@ def mesh_cmds(seed):
     return [
         C("shm grid {in} --grid 8 -o out.npy DEV", "out.npy"),
         C("winding {in} --grid 8 -o out.npy DEV", "out.npy"),
+        C("shm grid {in} --grid 8 -o out.vdb DEV", "out.vdb"),
         C("swn {in} --curves %s -o labels.npy" % curve, "labels.npy"),
         C("shm surface {in} --curves %s -o phi.npy" % curve, "phi.npy"),
         C("curve {in} --plane 0 1 0 0 -o loop.txt", "loop.txt"),
