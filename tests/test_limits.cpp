@@ -96,7 +96,9 @@ TEST_CASE("memory budget: fitting, blending and the surface commands estimate th
         {"shm surface " + d + "t.obj --curves " + d + "loop.txt -o " + d + "s.npy", "Signed Heat Method on"},
         {"swn " + d + "t.obj --curves " + d + "loop.txt -o " + d + "w.npy", "Surface Winding Numbers on"},
     };
-    for (const auto& [args, what] : runs) {
+    for (const auto& run : runs) {
+        const std::string& args = run.first;  // (clang 14 cannot CAPTURE a structured binding)
+        const std::string& what = run.second;
         CAPTURE(args);
         const auto refused = test::run_shell("GSD_MEMORY_LIMIT=1M " GSD_CLI " " + args);
         CHECK(refused.exit_code == 1);
