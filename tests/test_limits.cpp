@@ -107,6 +107,14 @@ TEST_CASE("memory budget: fitting, blending and the surface commands estimate th
         CHECK_FALSE(test::file_exists(args.substr(args.rfind(' ') + 1)));
         CHECK(test::run_cli(args).exit_code == 0);
     }
+    // The fast sums' tree over a mesh's faces (gsd winding, gsd shm grid).
+    for (const std::string cmd : {"winding ", "shm grid "}) {
+        CAPTURE(cmd);
+        const auto tree = test::run_shell("GSD_MEMORY_LIMIT=1M " GSD_CLI " " + cmd + d + "t.obj --grid 4 -o " + d + "tree.npy");
+        CHECK(tree.exit_code == 1);
+        CHECK(tree.output.find("a summation tree over") != std::string::npos);
+        CHECK_FALSE(test::file_exists(d + "tree.npy"));
+    }
     // The blend of already fitted tori (pat eval --tori) is estimated too.
     io::write_npy(d + "q.npy", {1, 3}, std::vector<float>{0, 0, 0});
     const auto blend = test::run_shell("GSD_MEMORY_LIMIT=1M " GSD_CLI " pat eval --tori " + d + "j.tori --queries " + d +
