@@ -213,7 +213,7 @@ SumTree::SumTree(const OrientedElements& e) {
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
         const Node& nd = nodes_[i];
         wnodes_[i] = winding_node(nd);
-        wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, nd.area * nd.rho * nd.rho * nd.rho};
+        wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, nd.area};
     }
     hot_.resize(nodes_.size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -291,10 +291,9 @@ void SumTree::compute_node(std::uint32_t i) {
 // 4 per AVX2 one; -fno-math-errno lets sqrt vectorize). An entry on the stack carries the node
 // and the lanes that still need it; at a node, the lanes that accept it add its expansion,
 // the rest go on to its children (or sum its elements exactly, lane by lane, at a leaf).
-template <int Isa>
+// Always inlined: each caller in WindingDispatch compiles it for its own instruction set.
 GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, const double* z, int n, double beta,
                                               double tolerance, double* w, std::size_t& terms) const {
-    (void)Isa;  // only selects the instruction set the caller is compiled for
     constexpr int L = kLanes;
     alignas(64) double X[L], Y[L], Z[L], W[L];
     for (int l = 0; l < L; ++l) {
@@ -304,8 +303,6 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
         Z[l] = z[s];
         W[l] = 0;
     }
-    const double b2 = beta * beta, bound = tolerance * M_PI;
-    const bool beta_only = !(tolerance > 0);
     struct Entry {
         std::uint32_t node, lanes;
     };
@@ -316,7 +313,6 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
     while (top > 0) {
         const Entry e = stack[--top];
         const WindingTest& t = wtests_[e.node];
-        const double rho = t.rho, lim = b2 * rho * rho, k = t.area_rho3;
         alignas(64) double dx[L], dy[L], dz[L], ir[L], term[L];
         alignas(64) std::int64_t ok[L];
 #pragma omp simd
@@ -324,11 +320,9 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
             dx[l] = X[l] - t.c[0];
             dy[l] = Y[l] - t.c[1];
             dz[l] = Z[l] - t.c[2];
-            const double d2 = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l], r = std::sqrt(d2);
-            const double g = r - rho, g2 = g * g;
-            ir[l] = 1 / r;
-            // sums::accept_winding, branch-free
-            ok[l] = (d2 > lim) & (beta_only | (k <= bound * g2 * g2 * g));
+            const double d2 = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
+            ir[l] = 1 / std::sqrt(d2);
+            ok[l] = sums::accept_winding(t.rho, d2, t.area, beta, tolerance);
         }
         std::uint32_t accepted = 0;
         for (int l = 0; l < L; ++l) accepted |= std::uint32_t(ok[l] & 1) << l;
@@ -363,12 +357,12 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
 struct WindingDispatch {
     static void generic(const SumTree& t, const double* x, const double* y, const double* z, int n, double beta, double tol,
                         double* w, std::size_t& terms) {
-        t.winding_lanes<0>(x, y, z, n, beta, tol, w, terms);
+        t.winding_lanes(x, y, z, n, beta, tol, w, terms);
     }
 #if defined(__x86_64__) && defined(__GNUC__)
     __attribute__((target("avx2,fma"))) static void avx2(const SumTree& t, const double* x, const double* y, const double* z,
                                                          int n, double beta, double tol, double* w, std::size_t& terms) {
-        t.winding_lanes<1>(x, y, z, n, beta, tol, w, terms);
+        t.winding_lanes(x, y, z, n, beta, tol, w, terms);
     }
     static bool has_avx2() {
         static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");

@@ -55,9 +55,9 @@ public:
         double c[3], rho, area;
         double m0[3], s1[6], t3[10], p[3];
     };
-    /// What the winding walk's acceptance test reads (40 bytes): center, ρ and A·ρ³.
+    /// What the winding walk's acceptance test reads (40 bytes): center, ρ and area.
     struct WindingTest {
-        double c[3], rho, area_rho3;
+        double c[3], rho, area;
     };
 
     explicit SumTree(const OrientedElements& elements);
@@ -120,7 +120,6 @@ private:
     std::vector<Hot> hot_;
     std::vector<WindingNode> wnodes_;
     std::vector<WindingTest> wtests_;
-    template <int Isa>
     void winding_lanes(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
                        std::size_t& terms) const;
     friend struct WindingDispatch;
@@ -144,12 +143,11 @@ double triangle_winding(const Eigen::Vector3d& x, const Eigen::Vector3d& a, cons
 /// Whether a node of radius ρ and total area A (Σ|v_j|) at squared distance d2 from its center
 /// may be summed by its second-order dipole expansion: d > β·ρ, and — when tolerance > 0 — the
 /// Taylor remainder bound A·ρ³/(π(d − ρ)⁵) (from |∂⁴(1/4πr)| ≤ 24/(4πr⁵)) is at most
-/// `tolerance`, an absolute error in the winding number per node.
+/// `tolerance`, an absolute error in the winding number per node. Branch-free, so the packet
+/// walk's lane loop vectorizes with it.
 inline bool accept_winding(double rho, double d2, double area, double beta, double tolerance) {
-    if (!(d2 > beta * beta * rho * rho)) return false;
-    if (tolerance <= 0) return true;
     const double g = std::sqrt(d2) - rho, g2 = g * g;
-    return area * rho * rho * rho <= tolerance * M_PI * g2 * g2 * g;
+    return (d2 > beta * beta * rho * rho) & ((tolerance <= 0) | (area * rho * rho * rho <= tolerance * M_PI * g2 * g2 * g));
 }
 
 /// Whether a cluster of radius ρ, total area A, whose center is at distance d may be summed
