@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The main jobs on gsd's own sample data:
 #  1. Points as Tori on a holey, noisy sampling of a procedural torus (data/demo/torus-holey.ply,
-#     made by `gsd sample`) → fitted tori → SDF grid and gradient → zero-level mesh → slices,
-#     with the SSPD baseline beside it;
+#     made by `gsd sample`) → fitted tori → SDF grid and gradient → zero-level mesh → slices and
+#     a sphere-traced picture of the field, with the SSPD baseline beside it;
 #  2. the Signed Heat Method on a broken mesh of a rounded box — 20% of its area cut away in
 #     3 holes, 10% of its faces flipped (data/demo/box-broken.ply, made by `gsd mesh`) → SDF grid
 #     → a closed zero-level surface → a slice, beside the fast generalized winding number (`gsd
@@ -41,11 +41,13 @@ bounds="-1 -1 -1 1 1 1"
 "$gsd" contour "$out/sdf.npy" --bounds $bounds -o "$out/surface.obj"
 "$gsd" slice "$out/sdf.npy" --bounds $bounds --axis z --at 0 -o "$out/slice-z.png"
 "$gsd" slice "$out/sdf.npy" --bounds $bounds --axis y --at 0 -o "$out/slice-y.png"
+"$gsd" -v render --tori "$out/torus.tori" --size 640 480 -o "$out/render.png"   # sphere-traced, shaded by ∇φ
 "$gsd" -v baseline sspd "$cloud" --grid 96 --bounds $bounds -o "$out/sspd.npy"
 "$gsd" slice "$out/sspd.npy" --bounds $bounds --axis y --at 0 -o "$out/sspd-slice-y.png"
 
 "$gsd" -v shm grid "$broken" --grid 96 --bounds $bounds -o "$out/shm.npy" --contour "$out/shm-surface.obj"
 "$gsd" slice "$out/shm.npy" --bounds $bounds --axis z --at 0 -o "$out/shm-slice-z.png"
+"$gsd" render "$out/shm.npy" --size 640 480 -o "$out/shm-render.png"
 "$gsd" -v winding "$broken" --grid 96 --bounds $bounds -o "$out/winding.npy"   # the classic answer, for comparison
 "$gsd" slice "$out/winding.npy" --bounds $bounds --axis z --at 0 --level 0.5 -o "$out/winding-slice-z.png"
 
@@ -73,12 +75,14 @@ demo outputs (input: $cloud, $(head -c 300 "$cloud" | grep -a 'element vertex' |
   SDF gradient         $out/sdf-gradient.npy  (96,96,96,3)
   zero-level mesh      $out/surface.obj
   slices               $out/slice-z.png  $out/slice-y.png
+  picture of φ = 0     $out/render.png        (sphere-traced PAT field, shaded by ∇φ)
   SSPD baseline        $out/sspd.npy  $out/sspd-slice-y.png
 
 SHM on a broken mesh (input: $broken, 20% of the area in 3 holes, 10% of faces flipped):
   SDF grid 96^3        $out/shm.npy
   closed zero surface  $out/shm-surface.obj
   slice                $out/shm-slice-z.png
+  picture of φ = 0     $out/shm-render.png
   winding number       $out/winding.npy  $out/winding-slice-z.png  (contour at ½: the holes leak)
 
 SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 40% cut away):

@@ -12,6 +12,7 @@
 #include <cstring>
 #include <array>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <random>
 
@@ -380,4 +381,42 @@ TEST_CASE("PAT's outlier defence on the CLI: --confidence per point, --keep-outl
               .exit_code == 2);
     CHECK_FALSE(std::filesystem::exists(dir.file("x.npy")));
     CHECK_FALSE(std::filesystem::exists(dir.file("y.npy")));
+}
+
+TEST_CASE("gsd render: pictures of a cloud's PAT field and of a grid (bounds from the sidecar); bad options, no output") {
+    ScratchDir dir("cli-render");
+    const std::string cloud = dir.file("t.ply");
+    REQUIRE(run_cli("sample torus -n 2000 -o " + cloud).exit_code == 0);
+    // PNG width and height from the IHDR chunk.
+    auto png_size = [](const std::string& path) {
+        std::ifstream in(path, std::ios::binary);
+        const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+        REQUIRE(bytes.size() > 24);
+        auto be32 = [&](std::size_t at) {
+            return (std::uint32_t(std::uint8_t(bytes[at])) << 24) | (std::uint32_t(std::uint8_t(bytes[at + 1])) << 16) |
+                   (std::uint32_t(std::uint8_t(bytes[at + 2])) << 8) | std::uint32_t(std::uint8_t(bytes[at + 3]));
+        };
+        return std::pair<std::uint32_t, std::uint32_t>{be32(16), be32(20)};
+    };
+    test::RunResult r = run_cli("render " + cloud + " --fitter jet --size 48 32 --supersample 1 --device cpu -o " + dir.file("pat.png"));
+    REQUIRE(r.exit_code == 0);
+    CHECK(r.output.find("of rays on the surface, marched on cpu") != std::string::npos);
+    CHECK(png_size(dir.file("pat.png")) == std::pair<std::uint32_t, std::uint32_t>{48, 32});
+    REQUIRE(run_cli("pat eval " + cloud + " --fitter jet --grid 24 -o " + dir.file("g.npy")).exit_code == 0);
+    REQUIRE(run_cli("render " + dir.file("g.npy") + " --size 40 30 --view-from 0 0 1 --color " + dir.file("g.npy") +
+                    " -o " + dir.file("grid.png")).exit_code == 0);
+    CHECK(png_size(dir.file("grid.png")) == std::pair<std::uint32_t, std::uint32_t>{40, 30});
+
+    // Usage errors (exit 2) and data errors (exit 1) write nothing.
+    CHECK(run_cli("render " + cloud + " -o " + dir.file("x.jpg")).exit_code == 2);
+    CHECK(run_cli("render " + cloud + " --size 0 10 -o " + dir.file("x.png")).exit_code == 2);
+    CHECK(run_cli("render -o " + dir.file("x.png")).exit_code == 2);
+    r = run_cli("render " + dir.file("g.npy") + " --view-from 0 2 0 -o " + dir.file("x.png"));
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("gsd: error: --up: ") != std::string::npos);
+    std::filesystem::remove(dir.file("g.npy") + ".json");
+    r = run_cli("render " + dir.file("g.npy") + " -o " + dir.file("x.png"));
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("--bounds") != std::string::npos);
+    CHECK_FALSE(test::file_exists(dir.file("x.png")));
 }

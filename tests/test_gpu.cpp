@@ -290,6 +290,29 @@ TEST_CASE("device choice: cpu, names, and fallback without a device") {
     CHECK_THROWS_AS(gpu::select("99"), Error);
     const gpu::Selection by_index = gpu::select("0");
     CHECK(by_index.context != nullptr);
+    try {
+        (void)gpu::select("no-such-device-xyz");
+    } catch (const Error& e) {
+        CHECK(e.where() == "device");
+    }
+    // One value for every options struct: a context in hand runs there, choice strings resolve
+    // to the same shared context.
+    const Device held = by_index.context;
+    CHECK(held.choice().empty());
+    CHECK(held.describe() == gpu::device_name(*by_index.context));
+    CHECK(gpu::select(held).context == by_index.context);
+    CHECK(gpu::select(held).note.empty());
+    CHECK(gpu::select(Device("gpu")).context == gpu::select("0").context);
+    BlendOptions o;
+    o.device = by_index.context;
+    const PointCloud cloud = shapes::sphere({0, 0, 0}, 0.5)->sample(600, 2);
+    const TorusField field(JetFitter().fit(cloud), o);
+    Points q(3, 3);
+    q << 0, 0, 0, 0.9, 0, 0, 0.5, 0, 0;
+    const FieldValues v = field.evaluate(q);
+    CHECK(v.device == gpu::device_name(*by_index.context));
+    CHECK(v.phi[0] < 0);
+    CHECK(v.phi[1] > 0);
     // Without a loader or a driver the CLI falls back to the CPU path with one line (see
     // test_cli for the process-level check with GSD_VULKAN_LOADER / VK_ICD_FILENAMES).
 }

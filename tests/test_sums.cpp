@@ -4,6 +4,7 @@
 #include <doctest/doctest.h>
 
 #include <gsd/baselines.hpp>
+#include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/sums.hpp>
 
@@ -269,5 +270,87 @@ TEST_CASE("fast winding numbers are scale invariant, also at 1e20 (past float32'
         double worst = 0;
         for (std::size_t i = 0; i < r.w.size(); ++i) worst = std::max(worst, std::abs(r.w[i] - unit.w[i]));
         CHECK(worst < 5e-4);  // float32 solid angles at queries next to a face differ by ~1e-4
+    }
+}
+
+TEST_CASE("one Field interface: PAT, a baseline and winding numbers sampled through const Field&") {
+    const PointCloud cloud = shapes::sphere({0, 0, 0}, 0.5)->sample(1500, 4);
+    const TorusField pat(JetFitter().fit(cloud), BlendOptions{});
+    const BaselineField sspd(Baseline::Sspd, cloud, BlendOptions{});
+    const WindingField winding(OrientedElements::from_mesh(shapes::icosphere(3, 0.5)));
+    Points q(4, 3);
+    q << 0, 0, 0, 0.1, -0.2, 0.05, 0.9, 0, 0, -0.7, 0.7, 0;
+    // Inside/outside the same way for all three: φ < 0 inside for the distances, w ≈ 1 for winding.
+    auto inside = [](const Field& f, const FieldValues& v, std::size_t i) {
+        return dynamic_cast<const WindingField*>(&f) ? v.phi[i] > 0.5f : v.phi[i] < 0.0f;
+    };
+    for (const Field* f : {static_cast<const Field*>(&pat), static_cast<const Field*>(&sspd), static_cast<const Field*>(&winding)}) {
+        const FieldValues v = f->evaluate(q);
+        REQUIRE(v.phi.size() == 4);
+        CHECK(inside(*f, v, 0));
+        CHECK(inside(*f, v, 1));
+        CHECK_FALSE(inside(*f, v, 2));
+        CHECK_FALSE(inside(*f, v, 3));
+        // A grid through the same interface: node values equal the points' evaluation.
+        const GridSpec g{3, 2, 2, Box{{-0.6, -0.6, -0.6}, {0.6, 0.6, 0.6}}};
+        const FieldValues on_grid = f->evaluate(g);
+        const FieldValues at_nodes = f->evaluate(g.nodes());
+        REQUIRE(on_grid.phi.size() == 12);
+        for (std::size_t i = 0; i < 12; ++i) CHECK(on_grid.phi[i] == doctest::Approx(at_nodes.phi[i]).epsilon(1e-6));
+        // The caller's memory read in place: x, y, z, w records of doubles and of floats.
+        std::vector<double> records(16, 0.0);
+        std::vector<float> records_f(16, 0.0f);
+        for (Eigen::Index i = 0; i < 4; ++i)
+            for (int a = 0; a < 3; ++a) {
+                records[std::size_t(4 * i + a)] = q(i, a);
+                records_f[std::size_t(4 * i + a)] = float(q(i, a));
+            }
+        const Eigen::Map<const Points, 0, Eigen::OuterStride<>> mapped(records.data(), 4, 3, Eigen::OuterStride<>(4));
+        const Eigen::Map<const PointsF, 0, Eigen::OuterStride<>> mapped_f(records_f.data(), 4, 3, Eigen::OuterStride<>(4));
+        const FieldValues from_map = f->evaluate(mapped);
+        const FieldValues from_floats = f->evaluate(mapped_f);
+        const FieldValues rounded = f->evaluate(Points(q.cast<float>().cast<double>()));
+        for (std::size_t i = 0; i < 4; ++i) {
+            CHECK(from_map.phi[i] == v.phi[i]);
+            CHECK(from_floats.phi[i] == rounded.phi[i]);
+        }
+        if (f->has_gradient()) {
+            CHECK(f->evaluate(q, true).gradient.size() == 12);
+        } else {
+            try {
+                (void)f->evaluate(q, true);
+                FAIL("a gradient was offered by a field without one");
+            } catch (const Error& e) {
+                CHECK(e.where() == "with_gradient");
+            }
+        }
+    }
+}
+
+TEST_CASE("WindingField: the tree built once equals fast_winding_numbers; options checked up front") {
+    const PolygonMesh mesh = shapes::torus_mesh(24, 12);
+    OrientedElements e = OrientedElements::from_mesh(mesh);
+    WindingOptions o;
+    o.device = "cpu";
+    const WindingField field(e, o);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1);
+    Points q(500, 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) q(i, a) = u(rng);
+    const WindingResult direct = fast_winding_numbers(e, q, o);
+    for (int pass = 0; pass < 2; ++pass) {  // the second pass reuses the tree
+        const WindingResult cached = field.winding_numbers(q);
+        REQUIRE(cached.w.size() == direct.w.size());
+        for (std::size_t i = 0; i < direct.w.size(); ++i) CHECK(cached.w[i] == direct.w[i]);
+        CHECK(cached.terms == direct.terms);
+    }
+    WindingOptions bad;
+    bad.beta = 0.5;
+    try {
+        WindingField f(e, bad);
+        FAIL("β = 0.5 accepted");
+    } catch (const Error& err) {
+        CHECK(err.where() == "WindingOptions::beta");
     }
 }

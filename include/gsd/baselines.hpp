@@ -19,19 +19,24 @@ enum class Baseline {
 };
 
 /// A baseline signed distance field over an oriented cloud. Gradients are not offered
-/// (FieldValues::gradient stays empty).
-class GSD_EXPORT BaselineField {
+/// (with_gradient is an error).
+class GSD_EXPORT BaselineField final : public Field {
 public:
     BaselineField(Baseline kind, const PointCloud& cloud, BlendOptions options = {});
-    ~BaselineField();
+    ~BaselineField() override;
     BaselineField(BaselineField&&) noexcept;
     BaselineField& operator=(BaselineField&&) noexcept;
 
-    FieldValues evaluate(const Points& queries, const ProgressFn& progress = {}) const;
-    FieldValues evaluate(const GridSpec& grid, const ProgressFn& progress = {}) const;
+    using Field::evaluate;  // the float32 overload
+    FieldValues evaluate(PointsView queries, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const override;
+    FieldValues evaluate(const GridSpec& grid, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const override;
+    bool has_gradient() const override { return false; }
     double r_eval() const;
 
 private:
+    friend struct detail::FieldAccess;  // the library's device paths (gsd/vulkan.hpp)
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -17,6 +17,10 @@
 
 namespace gsd {
 
+namespace detail {
+struct FieldAccess;  // the library's own access to a field's internals (src/blend/blend.hpp)
+}
+
 /// Library version ("major.minor.patch").
 GSD_EXPORT std::string_view version();
 
@@ -36,6 +40,13 @@ private:
 /// N×3 row-major matrix: row i is (x, y, z) of element i. Row-major so that the coordinates
 /// of one point are contiguous (zero-copy into spatial indices and GPU uploads).
 using Points = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+/// A read-only view of N×3 double coordinates: a Points, a block of one, or an Eigen::Map over
+/// an application's row-major buffer (any row stride), without a copy.
+using PointsView = Eigen::Ref<const Points, 0, Eigen::OuterStride<>>;
+/// float32 coordinates, e.g. a renderer's vertex buffer (Eigen::Map with OuterStride<>(4) for
+/// x, y, z, w records). Fields take them too, converted to double once.
+using PointsF = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
+using PointsFView = Eigen::Ref<const PointsF, 0, Eigen::OuterStride<>>;
 
 /// An oriented point cloud. `normals` has the same row count as `points`; normals need not be
 /// unit length on input (validate() normalizes them) but must not be zero.

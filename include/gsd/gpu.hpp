@@ -1,13 +1,18 @@
 // gsd/gpu.hpp — which compute device gsd uses, and what it sees.
 //
-// Algorithms pick their device through a choice string (an options field, else $GSD_DEVICE):
-//   "auto"  a real GPU if there is one, else the CPU path (the default)
+// Every options struct carries a gsd::Device (BlendOptions::device, ShmOptions::device, …),
+// resolved by one policy when the work starts (gpu::select):
+//   "auto"  a real GPU if there is one, else the CPU path (the default; $GSD_DEVICE overrides
+//           an empty choice)
 //   "gpu"   any Vulkan device, a software one (lavapipe) included
 //   "cpu"   the CPU path
 //   N       the Vulkan device with index N (see `gsd info`)
 //   text    the first Vulkan device whose name contains the text (case-insensitive)
-// No Vulkan loader or no usable device is not an error for "auto" and "gpu": the work runs on
-// the CPU and one line says so (see set_log_sink). An index or name that matches nothing is.
+//   a gpu::Context   that device: one gsd selected before, or an application's own device handed
+//                    to gsd with gpu::Context::adopt (gsd/vulkan.hpp)
+// "auto" and "gpu" fall back: no Vulkan loader or no usable device runs the work on the CPU and
+// one line says so (see set_log_sink). A device named by index or name is a demand: one that
+// does not exist or cannot start is an error (gsd::Error, where() "device").
 // No Vulkan type appears in this header.
 #pragma once
 
@@ -61,9 +66,37 @@ struct Selection {
     std::string note;                  ///< why the CPU path was chosen when a GPU was asked for
 };
 
-/// Resolves a choice string ("" means $GSD_DEVICE, else "auto"). Contexts are shared: one per
-/// device per process. Throws gsd::Error for an index or name that matches no device.
-GSD_EXPORT Selection select(const std::string& choice);
+}  // namespace gpu
+
+/// Where a computation runs: a choice string or a device context (see the top of this file).
+/// Converts implicitly from both, so `options.device = "cpu"` and `options.device = context`
+/// read naturally.
+class GSD_EXPORT Device {
+public:
+    Device() = default;  ///< "": $GSD_DEVICE, else "auto"
+    Device(std::string choice) : choice_(std::move(choice)) {}
+    Device(const char* choice) : choice_(choice ? choice : "") {}
+    Device(std::shared_ptr<gpu::Context> context);
+    static Device cpu() { return Device("cpu"); }
+
+    /// The choice string ("" for a context, or for the default).
+    const std::string& choice() const { return choice_; }
+    /// The context given, if any.
+    const std::shared_ptr<gpu::Context>& context() const { return context_; }
+    /// "cpu", "auto", a choice string as given, or the context's device name (for messages).
+    std::string describe() const;
+
+private:
+    std::string choice_;
+    std::shared_ptr<gpu::Context> context_;
+};
+
+namespace gpu {
+
+/// Resolves a device. Contexts gsd creates are shared: one per device per process. Throws
+/// gsd::Error ("device") for an index or name that matches no device or whose device cannot
+/// start.
+GSD_EXPORT Selection select(const Device& device);
 
 /// Name of a context's device.
 GSD_EXPORT std::string device_name(const Context& ctx);

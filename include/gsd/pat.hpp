@@ -10,6 +10,8 @@
 #include <gsd/export.hpp>
 
 #include <gsd/core.hpp>
+#include <gsd/field.hpp>
+#include <gsd/gpu.hpp>
 
 #include <array>
 #include <memory>
@@ -117,8 +119,9 @@ struct TorusNetOptions {
     /// Weights file (.safetensors, docs/torusnet.md); empty: the model shipped in the library
     /// (models/torusnet.safetensors, embedded at build time).
     std::string model;
-    /// "auto" | "gpu" | "cpu" | a device index or name substring; empty: $GSD_DEVICE, else auto.
-    std::string device;
+    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
+    /// the default (empty) is $GSD_DEVICE, else auto.
+    Device device;
     /// Points per GPU chunk (0: chosen from device limits). Results do not depend on it.
     std::size_t chunk_size = 0;
 };
@@ -213,35 +216,31 @@ struct BlendOptions {
     int fallback_k = 32;
     /// exp(−C) is the smallest relative weight kept (thesis: C = 64 stays above float32 underflow).
     double C = 64.0;
-    /// "auto" | "gpu" | "cpu" | a device index or name substring; empty: $GSD_DEVICE, else auto.
-    std::string device;
+    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
+    /// the default (empty) is $GSD_DEVICE, else auto.
+    Device device;
     /// Queries per GPU chunk (0: chosen from device limits). Results do not depend on it.
     std::size_t chunk_size = 0;
 };
 
-/// Result of an evaluation.
-struct FieldValues {
-    std::vector<float> phi;       ///< one value per query
-    std::vector<float> gradient;  ///< 3 per query (x, y, z), if asked for
-    std::string device;           ///< the device that computed them ("cpu" or the Vulkan device name)
-};
-
 /// The PAT signed distance field of a set of fitted tori.
-class GSD_EXPORT TorusField {
+class GSD_EXPORT TorusField final : public Field {
 public:
     /// Scores the points (point_confidence) unless `outliers.enabled` is false, and blends the
     /// ones that are not outliers.
     explicit TorusField(FittedTori tori, BlendOptions options = {}, OutlierOptions outliers = {});
-    ~TorusField();
+    ~TorusField() override;
     TorusField(TorusField&&) noexcept;
     TorusField& operator=(TorusField&&) noexcept;
 
     /// φ (and ∇φ if `with_gradient`) at every query point.
-    FieldValues evaluate(const Points& queries, bool with_gradient = false,
-                         const ProgressFn& progress = {}) const;
+    using Field::evaluate;  // the float32 overload
+    FieldValues evaluate(PointsView queries, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const override;
     /// φ on every node of a grid, in GridSpec storage order.
     FieldValues evaluate(const GridSpec& grid, bool with_gradient = false,
-                         const ProgressFn& progress = {}) const;
+                         const ProgressFn& progress = {}) const override;
+    bool has_gradient() const override { return true; }
 
     /// All the fitted tori, outliers included.
     const FittedTori& tori() const;
@@ -255,6 +254,7 @@ public:
     double r_eval() const;
 
 private:
+    friend struct detail::FieldAccess;  // the library's device paths (gsd/vulkan.hpp)
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -15,6 +15,7 @@
 #include <gsd/export.hpp>
 
 #include <gsd/core.hpp>
+#include <gsd/gpu.hpp>
 #include <gsd/sums.hpp>
 
 #include <optional>
@@ -77,8 +78,9 @@ struct ShmOptions {
     /// 0: shift φ so the area-weighted mean of φ over the source is zero. w > 0: add penalty rows
     /// w·A_j·φ(y_j) = 0 (trilinear φ at each source) to the least-squares problem.
     double fit_zero_set = 0.0;
-    /// "auto" | "gpu" | "cpu" | index | name (empty: $GSD_DEVICE, else auto).
-    std::string device;
+    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
+    /// the default (empty) is $GSD_DEVICE, else auto.
+    Device device;
     /// Points per GPU chunk in step 1 (0: automatic). Results do not depend on it.
     std::size_t chunk_size = 0;
 };
@@ -124,7 +126,7 @@ GSD_EXPORT Box shm_default_bounds(const ShmSource& source);
 /// (positive semi-definite) 7-point Laplacian. The constant nullspace is removed (mean φ = 0).
 class GSD_EXPORT GridPoissonSolver {
 public:
-    GridPoissonSolver(GridSpec grid, PoissonSolver solver = PoissonSolver::Multigrid, std::string device = "cpu");
+    GridPoissonSolver(GridSpec grid, PoissonSolver solver = PoissonSolver::Multigrid, Device device = Device::cpu());
     ~GridPoissonSolver();
     GridPoissonSolver(GridPoissonSolver&&) noexcept;
     GridPoissonSolver& operator=(GridPoissonSolver&&) noexcept;

@@ -11,7 +11,10 @@
 #include <gsd/export.hpp>
 
 #include <gsd/core.hpp>
+#include <gsd/field.hpp>
+#include <gsd/gpu.hpp>
 
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -51,8 +54,9 @@ struct WindingOptions {
     /// under 1e-3 at queries more than one edge length from the surface (docs/sums.md).
     double beta = 1.5;
     double tolerance = 5e-3;
-    /// "auto" | "gpu" | "cpu" | index | name (empty: $GSD_DEVICE, else auto).
-    std::string device;
+    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
+    /// the default (empty) is $GSD_DEVICE, else auto.
+    Device device;
     /// Queries per GPU chunk (0: automatic). Results do not depend on it.
     std::size_t chunk_size = 0;
 };
@@ -70,5 +74,32 @@ struct WindingResult {
 /// GPU path computes in float32 and agrees to ~1e-5.
 GSD_EXPORT WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries,
                                    const WindingOptions& options = {}, const ProgressFn& progress = {});
+
+/// Generalized winding numbers as a Field (gsd/field.hpp): φ = w, ≈ 1 inside and 0 outside,
+/// stored as float32; no gradient. The tree over the elements is built once, on the first
+/// evaluation, and reused by every later one (fast_winding_numbers builds it per call).
+class GSD_EXPORT WindingField final : public Field {
+public:
+    explicit WindingField(OrientedElements elements, WindingOptions options = {});
+    ~WindingField() override;
+    WindingField(WindingField&&) noexcept;
+    WindingField& operator=(WindingField&&) noexcept;
+
+    using Field::evaluate;  // the float32 overload
+    FieldValues evaluate(PointsView queries, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const override;
+    FieldValues evaluate(const GridSpec& grid, bool with_gradient = false,
+                         const ProgressFn& progress = {}) const override;
+    bool has_gradient() const override { return false; }
+    /// w in double, with the cost of the sums.
+    WindingResult winding_numbers(PointsView queries, const ProgressFn& progress = {}) const;
+
+    const OrientedElements& elements() const;
+    const WindingOptions& options() const;
+
+private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
 
 }  // namespace gsd

@@ -27,15 +27,25 @@ BaselineField::~BaselineField() = default;
 BaselineField::BaselineField(BaselineField&&) noexcept = default;
 BaselineField& BaselineField::operator=(BaselineField&&) noexcept = default;
 
-FieldValues BaselineField::evaluate(const Points& queries, const ProgressFn& progress) const {
+namespace {
+void no_gradient(bool with_gradient) {
+    if (with_gradient) throw Error("with_gradient", "the SSPD and signed Hopf–Cole baselines offer no gradient");
+}
+}  // namespace
+
+FieldValues BaselineField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
+    no_gradient(with_gradient);
     if (!queries.allFinite()) throw Error("queries", "query points must be finite");
     return impl_->engine.evaluate(blend::Queries(queries), false, progress);
 }
 
-FieldValues BaselineField::evaluate(const GridSpec& grid, const ProgressFn& progress) const {
+FieldValues BaselineField::evaluate(const GridSpec& grid, bool with_gradient, const ProgressFn& progress) const {
+    no_gradient(with_gradient);
     grid.validate();
     return impl_->engine.evaluate(blend::Queries(grid), false, progress);
 }
+
+const blend::Engine& detail::FieldAccess::engine(const BaselineField& field) { return field.impl_->engine; }
 
 double BaselineField::r_eval() const { return impl_->engine.r_eval(); }
 

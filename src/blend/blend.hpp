@@ -15,6 +15,15 @@
 #include <string>
 #include <vector>
 
+namespace gsd {
+class BaselineField;
+}
+
+namespace gsd::gpu {
+class Recorder;
+class Buffer;
+}  // namespace gsd::gpu
+
 namespace gsd::blend {
 
 enum class Kind { Pat = 0, Sspd = 1, Shc = 2 };
@@ -46,13 +55,14 @@ Params resolve(const BlendOptions& opt, const Source& src, bool gradient);
 /// a 512³ grid never materializes as doubles).
 class Queries {
 public:
-    explicit Queries(const Points& p) : points_(&p) {}
+    explicit Queries(const PointsView& p) : points_(p.data()), rows_(std::size_t(p.rows())), stride_(std::size_t(p.outerStride())) {}
     explicit Queries(const GridSpec& g) : grid_(g) {}
-    std::size_t size() const { return points_ ? std::size_t(points_->rows()) : grid_.node_count(); }
+    std::size_t size() const { return points_ ? rows_ : grid_.node_count(); }
     Eigen::Vector3d at(std::size_t i) const;
 
 private:
-    const Points* points_ = nullptr;
+    const double* points_ = nullptr;  // row i at points_[i·stride_], not owned
+    std::size_t rows_ = 0, stride_ = 3;
     GridSpec grid_;
 };
 
@@ -83,12 +93,18 @@ double evaluate_one(const Source& src, const detail::BoxTree& tree, const Params
                     const Eigen::Vector3d& x, Eigen::Vector3d* grad, std::vector<Neighbor>& scratch);
 
 class GpuField;  // device-side copy of a Source (blend_gpu.cpp)
+class Engine;
 
 /// Builds a GpuField on a context, or returns null and a reason when the source does not fit
 /// the device (buffer range, memory) or the parameters exceed what the kernel supports.
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
                                          const detail::BoxTree& tree, const Params& params, std::string& why_not);
 std::string gpu_field_device(const GpuField& field);
+const gpu::Context* gpu_field_context(const GpuField& field);
+/// Records the renderer's render_pat kernel over a field's device data (src/render): pixels
+/// [first_pixel, first_pixel + pixel_count) of the camera in `params`, hits into `hits`.
+void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const gpu::Buffer& params,
+                   const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count);
 void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries, Output out,
                   std::size_t chunk_size, const ProgressFn& progress);
 
@@ -104,6 +120,12 @@ public:
     Engine(Source src, BlendOptions opt);
     ~Engine();
     FieldValues evaluate(const Queries& q, bool gradient, const ProgressFn& progress) const;
+    /// The source on a given device (an adopted one, say), uploaded on first use and kept;
+    /// throws gsd::Error when it does not fit there.
+    std::shared_ptr<GpuField> on_device(const std::shared_ptr<gpu::Context>& ctx) const;
+    Params params(bool gradient) const { return resolve(opt_, src_, gradient); }
+    /// The kd-tree over the source's points (built on first use).
+    const detail::BoxTree& search_tree() const { return tree(); }
     const Source& source() const { return src_; }
     const BlendOptions& options() const { return opt_; }
     double r_eval() const { return resolve(opt_, src_, false).r_eval; }
@@ -117,6 +139,19 @@ private:
     mutable std::unique_ptr<detail::BoxTree> tree_;
     mutable std::shared_ptr<GpuField> gpu_;
     mutable bool gpu_tried_ = false;
+    mutable std::vector<std::shared_ptr<GpuField>> placed_;  // on_device(), one per context
 };
+
+}  // namespace gsd::blend
+
+namespace gsd::detail {
+/// How the device paths reach the engine inside a public field (each defined beside its Impl).
+struct FieldAccess {
+    static const blend::Engine& engine(const TorusField& field);
+    static const blend::Engine& engine(const BaselineField& field);
+};
+}  // namespace gsd::detail
+
+namespace gsd::blend {
 
 }  // namespace gsd::blend

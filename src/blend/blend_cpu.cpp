@@ -21,7 +21,7 @@ Params resolve(const BlendOptions& opt, const Source& src, bool gradient) {
 }
 
 Eigen::Vector3d Queries::at(std::size_t i) const {
-    if (points_) return points_->row(Eigen::Index(i)).transpose();
+    if (points_) return {points_[i * stride_], points_[i * stride_ + 1], points_[i * stride_ + 2]};
     const std::size_t nz = std::size_t(grid_.nz), nyz = std::size_t(grid_.ny) * nz;
     return grid_.node(int(i / nyz), int((i / nz) % std::size_t(grid_.ny)), int(i % nz));
 }

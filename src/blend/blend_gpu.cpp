@@ -1,6 +1,9 @@
 // The blend engine on a Vulkan device: the cloud is uploaded once in kd-tree order (points,
 // per-point terms, tree nodes), then queries stream through in chunks with several chunks in
 // flight: while chunk i computes, chunk i+1 is uploaded and chunk i−1 read back.
+#include <gsd/baselines.hpp>
+#include <gsd/vulkan.hpp>
+
 #include "blend/blend.hpp"
 #include "gpu/device_tree.hpp"
 #include "gpu/runtime.hpp"
@@ -89,7 +92,12 @@ public:
     }
 
     void evaluate(const Params& p, const Queries& q, Output out, std::size_t chunk_size, const ProgressFn& progress);
+    /// Queries in an application's buffer, results into another (gsd/vulkan.hpp).
+    void evaluate_into(const Params& p, const gpu::DeviceQueries& job, const gpu::SubmitSync& sync);
+    void record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
+                       std::uint32_t first_pixel, std::uint32_t pixel_count);
     std::string device_name() const { return ctx_->info().name; }
+    const gpu::Context* context() const { return ctx_.get(); }
 
 private:
     std::size_t default_chunk(const Params& p) const {
@@ -101,11 +109,17 @@ private:
         return (chunk + wg - 1) / wg * wg;
     }
 
+    void check_span(const gpu::BufferSpan& span, const char* field) const;
+
     std::shared_ptr<gpu::Context> ctx_;
     Kind kind_;
     gpu::Buffer points_, terms_, nodes_;
     std::uint32_t first_leaf_ = 0, point_count_ = 0;
     float dmin_ = 0;
+    // Command buffers of evaluate_into, reused once their work is done. Declared after the
+    // buffers so that destroying the field first waits for the work that reads them.
+    std::mutex async_mutex_;
+    std::vector<std::unique_ptr<gpu::Recorder>> async_;
 };
 
 void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size_t chunk_size,
@@ -146,6 +160,67 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     gpu::stream(c, job, progress);
 }
 
+void GpuField::check_span(const gpu::BufferSpan& span, const char* field) const {
+    if (span.buffer == VK_NULL_HANDLE) throw Error(field, "no buffer given");
+    const VkDeviceSize align = ctx_->limits().minStorageBufferOffsetAlignment;
+    if (align && span.offset % align)
+        throw Error(field, "offset " + std::to_string(span.offset) + " is not a multiple of " + ctx_->info().name +
+                               "'s minStorageBufferOffsetAlignment (" + std::to_string(align) + ")");
+}
+
+void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, const gpu::SubmitSync& sync) {
+    check_span(job.queries, "DeviceQueries::queries");
+    check_span(job.results, "DeviceQueries::results");
+    if (job.count >= (1ull << 31)) throw Error("DeviceQueries::count", "at most 2^31 − 1 queries per call");
+    gpu::Context& c = *ctx_;
+    const VkDeviceSize out_bytes = p.gradient ? 16 : 4;
+    const gpu::Kernel& k = c.kernel("blend_eval", 5, sizeof(BlendPush), {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0});
+    // Dispatches of whole multiples of 256 queries, so every later binding offset stays a
+    // multiple of any storage-buffer alignment a device may ask for (at most 256 bytes).
+    const std::uint64_t by_range = c.max_binding_bytes() / 16 / 256 * 256;
+    const std::uint64_t chunk = std::max<std::uint64_t>(256, std::min<std::uint64_t>(by_range, 1u << 22));
+
+    std::lock_guard<std::mutex> lock(async_mutex_);
+    gpu::Recorder* rec = nullptr;
+    for (auto& r : async_)
+        if (!rec && r->done()) rec = r.get();
+    if (!rec) rec = async_.emplace_back(std::make_unique<gpu::Recorder>(c)).get();
+    rec->begin();
+    rec->barrier_after_external();
+    for (std::uint64_t first = 0; first < job.count; first += chunk) {
+        const std::uint64_t n = std::min(chunk, job.count - first);
+        const BlendPush push{std::uint32_t(n), point_count_, first_leaf_, std::uint32_t(p.fallback_k),
+                             float(p.r_eval), float(p.C), dmin_};
+        rec->dispatch(k,
+                      {{&points_}, {&terms_}, {&nodes_},
+                       {job.queries.buffer, job.queries.offset + first * 16, n * 16},
+                       {job.results.buffer, job.results.offset + first * out_bytes, n * out_bytes}},
+                      &push, sizeof(push), std::uint32_t((n + k.workgroup - 1) / k.workgroup));
+    }
+    rec->barrier_before_external();
+    rec->submit(sync);
+    if (sync.fence == VK_NULL_HANDLE && sync.signal.empty()) rec->wait();
+}
+
+void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
+                             std::uint32_t first_pixel, std::uint32_t pixel_count) {
+    struct RenderPush {  // `Push` in render_pat.comp: blend_eval's, then the chunk
+        BlendPush blend;
+        std::uint32_t pixel_count;
+    };
+    const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush), {int(kind_)});
+    const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
+                           float(p.C), dmin_},
+                          pixel_count};
+    rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&params}, {&hits, 0, VkDeviceSize(pixel_count) * 16}}, &push,
+                 sizeof(push), (pixel_count + k.workgroup - 1) / k.workgroup);
+}
+
+void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const gpu::Buffer& params,
+                   const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count) {
+    field.record_render(rec, p, params, hits, first_pixel, pixel_count);
+}
+
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
                                          const detail::BoxTree& tree, const Params& params, std::string& why_not) {
     const std::uint64_t n = std::uint64_t(src.points.rows());
@@ -174,6 +249,7 @@ void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries,
 }
 
 std::string gpu_field_device(const GpuField& field) { return field.device_name(); }
+const gpu::Context* gpu_field_context(const GpuField& field) { return field.context(); }
 
 std::vector<float> tori_on_device(gpu::Context& ctx, const Points& points, const Points& normals,
                                   const Points& tangents, const std::vector<Jet>& jets) {
@@ -198,3 +274,26 @@ std::vector<float> tori_on_device(gpu::Context& ctx, const Points& points, const
 }
 
 }  // namespace gsd::blend
+
+namespace gsd::gpu {
+
+namespace {
+void evaluate_engine_into(const blend::Engine& engine, const std::shared_ptr<Context>& ctx, const DeviceQueries& job,
+                          const SubmitSync& sync) {
+    const blend::Params params = engine.params(job.gradient);
+    engine.on_device(ctx)->evaluate_into(params, job, sync);
+}
+}  // namespace
+
+void evaluate_into(const TorusField& field, const std::shared_ptr<Context>& ctx, const DeviceQueries& job,
+                   const SubmitSync& sync) {
+    evaluate_engine_into(detail::FieldAccess::engine(field), ctx, job, sync);
+}
+
+void evaluate_into(const BaselineField& field, const std::shared_ptr<Context>& ctx, const DeviceQueries& job,
+                   const SubmitSync& sync) {
+    if (job.gradient) throw Error("DeviceQueries::gradient", "the baselines offer no gradient");
+    evaluate_engine_into(detail::FieldAccess::engine(field), ctx, job, sync);
+}
+
+}  // namespace gsd::gpu

@@ -16,6 +16,7 @@ std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>&, c
 }
 void evaluate_gpu(GpuField&, const Params&, const Queries&, Output, std::size_t, const ProgressFn&) {}
 std::string gpu_field_device(const GpuField&) { return "cpu"; }
+const gpu::Context* gpu_field_context(const GpuField&) { return nullptr; }
 #endif
 
 Engine::Engine(Source src, BlendOptions opt) : src_(std::move(src)), opt_(std::move(opt)) {
@@ -62,6 +63,23 @@ FieldValues Engine::evaluate(const Queries& q, bool gradient, const ProgressFn& 
     evaluate_cpu(src_, tree(), params, q, dst, progress);
     out.device = "cpu";
     return out;
+}
+
+std::shared_ptr<GpuField> Engine::on_device(const std::shared_ptr<gpu::Context>& ctx) const {
+    if (!ctx) throw Error("device", "no device context given");
+    const detail::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
+    std::lock_guard<std::mutex> lock(init_mutex_);
+    for (const auto& f : placed_)
+        if (gpu_field_context(*f) == ctx.get()) return f;
+    std::string why_not;
+    auto f = make_gpu_field(ctx, src_, search_tree, resolve(opt_, src_, false), why_not);
+    if (!f) {
+        // make_gpu_field words its reason for a fallback; here there is none to take.
+        if (const auto cut = why_not.find("; using the CPU path"); cut != std::string::npos) why_not.erase(cut);
+        throw Error("device", "cannot evaluate on " + gpu::device_name(*ctx) + ": " + why_not);
+    }
+    placed_.push_back(f);
+    return f;
 }
 
 }  // namespace gsd::blend

@@ -1,4 +1,5 @@
 #include <gsd/core.hpp>
+#include <gsd/field.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -188,6 +189,13 @@ void validate(const PolygonMesh& mesh, const std::string& where) {
             if (mesh.indices[k] >= nv)
                 throw Error(where, at_row("vertex index out of range in face", Eigen::Index(f)));
     }
+}
+
+Field::~Field() = default;  // the key function: Field's vtable lives in the library
+
+FieldValues Field::evaluate(PointsFView queries, bool with_gradient, const ProgressFn& progress) const {
+    const Points q = queries.cast<double>();
+    return evaluate(PointsView(q), with_gradient, progress);
 }
 
 }  // namespace gsd

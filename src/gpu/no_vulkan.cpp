@@ -2,6 +2,8 @@
 #include <gsd/core.hpp>
 #include <gsd/gpu.hpp>
 
+#include <cstdlib>
+
 namespace gsd::gpu {
 
 class Context {};
@@ -12,10 +14,19 @@ Inventory list_devices() {
     return inv;
 }
 
-Selection select(const std::string& choice) {
+Selection select(const Device& device) {
     Selection s;
     s.device_name = "cpu";
-    if (choice != "cpu") s.note = "built without Vulkan; using the CPU path";
+    std::string choice = device.choice();
+    if (choice.empty()) {
+        const char* env = std::getenv("GSD_DEVICE");
+        choice = env && *env ? env : "auto";
+    }
+    if (choice == "cpu") return s;
+    // The policy of the Vulkan build: auto and gpu fall back, a named device is a demand.
+    if (choice != "auto" && choice != "gpu")
+        throw Error("device", "no Vulkan device matches '" + choice + "': gsd was built without Vulkan");
+    s.note = "built without Vulkan; using the CPU path";
     return s;
 }
 

@@ -56,24 +56,29 @@ const char* type_name(VkPhysicalDeviceType t) {
     }
 }
 
-bool has_extension(VkPhysicalDevice dev, const char* name) {
+bool has_extension(const InstanceFunctions& fn, VkPhysicalDevice dev, const char* name) {
     std::uint32_t n = 0;
-    vkEnumerateDeviceExtensionProperties(dev, nullptr, &n, nullptr);
+    fn.vkEnumerateDeviceExtensionProperties(dev, nullptr, &n, nullptr);
     std::vector<VkExtensionProperties> ext(n);
-    vkEnumerateDeviceExtensionProperties(dev, nullptr, &n, ext.data());
+    fn.vkEnumerateDeviceExtensionProperties(dev, nullptr, &n, ext.data());
     for (const auto& e : ext)
         if (std::strcmp(e.extensionName, name) == 0) return true;
     return false;
 }
 
-bool find_compute_queue(VkPhysicalDevice dev, std::uint32_t& family) {
+std::vector<VkQueueFamilyProperties> queue_families(const InstanceFunctions& fn, VkPhysicalDevice dev) {
     std::uint32_t n = 0;
-    vkGetPhysicalDeviceQueueFamilyProperties(dev, &n, nullptr);
+    fn.vkGetPhysicalDeviceQueueFamilyProperties(dev, &n, nullptr);
     std::vector<VkQueueFamilyProperties> q(n);
-    vkGetPhysicalDeviceQueueFamilyProperties(dev, &n, q.data());
+    fn.vkGetPhysicalDeviceQueueFamilyProperties(dev, &n, q.data());
+    return q;
+}
+
+bool find_compute_queue(const InstanceFunctions& fn, VkPhysicalDevice dev, std::uint32_t& family) {
+    const std::vector<VkQueueFamilyProperties> q = queue_families(fn, dev);
     // Prefer a compute queue without graphics (a dedicated async compute family).
     for (int pass = 0; pass < 2; ++pass)
-        for (std::uint32_t i = 0; i < n; ++i) {
+        for (std::uint32_t i = 0; i < q.size(); ++i) {
             const bool compute = q[i].queueFlags & VK_QUEUE_COMPUTE_BIT;
             const bool graphics = q[i].queueFlags & VK_QUEUE_GRAPHICS_BIT;
             if (compute && (pass == 1 || !graphics)) { family = i; return true; }
@@ -81,14 +86,39 @@ bool find_compute_queue(VkPhysicalDevice dev, std::uint32_t& family) {
     return false;
 }
 
-DeviceInfo describe(VkPhysicalDevice dev, std::uint32_t index) {
+}  // namespace
+
+#define GSD_LOAD_DEVICE_COMMAND(name)                                                   \
+    name = reinterpret_cast<PFN_##name>(get_device_proc_addr(device, #name));          \
+    if (!name && !missing) missing = #name;
+
+const char* DeviceFunctions::load(VkDevice device, PFN_vkGetDeviceProcAddr get_device_proc_addr) {
+    const char* missing = nullptr;
+    GSD_DEVICE_COMMANDS(GSD_LOAD_DEVICE_COMMAND)
+    return missing;
+}
+
+#define GSD_LOAD_INSTANCE_COMMAND(name)                                                 \
+    name = reinterpret_cast<PFN_##name>(get_instance_proc_addr(instance, #name));      \
+    if (!name && !missing) missing = #name;
+
+const char* InstanceFunctions::load(VkInstance instance, PFN_vkGetInstanceProcAddr get_instance_proc_addr) {
+    const char* missing = nullptr;
+    GSD_INSTANCE_COMMANDS(GSD_LOAD_INSTANCE_COMMAND)
+    vkGetPhysicalDeviceProperties2 = reinterpret_cast<PFN_vkGetPhysicalDeviceProperties2>(
+        get_instance_proc_addr(instance, "vkGetPhysicalDeviceProperties2"));
+    return missing;
+}
+
+DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, std::uint32_t index) {
     VkPhysicalDeviceSubgroupProperties sub{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
     VkPhysicalDeviceProperties2 p2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
     p2.pNext = &sub;
-    vkGetPhysicalDeviceProperties2(dev, &p2);
+    if (fn.vkGetPhysicalDeviceProperties2) fn.vkGetPhysicalDeviceProperties2(dev, &p2);
+    else fn.vkGetPhysicalDeviceProperties(dev, &p2.properties);
     const VkPhysicalDeviceProperties& p = p2.properties;
     VkPhysicalDeviceMemoryProperties mem{};
-    vkGetPhysicalDeviceMemoryProperties(dev, &mem);
+    fn.vkGetPhysicalDeviceMemoryProperties(dev, &mem);
 
     DeviceInfo d;
     d.index = index;
@@ -104,11 +134,13 @@ DeviceInfo describe(VkPhysicalDevice dev, std::uint32_t index) {
     d.max_storage_buffer_range = p.limits.maxStorageBufferRange;
     std::uint32_t family = 0;
     if (p.apiVersion < VK_API_VERSION_1_1) d.why_not = "needs Vulkan 1.1";
-    else if (!find_compute_queue(dev, family)) d.why_not = "no compute queue";
-    else if (!has_extension(dev, VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME)) d.why_not = "no VK_KHR_push_descriptor";
+    else if (!find_compute_queue(fn, dev, family)) d.why_not = "no compute queue";
+    else if (!has_extension(fn, dev, VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME)) d.why_not = "no VK_KHR_push_descriptor";
     d.usable = d.why_not.empty();
     return d;
 }
+
+namespace {
 
 // The process-wide Vulkan instance, created on first use. Contexts live here, one per device.
 class Runtime {
@@ -123,7 +155,7 @@ public:
     std::shared_ptr<Context> context(std::uint32_t index) {
         std::lock_guard<std::mutex> lock(mutex_);
         auto& slot = contexts_[index];
-        if (!slot) slot = std::make_shared<Context>(physical_[index], inventory_.devices[index]);
+        if (!slot) slot = std::make_shared<Context>(fn_, physical_[index], inventory_.devices[index]);
         return slot;
     }
 
@@ -147,7 +179,7 @@ private:
         vkEnumeratePhysicalDevices(instance_, &n, nullptr);
         physical_.resize(n);
         vkEnumeratePhysicalDevices(instance_, &n, physical_.data());
-        for (std::uint32_t i = 0; i < n; ++i) inventory_.devices.push_back(describe(physical_[i], i));
+        for (std::uint32_t i = 0; i < n; ++i) inventory_.devices.push_back(describe_device(fn_, physical_[i], i));
         if (n == 0) inventory_.problem = "the Vulkan loader reports no devices";
     }
 
@@ -191,6 +223,8 @@ private:
         ci.ppEnabledExtensionNames = extensions.data();
         check(vkCreateInstance(&ci, nullptr, &instance_), "vkCreateInstance");
         volkLoadInstance(instance_);
+        if (const char* missing = fn_.load(instance_, vkGetInstanceProcAddr))
+            throw Error("gpu", std::string("the Vulkan loader lacks ") + missing);
         if (g_validation_active) {
             VkDebugUtilsMessengerCreateInfoEXT m{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
             m.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT | VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
@@ -224,6 +258,7 @@ private:
     void* loader_ = nullptr;  // kept open for the life of the process
     Inventory inventory_;
     VkInstance instance_ = VK_NULL_HANDLE;
+    InstanceFunctions fn_;
     VkDebugUtilsMessengerEXT messenger_ = VK_NULL_HANDLE;
     std::vector<VkPhysicalDevice> physical_;
     std::map<std::uint32_t, std::shared_ptr<Context>> contexts_;
@@ -252,21 +287,28 @@ bool validation_active() {
 }
 std::string device_name(const Context& ctx) { return ctx.info().name; }
 
-Selection select(const std::string& requested) {
-    std::string choice = requested;
+Selection select(const Device& device) {
+    Selection sel;
+    if (device.context()) {  // a context in hand: one gsd made, or an application's adopted one
+        sel.context = device.context();
+        sel.device_name = device.context()->info().name;
+        return sel;
+    }
+    std::string choice = device.choice();
     if (choice.empty()) {
         const char* env = std::getenv("GSD_DEVICE");
         choice = env && *env ? env : "auto";
     }
+    const std::string requested = choice;
     choice = lower(choice);
-    Selection sel;
     sel.device_name = "cpu";
     if (choice == "cpu") return sel;
 
     Runtime& rt = Runtime::get();
     const Inventory& inv = rt.inventory();
     const DeviceInfo* pick = nullptr;
-    if (choice == "auto" || choice == "gpu") {
+    const bool may_fall_back = choice == "auto" || choice == "gpu";
+    if (may_fall_back) {
         for (const auto& d : inv.devices)
             if (!pick && is_real_gpu(d)) pick = &d;
         if (!pick && choice == "gpu")
@@ -294,6 +336,8 @@ Selection select(const std::string& requested) {
         sel.context = rt.context(pick->index);
         sel.device_name = pick->name;
     } catch (const Error& e) {
+        // One policy: a device asked for by index or name must run; auto and gpu fall back.
+        if (!may_fall_back) throw Error("device", "could not start " + pick->name + ": " + e.what());
         sel.note = "could not start " + pick->name + " (" + e.what() + "); using the CPU path";
     }
     return sel;
@@ -301,14 +345,18 @@ Selection select(const std::string& requested) {
 
 // ---- Context -------------------------------------------------------------------------------
 
-Context::Context(VkPhysicalDevice physical, const DeviceInfo& info)
-    : physical_(physical), info_(info) {
-    vkGetPhysicalDeviceProperties(physical_, &props_);
-    vkGetPhysicalDeviceMemoryProperties(physical_, &mem_props_);
-    find_compute_queue(physical_, queue_family_);
+Context::Context(std::unique_ptr<State> state) : s_(std::move(state)) {}
+
+Context::Context(const InstanceFunctions& instance, VkPhysicalDevice physical, const DeviceInfo& info)
+    : s_(std::make_unique<State>()) {
+    State& s = *s_;
+    s.instance = instance;
+    s.physical = physical;
+    s.info = info;
+    find_compute_queue(instance, physical, s.queue_family);
     const float priority = 1.0f;
     VkDeviceQueueCreateInfo q{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    q.queueFamilyIndex = queue_family_;
+    q.queueFamilyIndex = s.queue_family;
     q.queueCount = 1;
     q.pQueuePriorities = &priority;
     const char* extensions[] = {VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME};
@@ -319,40 +367,106 @@ Context::Context(VkPhysicalDevice physical, const DeviceInfo& info)
     ci.ppEnabledExtensionNames = extensions;
     // float64 in shaders where the device has it: the multigrid keeps its residual in double.
     VkPhysicalDeviceFeatures supported{}, enabled{};
-    vkGetPhysicalDeviceFeatures(physical_, &supported);
+    instance.vkGetPhysicalDeviceFeatures(physical, &supported);
     enabled.shaderFloat64 = supported.shaderFloat64;
-    has_float64_ = supported.shaderFloat64 == VK_TRUE;
+    s.has_float64 = supported.shaderFloat64 == VK_TRUE;
     ci.pEnabledFeatures = &enabled;
-    check(vkCreateDevice(physical_, &ci, nullptr, &device_), "vkCreateDevice");
-    // Device commands go through this context's own table, never volk's globals: each device
-    // (and an engine's device, later adopted) gets the entry points its driver returned.
-    volkLoadDeviceTable(&vk_, device_);
-    vk_.vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
-    VkPipelineCacheCreateInfo pc{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
-    check(vk_.vkCreatePipelineCache(device_, &pc, nullptr, &cache_), "vkCreatePipelineCache");
-    // CPU devices run a workgroup as SIMD lanes over a few threads: small groups keep all cores
-    // busy on small jobs. GPUs want enough warps per group to hide latency.
-    workgroup_ = info_.is_software() ? 64u : 128u;
-    workgroup_ = std::min<std::uint32_t>(workgroup_, props_.limits.maxComputeWorkGroupSize[0]);
-    // $GSD_MAX_GROUPS_X lowers the per-dimension group limit so tests can exercise the split of
-    // large dispatches over y on small problems.
-    max_groups_x_ = props_.limits.maxComputeWorkGroupCount[0];
-    if (const char* v = std::getenv("GSD_MAX_GROUPS_X"); v && std::atoi(v) > 0)
-        max_groups_x_ = std::min<std::uint32_t>(max_groups_x_, std::uint32_t(std::atoi(v)));
+    check(instance.vkCreateDevice(physical, &ci, nullptr, &s.device), "vkCreateDevice");
+    if (const char* missing = s.vk.load(s.device, instance.vkGetDeviceProcAddr))
+        throw Error("gpu", info.name + " does not provide " + missing);
+    s.vk.vkGetDeviceQueue(s.device, s.queue_family, 0, &s.queue);
+    init_common();
 }
 
-Context::~Context() {
-    if (!device_) return;
-    vk_.vkDeviceWaitIdle(device_);
-    for (auto& [name, k] : kernels_) {
-        vk_.vkDestroyPipeline(device_, k->pipeline, nullptr);
-        vk_.vkDestroyPipelineLayout(device_, k->layout, nullptr);
-        vk_.vkDestroyDescriptorSetLayout(device_, k->set_layout, nullptr);
-    }
-    for (auto& [name, m] : modules_) vk_.vkDestroyShaderModule(device_, m, nullptr);
-    vk_.vkDestroyPipelineCache(device_, cache_, nullptr);
-    vk_.vkDestroyDevice(device_, nullptr);
+std::shared_ptr<Context> Context::adopt(VkInstance instance, VkPhysicalDevice physical, VkDevice device,
+                                        std::uint32_t queue_family, VkQueue queue,
+                                        PFN_vkGetInstanceProcAddr get_instance_proc_addr,
+                                        const AdoptOptions& options) {
+    if (!instance || !physical || !device || !queue || !get_instance_proc_addr)
+        throw Error("device", "Context::adopt needs the instance, physical device, device, queue and "
+                              "vkGetInstanceProcAddr (one of them is null)");
+    auto s = std::make_unique<State>();
+    if (const char* missing = s->instance.load(instance, get_instance_proc_addr))
+        throw Error("device", std::string("the instance handed to Context::adopt does not provide ") + missing);
+    s->physical = physical;
+    s->info = describe_device(s->instance, physical, ~std::uint32_t(0));
+    if (s->info.why_not == "needs Vulkan 1.1")
+        throw Error("device", s->info.name + " cannot run gsd: " + s->info.why_not);
+    const std::vector<VkQueueFamilyProperties> families = queue_families(s->instance, physical);
+    if (queue_family >= families.size() || !(families[queue_family].queueFlags & VK_QUEUE_COMPUTE_BIT))
+        throw Error("device", "queue family " + std::to_string(queue_family) + " of " + s->info.name +
+                                  " has no compute queue");
+    s->device = device;
+    s->owns_device = false;
+    s->queue = queue;
+    s->queue_family = queue_family;
+    s->has_float64 = options.float64_enabled;
+    // A command of an extension the application did not enable loads as null: that is how a
+    // device created without VK_KHR_push_descriptor shows.
+    if (const char* missing = s->vk.load(device, s->instance.vkGetDeviceProcAddr))
+        throw Error("device", std::string("the adopted device does not provide ") + missing +
+                                  (std::strstr(missing, "KHR") ? " (create it with VK_KHR_push_descriptor enabled)" : ""));
+    s->info.usable = true;
+    s->info.why_not.clear();
+    std::shared_ptr<Context> ctx(new Context(std::move(s)));
+    ctx->init_common();
+    return ctx;
 }
+
+// What both kinds of context set up once the device and its commands are known.
+void Context::init_common() {
+    State& s = *s_;
+    s.instance.vkGetPhysicalDeviceProperties(s.physical, &s.props);
+    s.instance.vkGetPhysicalDeviceMemoryProperties(s.physical, &s.mem_props);
+    VkPipelineCacheCreateInfo pc{VK_STRUCTURE_TYPE_PIPELINE_CACHE_CREATE_INFO};
+    check(s.vk.vkCreatePipelineCache(s.device, &pc, nullptr, &s.cache), "vkCreatePipelineCache");
+    // CPU devices run a workgroup as SIMD lanes over a few threads: small groups keep all cores
+    // busy on small jobs. GPUs want enough warps per group to hide latency.
+    s.workgroup = s.info.is_software() ? 64u : 128u;
+    s.workgroup = std::min<std::uint32_t>(s.workgroup, s.props.limits.maxComputeWorkGroupSize[0]);
+    // $GSD_MAX_GROUPS_X lowers the per-dimension group limit so tests can exercise the split of
+    // large dispatches over y on small problems.
+    s.max_groups_x = s.props.limits.maxComputeWorkGroupCount[0];
+    if (const char* v = std::getenv("GSD_MAX_GROUPS_X"); v && std::atoi(v) > 0)
+        s.max_groups_x = std::min<std::uint32_t>(s.max_groups_x, std::uint32_t(std::atoi(v)));
+}
+
+Context::State::~State() {
+    if (!device) return;
+    if (!vk.vkDestroyPipelineCache) {  // the device's commands failed to load: only it to free
+        auto destroy = reinterpret_cast<PFN_vkDestroyDevice>(instance.vkGetDeviceProcAddr(device, "vkDestroyDevice"));
+        if (owns_device && destroy) destroy(device, nullptr);
+        return;
+    }
+    // An application's device is never idled: everything gsd submitted to it was waited for
+    // by the objects that submitted it, which hold this context and so went first.
+    if (owns_device) vk.vkDeviceWaitIdle(device);
+    for (auto& [name, k] : kernels) {
+        vk.vkDestroyPipeline(device, k->pipeline, nullptr);
+        vk.vkDestroyPipelineLayout(device, k->layout, nullptr);
+        vk.vkDestroyDescriptorSetLayout(device, k->set_layout, nullptr);
+    }
+    for (auto& [name, m] : modules) vk.vkDestroyShaderModule(device, m, nullptr);
+    if (cache) vk.vkDestroyPipelineCache(device, cache, nullptr);
+    if (owns_device) vk.vkDestroyDevice(device, nullptr);
+}
+
+Context::~Context() = default;
+
+VkDevice Context::device() const { return s_->device; }
+VkPhysicalDevice Context::physical_device() const { return s_->physical; }
+VkQueue Context::queue() const { return s_->queue; }
+std::uint32_t Context::queue_family() const { return s_->queue_family; }
+const DeviceInfo& Context::info() const { return s_->info; }
+bool Context::adopted() const { return !s_->owns_device; }
+const DeviceFunctions& Context::vk() const { return s_->vk; }
+const VkPhysicalDeviceLimits& Context::limits() const { return s_->props.limits; }
+std::uint32_t Context::workgroup_size() const { return s_->workgroup; }
+std::uint32_t Context::max_groups_x() const { return s_->max_groups_x; }
+VkDeviceSize Context::max_binding_bytes() const { return s_->props.limits.maxStorageBufferRange; }
+bool Context::has_float64() const { return s_->has_float64; }
+VkDeviceSize Context::device_memory_bytes() const { return s_->info.device_local_bytes; }
+std::mutex& Context::queue_mutex() { return s_->queue_mutex; }
 
 std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
     // Preferred property sets first, then acceptable ones.
@@ -365,19 +479,20 @@ std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
         case Memory::Download: wanted = {kVis | kCoh | kCached, kVis | kCoh}; break;
     }
     for (VkMemoryPropertyFlags w : wanted)
-        for (std::uint32_t i = 0; i < mem_props_.memoryTypeCount; ++i)
-            if ((bits & (1u << i)) && (mem_props_.memoryTypes[i].propertyFlags & w) == w) return i;
-    throw Error("gpu", "no suitable memory type on " + info_.name);
+        for (std::uint32_t i = 0; i < s_->mem_props.memoryTypeCount; ++i)
+            if ((bits & (1u << i)) && (s_->mem_props.memoryTypes[i].propertyFlags & w) == w) return i;
+    throw Error("gpu", "no suitable memory type on " + s_->info.name);
 }
 
 const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                               std::initializer_list<std::int32_t> constants) {
     std::string key = shader;
     for (auto c : constants) key.append(",").append(std::to_string(c));
-    std::lock_guard<std::mutex> lock(kernels_mutex_);
-    if (auto it = kernels_.find(key); it != kernels_.end()) return *it->second;
+    State& st = *s_;
+    std::lock_guard<std::mutex> lock(st.kernels_mutex);
+    if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
 
-    VkShaderModule& module = modules_[shader];
+    VkShaderModule& module = st.modules[shader];
     if (!module) {
         const detail::EmbeddedShader* found = nullptr;
         for (const auto& s : detail::kEmbeddedShaders)
@@ -386,14 +501,14 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
         VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
         mi.codeSize = found->word_count * sizeof(std::uint32_t);
         mi.pCode = found->words;
-        check(vk_.vkCreateShaderModule(device_, &mi, nullptr, &module), "vkCreateShaderModule");
+        check(st.vk.vkCreateShaderModule(st.device, &mi, nullptr, &module), "vkCreateShaderModule");
     }
 
     auto k = std::make_unique<Kernel>();
     k->name = shader;
     k->bindings = bindings;
     k->push_bytes = push_bytes;
-    k->workgroup = workgroup_;
+    k->workgroup = st.workgroup;
     std::vector<VkDescriptorSetLayoutBinding> b(bindings);
     for (std::uint32_t i = 0; i < bindings; ++i)
         b[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
@@ -401,16 +516,16 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     dl.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
     dl.bindingCount = bindings;
     dl.pBindings = b.data();
-    check(vk_.vkCreateDescriptorSetLayout(device_, &dl, nullptr, &k->set_layout), "vkCreateDescriptorSetLayout");
+    check(st.vk.vkCreateDescriptorSetLayout(st.device, &dl, nullptr, &k->set_layout), "vkCreateDescriptorSetLayout");
     VkPushConstantRange range{VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes};
     VkPipelineLayoutCreateInfo pl{VK_STRUCTURE_TYPE_PIPELINE_LAYOUT_CREATE_INFO};
     pl.setLayoutCount = 1;
     pl.pSetLayouts = &k->set_layout;
     pl.pushConstantRangeCount = push_bytes ? 1 : 0;
     pl.pPushConstantRanges = &range;
-    check(vk_.vkCreatePipelineLayout(device_, &pl, nullptr, &k->layout), "vkCreatePipelineLayout");
+    check(st.vk.vkCreatePipelineLayout(st.device, &pl, nullptr, &k->layout), "vkCreatePipelineLayout");
 
-    std::vector<std::int32_t> values{std::int32_t(workgroup_)};
+    std::vector<std::int32_t> values{std::int32_t(st.workgroup)};
     values.insert(values.end(), constants.begin(), constants.end());
     std::vector<VkSpecializationMapEntry> entries(values.size());
     for (std::uint32_t i = 0; i < values.size(); ++i) entries[i] = {i, i * 4, 4};
@@ -422,8 +537,8 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     ci.stage.pName = "main";
     ci.stage.pSpecializationInfo = &spec;
     ci.layout = k->layout;
-    check(vk_.vkCreateComputePipelines(device_, cache_, 1, &ci, nullptr, &k->pipeline), "vkCreateComputePipelines");
-    return *(kernels_[key] = std::move(k));
+    check(st.vk.vkCreateComputePipelines(st.device, st.cache, 1, &ci, nullptr, &k->pipeline), "vkCreateComputePipelines");
+    return *(st.kernels[key] = std::move(k));
 }
 
 // ---- Buffer --------------------------------------------------------------------------------
@@ -519,7 +634,7 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
     ctx_.vk().vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.pipeline);
     std::vector<VkDescriptorBufferInfo> infos;
     infos.reserve(bindings.size());
-    for (const Binding& b : bindings) infos.push_back({b.buffer->handle(), b.offset, b.range});
+    for (const Binding& b : bindings) infos.push_back({b.buffer, b.offset, b.range});
     std::vector<VkWriteDescriptorSet> writes(infos.size());
     for (std::uint32_t i = 0; i < infos.size(); ++i) {
         writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -558,6 +673,54 @@ void Recorder::submit() {
     std::lock_guard<std::mutex> lock(ctx_.queue_mutex());
     check(ctx_.vk().vkQueueSubmit(ctx_.queue(), 1, &si, fence_), "vkQueueSubmit");
     pending_ = true;
+}
+
+void Recorder::barrier_after_external() {
+    VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    mb.srcAccessMask = VK_ACCESS_MEMORY_WRITE_BIT;
+    mb.dstAccessMask = VK_ACCESS_SHADER_READ_BIT | VK_ACCESS_SHADER_WRITE_BIT;
+    ctx_.vk().vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT, 0, 1,
+                                   &mb, 0, nullptr, 0, nullptr);
+}
+
+void Recorder::barrier_before_external() {
+    VkMemoryBarrier mb{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
+    mb.srcAccessMask = VK_ACCESS_SHADER_WRITE_BIT;
+    mb.dstAccessMask = VK_ACCESS_MEMORY_READ_BIT | VK_ACCESS_MEMORY_WRITE_BIT | VK_ACCESS_HOST_READ_BIT;
+    ctx_.vk().vkCmdPipelineBarrier(cmd_, VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT,
+                                   VK_PIPELINE_STAGE_ALL_COMMANDS_BIT | VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &mb, 0,
+                                   nullptr, 0, nullptr);
+}
+
+void Recorder::submit(const SubmitSync& sync) {
+    if (!sync.wait_stages.empty() && sync.wait_stages.size() != sync.wait.size())
+        throw Error("SubmitSync::wait_stages", "needs one stage mask per wait semaphore (" +
+                                                   std::to_string(sync.wait.size()) + "), or none");
+    std::vector<VkPipelineStageFlags> stages = sync.wait_stages;
+    if (stages.empty()) stages.assign(sync.wait.size(), VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
+    check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+    VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
+    si.waitSemaphoreCount = std::uint32_t(sync.wait.size());
+    si.pWaitSemaphores = sync.wait.data();
+    si.pWaitDstStageMask = stages.data();
+    si.commandBufferCount = 1;
+    si.pCommandBuffers = &cmd_;
+    si.signalSemaphoreCount = std::uint32_t(sync.signal.size());
+    si.pSignalSemaphores = sync.signal.data();
+    std::lock_guard<std::mutex> lock(ctx_.queue_mutex());
+    check(ctx_.vk().vkQueueSubmit(ctx_.queue(), 1, &si, sync.fence), "vkQueueSubmit");
+    // An empty submission signals its fence once everything before it on the queue is done:
+    // gsd's own fence, so this recorder knows when its command buffer is free again.
+    check(ctx_.vk().vkQueueSubmit(ctx_.queue(), 0, nullptr, fence_), "vkQueueSubmit");
+    pending_ = true;
+}
+
+bool Recorder::done() const {
+    if (!pending_) return true;
+    const VkResult r = ctx_.vk().vkGetFenceStatus(ctx_.device(), fence_);
+    if (r == VK_NOT_READY) return false;
+    check(r, "vkGetFenceStatus");
+    return true;
 }
 
 void Recorder::wait() {

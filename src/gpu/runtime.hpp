@@ -8,6 +8,8 @@
 
 #include <volk.h>
 
+#include <gsd/vulkan.hpp>
+
 #include <cstdint>
 #include <initializer_list>
 #include <map>
@@ -63,60 +65,78 @@ struct Kernel {
 
 /// A buffer range bound to one binding of a dispatch.
 struct Binding {
-    const Buffer* buffer;
-    VkDeviceSize offset = 0;
-    VkDeviceSize range = VK_WHOLE_SIZE;
+    Binding(const Buffer* b, VkDeviceSize off = 0, VkDeviceSize r = VK_WHOLE_SIZE)
+        : buffer(b->handle()), offset(off), range(r) {}
+    /// A range of a buffer gsd does not own (an application's, see evaluate_into).
+    Binding(VkBuffer b, VkDeviceSize off, VkDeviceSize r) : buffer(b), offset(off), range(r) {}
+    VkBuffer buffer;
+    VkDeviceSize offset;
+    VkDeviceSize range;
 };
 
-class Context {
-public:
-    Context(VkPhysicalDevice physical, const DeviceInfo& info);
-    ~Context();
-    Context(const Context&) = delete;
-    Context& operator=(const Context&) = delete;
+// The Vulkan commands gsd calls on a device, loaded through that device's own
+// vkGetDeviceProcAddr: never global pointers, so gsd's own devices and an application's adopted
+// one each get the entry points their driver returned, and nothing clashes with an
+// application's loader or volk.
+#define GSD_DEVICE_COMMANDS(X)                                                                       \
+    X(vkAllocateCommandBuffers) X(vkAllocateMemory) X(vkBeginCommandBuffer) X(vkBindBufferMemory)     \
+    X(vkCmdBindPipeline) X(vkCmdCopyBuffer) X(vkCmdDispatch) X(vkCmdFillBuffer)                      \
+    X(vkCmdPipelineBarrier) X(vkCmdPushConstants) X(vkCmdPushDescriptorSetKHR) X(vkCreateBuffer)      \
+    X(vkCreateCommandPool) X(vkCreateComputePipelines) X(vkCreateDescriptorSetLayout)                \
+    X(vkCreateFence) X(vkCreatePipelineCache) X(vkCreatePipelineLayout) X(vkCreateShaderModule)      \
+    X(vkDestroyBuffer) X(vkDestroyCommandPool) X(vkDestroyDescriptorSetLayout) X(vkDestroyDevice)    \
+    X(vkDestroyFence) X(vkDestroyPipeline) X(vkDestroyPipelineCache) X(vkDestroyPipelineLayout)      \
+    X(vkDestroyShaderModule) X(vkDeviceWaitIdle) X(vkEndCommandBuffer) X(vkFreeMemory)               \
+    X(vkGetBufferMemoryRequirements) X(vkGetDeviceQueue) X(vkGetFenceStatus) X(vkMapMemory)          \
+    X(vkQueueSubmit) X(vkResetCommandBuffer) X(vkResetFences) X(vkUnmapMemory) X(vkWaitForFences)
 
-    VkDevice device() const { return device_; }
-    /// The device-level Vulkan commands of this device (every vkCmd…, vkCreate…, … on it).
-    const VolkDeviceTable& vk() const { return vk_; }
-    const DeviceInfo& info() const { return info_; }
-    const VkPhysicalDeviceLimits& limits() const { return props_.limits; }
-    /// Workgroup size used for 1-D kernels on this device (64 on CPUs, 256 on GPUs).
-    std::uint32_t workgroup_size() const { return workgroup_; }
-    /// Most workgroups per dispatch along x (larger dispatches continue along y).
-    std::uint32_t max_groups_x() const { return max_groups_x_; }
-    /// Largest range a storage buffer binding may cover.
-    VkDeviceSize max_binding_bytes() const { return props_.limits.maxStorageBufferRange; }
-    /// Whether shaders may use float64 (enabled at device creation when supported).
-    bool has_float64() const { return has_float64_; }
-    /// Bytes of device-local memory in the largest heap.
-    VkDeviceSize device_memory_bytes() const { return info_.device_local_bytes; }
+// The instance-level commands a Context needs about its physical device.
+#define GSD_INSTANCE_COMMANDS(X)                                                                     \
+    X(vkGetPhysicalDeviceProperties) X(vkGetPhysicalDeviceMemoryProperties)                          \
+    X(vkGetPhysicalDeviceFeatures) X(vkGetPhysicalDeviceQueueFamilyProperties)                       \
+    X(vkEnumerateDeviceExtensionProperties) X(vkGetDeviceProcAddr) X(vkCreateDevice)
 
-    /// The kernel for a shader and its specialization constants (1..n), built once and cached.
-    const Kernel& kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                         std::initializer_list<std::int32_t> constants = {});
+#define GSD_DECLARE_COMMAND(name) PFN_##name name = nullptr;
 
-    std::uint32_t memory_type(std::uint32_t type_bits, Memory memory) const;
-    VkQueue queue() const { return queue_; }
-    std::uint32_t queue_family() const { return queue_family_; }
-    std::mutex& queue_mutex() { return queue_mutex_; }
-
-private:
-    VkPhysicalDevice physical_;
-    DeviceInfo info_;
-    VkPhysicalDeviceProperties props_{};
-    VkPhysicalDeviceMemoryProperties mem_props_{};
-    VkDevice device_ = VK_NULL_HANDLE;
-    VolkDeviceTable vk_{};
-    VkQueue queue_ = VK_NULL_HANDLE;
-    std::uint32_t queue_family_ = 0;
-    std::uint32_t workgroup_ = 64;
-    bool has_float64_ = false;
-    std::uint32_t max_groups_x_ = 65535;
-    VkPipelineCache cache_ = VK_NULL_HANDLE;
-    std::mutex kernels_mutex_, queue_mutex_;
-    std::map<std::string, std::unique_ptr<Kernel>> kernels_;
-    std::map<std::string, VkShaderModule> modules_;
+struct DeviceFunctions {
+    GSD_DEVICE_COMMANDS(GSD_DECLARE_COMMAND)
+    /// Loads every command; returns the name of the first one the device does not provide
+    /// (its extension not enabled), or nullptr.
+    const char* load(VkDevice device, PFN_vkGetDeviceProcAddr get_device_proc_addr);
 };
+
+struct InstanceFunctions {
+    GSD_INSTANCE_COMMANDS(GSD_DECLARE_COMMAND)
+    /// Optional (Vulkan 1.1 instances): subgroup size in DeviceInfo.
+    PFN_vkGetPhysicalDeviceProperties2 vkGetPhysicalDeviceProperties2 = nullptr;
+    /// Returns the name of the first command the instance does not provide, or nullptr.
+    const char* load(VkInstance instance, PFN_vkGetInstanceProcAddr get_instance_proc_addr);
+};
+
+// A Context's state (gsd/vulkan.hpp declares the class; its data stays here).
+struct Context::State {
+    InstanceFunctions instance;
+    VkPhysicalDevice physical = VK_NULL_HANDLE;
+    DeviceInfo info;
+    VkPhysicalDeviceProperties props{};
+    VkPhysicalDeviceMemoryProperties mem_props{};
+    VkDevice device = VK_NULL_HANDLE;
+    bool owns_device = true;  ///< false for an adopted device: never destroyed or idled by gsd
+    DeviceFunctions vk{};
+    VkQueue queue = VK_NULL_HANDLE;
+    std::uint32_t queue_family = 0;
+    std::uint32_t workgroup = 64;
+    bool has_float64 = false;
+    std::uint32_t max_groups_x = 65535;
+    VkPipelineCache cache = VK_NULL_HANDLE;
+    std::mutex kernels_mutex, queue_mutex;
+    std::map<std::string, std::unique_ptr<Kernel>> kernels;
+    std::map<std::string, VkShaderModule> modules;
+    ~State();
+};
+
+/// Describes a physical device (what `gsd info` lists) through an instance's commands.
+DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, std::uint32_t index);
 
 /// One command buffer and its fence: record, submit, wait; reusable.
 class Recorder {
@@ -137,8 +157,18 @@ public:
                   std::uint32_t push_bytes, std::uint32_t groups);
     /// Makes earlier writes (transfer or compute) visible to later reads (transfer, compute, host).
     void barrier();
+    /// Makes writes by anything earlier on the queue (an application's commands, transfers,
+    /// host writes) visible to the compute shaders recorded next.
+    void barrier_after_external();
+    /// Makes the compute shaders' writes visible to anything later on the queue and to the host.
+    void barrier_before_external();
     /// Ends and submits; returns at once.
     void submit();
+    /// Ends and submits with an application's semaphores and fence (see SubmitSync); this
+    /// recorder's own fence still tracks the work, so wait() and done() keep working.
+    void submit(const SubmitSync& sync);
+    /// Whether the last submission has finished (true if none is pending).
+    bool done() const;
     /// Waits for the last submission (no-op if none is pending).
     void wait();
     bool pending() const { return pending_; }

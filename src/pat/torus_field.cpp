@@ -65,7 +65,7 @@ TorusField::~TorusField() = default;
 TorusField::TorusField(TorusField&&) noexcept = default;
 TorusField& TorusField::operator=(TorusField&&) noexcept = default;
 
-FieldValues TorusField::evaluate(const Points& queries, bool with_gradient, const ProgressFn& progress) const {
+FieldValues TorusField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
     if (!queries.allFinite()) throw Error("queries", "query points must be finite");
     return impl_->engine.evaluate(blend::Queries(queries), with_gradient, progress);
 }
@@ -74,6 +74,8 @@ FieldValues TorusField::evaluate(const GridSpec& grid, bool with_gradient, const
     grid.validate();
     return impl_->engine.evaluate(blend::Queries(grid), with_gradient, progress);
 }
+
+const blend::Engine& detail::FieldAccess::engine(const TorusField& field) { return field.impl_->engine; }
 
 const FittedTori& TorusField::tori() const { return impl_->tori; }
 const PointConfidence& TorusField::confidence() const { return impl_->confidence; }

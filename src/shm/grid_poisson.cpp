@@ -196,13 +196,13 @@ private:
 struct GridPoissonSolver::Impl {
     GridSpec grid;
     PoissonSolver kind;
-    std::string device_choice;
+    Device device_choice;
     Hierarchy H;
     mutable std::unique_ptr<shm_detail::GpuMultigrid> gpu;
     mutable bool gpu_tried = false;
     mutable std::string device_name = "cpu";
 
-    Impl(GridSpec g, PoissonSolver k, std::string d) : grid(g), kind(k), device_choice(std::move(d)), H(g) {}
+    Impl(GridSpec g, PoissonSolver k, Device d) : grid(g), kind(k), device_choice(std::move(d)), H(g) {}
 
     // The GPU multigrid if the device choice gives one (once), else null.
     shm_detail::GpuMultigrid* gpu_multigrid() const {
@@ -308,7 +308,7 @@ struct GridPoissonSolver::Impl {
     }
 };
 
-GridPoissonSolver::GridPoissonSolver(GridSpec grid, PoissonSolver solver, std::string device) {
+GridPoissonSolver::GridPoissonSolver(GridSpec grid, PoissonSolver solver, Device device) {
     grid.validate();
     impl_ = std::make_unique<Impl>(grid, solver, std::move(device));
 }

@@ -3,7 +3,7 @@
 
 namespace gsd::sums_detail {
 
-bool gpu_winding(const std::shared_ptr<gpu::Context>&, const detail::SumTree&, const Points&, const WindingOptions&,
+bool gpu_winding(const std::shared_ptr<gpu::Context>&, const detail::SumTree&, PointsView, const WindingOptions&,
                  WindingResult&, const ProgressFn&, std::string& why_not) {
     why_not = "built without Vulkan";
     return false;

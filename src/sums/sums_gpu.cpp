@@ -94,7 +94,7 @@ DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree) {
     return d;
 }
 
-bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, const Points& queries,
+bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, PointsView queries,
                  const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
     why_not = gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return false;

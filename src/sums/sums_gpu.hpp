@@ -17,7 +17,7 @@ namespace gsd::sums_detail {
 std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree);
 
 /// Winding numbers on the device. False (and a reason) when the device cannot take the tree.
-bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, const Points& queries,
+bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, PointsView queries,
                  const WindingOptions& options, WindingResult& out, const ProgressFn& progress, std::string& why_not);
 
 }  // namespace gsd::sums_detail

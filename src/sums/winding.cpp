@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <memory>
+#include <mutex>
 
 namespace gsd {
 
@@ -79,7 +81,7 @@ namespace {
 
 // Queries in Morton (Z-curve) order on a 2^10 grid over their box: neighbors in the order
 // walk the same tree nodes, so the tree stays in cache (3x faster on random queries).
-std::vector<std::uint32_t> spatial_order(const Points& q) {
+std::vector<std::uint32_t> spatial_order(PointsView q) {
     const auto n = std::size_t(q.rows());
     std::vector<std::uint32_t> order(n);
     for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
@@ -109,13 +111,18 @@ std::vector<std::uint32_t> spatial_order(const Points& q) {
 
 }  // namespace
 
-WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries, const WindingOptions& opt,
-                                   const ProgressFn& progress) {
+namespace {
+
+void check_options(const WindingOptions& opt) {
     if (!(opt.beta > 1) || !std::isfinite(opt.beta)) throw Error("WindingOptions::beta", "the opening criterion β must be > 1");
     if (!(opt.tolerance >= 0) || !std::isfinite(opt.tolerance)) throw Error("WindingOptions::tolerance", "the error tolerance must be ≥ 0");
+}
+
+// The sums over a tree already built: the GPU if the device choice gives one, else the CPU.
+WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, const WindingOptions& opt,
+                              const ProgressFn& progress) {
     if (!queries.allFinite()) throw Error("queries", "non-finite query coordinates");
     if (queries.rows() >= (Eigen::Index(1) << 32)) throw Error("queries", "more than 2^32 queries");
-    const detail::SumTree tree(elements);
     WindingResult out;
     out.w.assign(std::size_t(queries.rows()), 0.0);
     if (!opt.exact && queries.size() > 0 && queries.cwiseAbs().maxCoeff() > 1e15) {
@@ -162,5 +169,70 @@ WindingResult fast_winding_numbers(const OrientedElements& elements, const Point
     out.terms = terms;
     return out;
 }
+
+}  // namespace
+
+WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries, const WindingOptions& opt,
+                                   const ProgressFn& progress) {
+    check_options(opt);
+    const detail::SumTree tree(elements);
+    return winding_on_tree(tree, queries, opt, progress);
+}
+
+// ---- WindingField -----------------------------------------------------------------------
+
+struct WindingField::Impl {
+    OrientedElements elements;
+    WindingOptions options;
+    mutable std::mutex mutex;  // concurrent evaluate() calls build the tree once
+    mutable std::unique_ptr<detail::SumTree> tree;
+
+    const detail::SumTree& built() const {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!tree) tree = std::make_unique<detail::SumTree>(elements);
+        return *tree;
+    }
+};
+
+WindingField::WindingField(OrientedElements elements, WindingOptions options) : impl_(std::make_unique<Impl>()) {
+    elements.validate();
+    check_options(options);
+    impl_->elements = std::move(elements);
+    impl_->options = std::move(options);
+}
+
+WindingField::~WindingField() = default;
+WindingField::WindingField(WindingField&&) noexcept = default;
+WindingField& WindingField::operator=(WindingField&&) noexcept = default;
+
+WindingResult WindingField::winding_numbers(PointsView queries, const ProgressFn& progress) const {
+    return winding_on_tree(impl_->built(), queries, impl_->options, progress);
+}
+
+namespace {
+FieldValues as_field_values(const WindingResult& r) {
+    FieldValues v;
+    v.phi.assign(r.w.begin(), r.w.end());
+    v.device = r.device;
+    return v;
+}
+void no_gradient(bool with_gradient) {
+    if (with_gradient) throw Error("with_gradient", "winding numbers are offered without a gradient");
+}
+}  // namespace
+
+FieldValues WindingField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
+    no_gradient(with_gradient);
+    return as_field_values(winding_numbers(queries, progress));
+}
+
+FieldValues WindingField::evaluate(const GridSpec& grid, bool with_gradient, const ProgressFn& progress) const {
+    no_gradient(with_gradient);
+    grid.validate();
+    return as_field_values(winding_numbers(grid.nodes(), progress));
+}
+
+const OrientedElements& WindingField::elements() const { return impl_->elements; }
+const WindingOptions& WindingField::options() const { return impl_->options; }
 
 }  // namespace gsd

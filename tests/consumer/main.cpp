@@ -1,10 +1,13 @@
 // Consumer of an installed gsd (tests/consumer/run.sh): links libgsd and libvulkan together,
 // calls the Vulkan loader directly, then evaluates a cloud's PAT field on the CPU and on a
-// Vulkan device through gsd and compares them. Exit 0 only if everything agrees.
+// Vulkan device through gsd and compares them, and again on a device it created itself and
+// handed to gsd (examples/vulkan_interop/interop.cpp). Exit 0 only if everything agrees.
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
+
+#include "interop.hpp"
 
 #include <vulkan/vulkan.h>
 
@@ -79,5 +82,7 @@ int main(int argc, char** argv) {
             std::printf("consumer: wrote %s\n", out.c_str());
         }
     }
+    // The engine path: gsd on the application's own device and buffers (examples/vulkan_interop/interop.cpp).
+    ok = interop_check(tori, queries) && ok;
     return ok ? 0 : 1;
 }

@@ -38,11 +38,18 @@ pcdir=$(dirname "$(ls "$prefix"/lib/*/pkgconfig/gsd.pc "$prefix"/lib/pkgconfig/g
 static=""
 [ -z "$lib" ] && static=--static   # a static libgsd (GSD_SHARED=OFF) brings its dependencies
 flags=$(PKG_CONFIG_PATH="$pcdir" pkg-config $static --cflags --libs gsd)
-g++ -std=c++20 -O1 "$here/main.cpp" -o "$work/consumer-pc" $flags -lvulkan
+g++ -std=c++20 -O1 -I"$here/../../examples/vulkan_interop" "$here/main.cpp" "$here/../../examples/vulkan_interop/interop.cpp" -o "$work/consumer-pc" $flags -lvulkan
 LD_LIBRARY_PATH="$libdir" "$work/consumer-pc" "$work" >/dev/null
 echo "ok: pkg-config build ran"
 
-# 3. The Python module, when it was built (GSD_PYTHON=ON): importable from the prefix alone.
+# 3. The worked example of the interop API, as its README tells a user to build it.
+cmake -S "$here/../../examples/vulkan_interop" -B "$work/example-build" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" \
+  -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build "$work/example-build" >/dev/null
+LD_LIBRARY_PATH="$libdir" "$work/example-build/vulkan_interop" | tail -2
+echo "ok: examples/vulkan_interop built and ran"
+
+# 4. The Python module, when it was built (GSD_PYTHON=ON): importable from the prefix alone.
 if [ -d "$prefix"/lib/python3/dist-packages/gsd ]; then
   (cd "$work" && PYTHONPATH="$prefix"/lib/python3/dist-packages /usr/bin/python3 -c \
     "import gsd, numpy as np; w = gsd.winding_numbers(np.zeros((1, 3)), vertices=np.array([[1.,0,0],[0,1,0],[0,0,1],[-1,-1,-1.]]), faces=np.array([[0,1,2],[0,3,1],[1,3,2],[2,3,0]]), exact=True, device='cpu'); assert abs(abs(w[0]) - 1) < 1e-9, w; print('ok: import gsd from the prefix, gsd', gsd.version())")

@@ -9,6 +9,7 @@
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
+#include <gsd/render.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
 #include <gsd/sums.hpp>
@@ -271,8 +272,8 @@ void add_baseline(CLI::App& app) {
         const BaselineField field(baseline_from_name(*kind), cloud, blend->options());
         evaluate_and_write(
             *domain, bounding_box(cloud.points), *output, "",
-            [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, p); },
-            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, p); }, "baseline " + *kind, *kind);
+            [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, false, p); },
+            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, false, p); }, "baseline " + *kind, *kind);
     });
 }
 
@@ -548,6 +549,92 @@ void add_winding(CLI::App& app) {
     });
 }
 
+// ---- gsd render --------------------------------------------------------------------------
+
+void add_render(CLI::App& app) {
+    auto* r = app.add_subcommand(
+        "render", "Picture of a field's zero level set, sphere-traced on a Vulkan device or the CPU: PAT from a cloud or "
+                  ".tori, or a grid (trilinear), shaded by its gradient");
+    auto input = std::make_shared<std::string>();
+    auto tori = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto bounds = std::make_shared<std::vector<double>>();
+    auto size = std::make_shared<std::vector<int>>(std::vector<int>{800, 600});
+    auto view = std::make_shared<std::vector<double>>();
+    auto up = std::make_shared<std::vector<double>>();
+    auto color = std::make_shared<std::string>();
+    auto opt = std::make_shared<FieldRenderOptions>();
+    opt->supersample = 2;
+    auto fit = std::make_shared<FitArgs>();
+    auto blend = std::make_shared<BlendArgs>();
+    auto outliers = std::make_shared<OutlierArgs>();
+    auto* in = r->add_option("INPUT", *input, "Point cloud with normals, a .tori file, or an (N,N,N) .npy grid of φ");
+    auto* tin = r->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
+    in->excludes(tin);
+    r->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
+    r->add_option("--size", *size, "Image width and height in pixels")->expected(2)->check(CLI::Range(1, 16384))->capture_default_str();
+    r->add_option("--view-from", *view, "Direction the camera looks from, toward the center (default 1 0.8 1.6)")->expected(3);
+    r->add_option("--up", *up, "Up direction of the picture (default 0 1 0)")->expected(3);
+    r->add_option("--fov", opt->fov_degrees, "Vertical field of view in degrees")->check(CLI::Range(1.0, 170.0))->capture_default_str();
+    r->add_option("--supersample", opt->supersample, "Rays per pixel along each axis (antialiasing)")->check(CLI::Range(1, 4))->capture_default_str();
+    r->add_option("--max-steps", opt->max_steps, "March steps per ray")->check(CLI::Range(1, 100000))->capture_default_str();
+    r->add_option("--step-scale", opt->step_scale, "Each step advances this × |φ|")->check(CLI::Range(0.01, 1.0))->capture_default_str();
+    r->add_option("--bounds", *bounds,
+                  "Box the rays march in, x0 y0 z0 x1 y1 z1 (default: a grid's own bounds from GRID.npy.json; for PAT the "
+                  "cloud's bounding cube + 10%)")->expected(6);
+    r->add_option("--color", *color, "Color the surface by a second grid (.npy with its sidecar), diverging colors");
+    r->add_option("--color-range", opt->color_range, "--color saturates at ±range (default: max |value| on the surface)")
+        ->check(CLI::NonNegativeNumber);
+    fit->add_to(*r, false);
+    blend->add_to(*r);
+    outliers->add_to(*r, true);
+    r->callback([=] {
+        if (input->empty() && tori->empty()) throw CLI::RequiredError("INPUT or --tori");
+        fit->check();
+        fit->device = blend->device;
+        opt->width = (*size)[0];
+        opt->height = (*size)[1];
+        if (!view->empty()) opt->view_from = {(*view)[0], (*view)[1], (*view)[2]};
+        if (!up->empty()) opt->up = {(*up)[0], (*up)[1], (*up)[2]};
+        opt->device = blend->device;
+        std::optional<Box> box;
+        if (!bounds->empty()) box = bounds_from(*bounds, "--bounds");
+        // The color field, read (and checked) before the costly work.
+        std::optional<GridSpec> color_grid;
+        std::vector<float> color_values;
+        if (!color->empty()) {
+            const io::NpyArray a = io::read_grid(*color);
+            color_grid = grid_of(a.shape, *color, {});
+            color_values = as_float(a);
+            opt->color_grid = &*color_grid;
+            opt->color_values = &color_values;
+        }
+        const auto t0 = std::chrono::steady_clock::now();
+        RenderedField picture;
+        std::optional<Progress> progress;  // started once the inputs are read (and fitted)
+        auto start = [&] { return progress.emplace("render " + std::filesystem::path(*output).filename().string()).fn(); };
+        const std::string source = !tori->empty() ? *tori : *input;
+        if (io::extension(source) == ".npy") {
+            const io::NpyArray a = io::read_grid(source);
+            const GridSpec g = grid_of(a.shape, source, *bounds);
+            const std::vector<float> values = as_float(a);
+            naming_file(source, "values", [&] { picture = render_field(g, values, *opt, start()); });
+        } else {
+            FittedTori fitted = is_tori_file(source) ? load_tori(source) : fit->fit(io::read_point_cloud(source), source);
+            if (!box) box = default_bounds(bounding_box(fitted.points));
+            const Eigen::Index total = fitted.size();
+            const TorusField field(std::move(fitted), blend->options(), outliers->options());
+            OutlierArgs::report(field.confidence(), total);
+            picture = render_field(field, *box, *opt, start());
+        }
+        progress->finish();
+        write_png(*output, picture.image);
+        note("wrote " + *output + " (" + std::to_string(picture.image.width) + "×" + std::to_string(picture.image.height) +
+             ", " + fmt("%.1f", 100 * picture.hit_fraction) + " % of rays on the surface, marched on " + picture.device +
+             (globals().verbose ? ", " + fmt("%.2f s", seconds_since(t0)) : std::string()) + ")");
+    });
+}
+
 void add_info(CLI::App& app) {
     auto* info = app.add_subcommand("info", "Version, the Vulkan devices seen, and what --device auto picks");
     info->callback([] {
@@ -585,6 +672,12 @@ std::string flag_for(const std::string& where) {
         {"WindingOptions::beta", "--beta"},
         {"WindingOptions::tolerance", "--tolerance"},
         {"device", "--device"},
+        {"FieldRenderOptions::width", "--size"},
+        {"FieldRenderOptions::view_from", "--view-from"},
+        {"FieldRenderOptions::up", "--up"},
+        {"FieldRenderOptions::color_range", "--color-range"},
+        {"FieldRenderOptions::color_values", "--color"},
+        {"box", "--bounds"},
     };
     for (const auto& [field, flag] : flags)
         if (where == field) return flag;
@@ -610,6 +703,7 @@ int main(int argc, char** argv) {
     add_winding(app);
     add_curve(app);
     add_swn(app);
+    add_render(app);
     add_info(app);
     try {
         globals().argv.assign(argv, argv + argc);

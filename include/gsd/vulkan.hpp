@@ -1,0 +1,153 @@
+// gsd/vulkan.hpp — running gsd on an engine's own Vulkan device, into the engine's own buffers.
+//
+// The only public header that includes Vulkan (<vulkan/vulkan_core.h>; define VK_NO_PROTOTYPES
+// first if the application loads Vulkan through volk). Installed only when gsd is built with
+// Vulkan (GSD_WITH_VULKAN, the default).
+//
+//   auto ctx = gsd::gpu::Context::adopt(instance, physical, device, family, queue,
+//                                       vkGetInstanceProcAddr);
+//   gsd::gpu::DeviceQueries job;
+//   job.queries = {query_buffer, 0};    // count × vec4: x, y, z, (unused), float32
+//   job.results = {result_buffer, 0};   // count × float φ, or count × vec4 (φ, ∇φ) with gradient
+//   job.count = n;
+//   gsd::gpu::SubmitSync sync;
+//   sync.signal = {results_ready};      // the engine waits on it before reading the results
+//   gsd::gpu::evaluate_into(field, ctx, job, sync);
+//
+// gsd records its own command buffer and submits it to the adopted queue, so the results never
+// pass through host memory. See docs/embedding.md ("Vulkan interop") for the contract: what the
+// device must have enabled, buffer usage and alignment, queue access, lifetimes.
+#pragma once
+
+#include <gsd/export.hpp>
+#include <gsd/gpu.hpp>
+
+#include <vulkan/vulkan_core.h>
+
+#include <cstdint>
+#include <initializer_list>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace gsd {
+
+class TorusField;
+class BaselineField;
+
+namespace gpu {
+
+struct Kernel;
+struct DeviceFunctions;
+struct InstanceFunctions;
+enum class Memory;
+
+/// What gsd cannot discover about an adopted device (Vulkan has no query for enabled features).
+struct AdoptOptions {
+    /// The device was created with VkPhysicalDeviceFeatures::shaderFloat64 enabled. Only the
+    /// grid SHM multigrid uses it (for its residual); without it that solver stays on the CPU.
+    bool float64_enabled = false;
+};
+
+/// A Vulkan device gsd computes on: one gsd created itself (gpu::select) or an engine's device
+/// handed to it with adopt(). Shared: every gsd object that keeps data on the device holds it.
+class Context {
+public:
+    /// Runs gsd on an engine's device. The device must have been created from `physical` with
+    /// VK_KHR_push_descriptor enabled and a queue in `queue_family` with compute; `instance`
+    /// must be Vulkan 1.1 or newer. gsd neither destroys nor idles the device; it creates its
+    /// own pipelines, command pools, fences and (for a field's data) buffers on it, and frees
+    /// them when the last gsd object holding this context goes. Throws gsd::Error ("device")
+    /// when the device lacks what gsd needs.
+    GSD_EXPORT static std::shared_ptr<Context> adopt(VkInstance instance, VkPhysicalDevice physical,
+                                                     VkDevice device, std::uint32_t queue_family,
+                                                     VkQueue queue,
+                                                     PFN_vkGetInstanceProcAddr get_instance_proc_addr,
+                                                     const AdoptOptions& options = {});
+    GSD_EXPORT ~Context();
+    Context(const Context&) = delete;
+    Context& operator=(const Context&) = delete;
+
+    GSD_EXPORT VkDevice device() const;
+    GSD_EXPORT VkPhysicalDevice physical_device() const;
+    GSD_EXPORT VkQueue queue() const;
+    GSD_EXPORT std::uint32_t queue_family() const;
+    GSD_EXPORT const DeviceInfo& info() const;
+    /// Whether the device belongs to the application (adopt) rather than to gsd.
+    GSD_EXPORT bool adopted() const;
+
+    // ---- gsd's own use (the library's kernels); not for applications ----------------------
+    /// A context on a device gsd creates itself (gpu::select).
+    Context(const InstanceFunctions& instance, VkPhysicalDevice physical, const DeviceInfo& info);
+    /// The device-level Vulkan commands of this device (every vkCmd…, vkCreate…, … on it).
+    const DeviceFunctions& vk() const;
+    const VkPhysicalDeviceLimits& limits() const;
+    /// Workgroup size used for 1-D kernels on this device (64 on CPUs, 128 on GPUs).
+    std::uint32_t workgroup_size() const;
+    /// Most workgroups per dispatch along x (larger dispatches continue along y).
+    std::uint32_t max_groups_x() const;
+    /// Largest range a storage buffer binding may cover.
+    VkDeviceSize max_binding_bytes() const;
+    /// Whether shaders may use float64.
+    bool has_float64() const;
+    /// Bytes of device-local memory in the largest heap.
+    VkDeviceSize device_memory_bytes() const;
+    /// The kernel for a shader and its specialization constants (1..n), built once and cached.
+    const Kernel& kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
+                         std::initializer_list<std::int32_t> constants = {});
+    std::uint32_t memory_type(std::uint32_t type_bits, Memory memory) const;
+    /// Held around every vkQueueSubmit gsd makes (Vulkan requires queue access to be serialized).
+    std::mutex& queue_mutex();
+
+    struct State;
+
+private:
+    explicit Context(std::unique_ptr<State> state);
+    void init_common();
+    std::unique_ptr<State> s_;
+};
+
+/// A place in a caller's buffer. The buffer must have been created on the adopted device with
+/// VK_BUFFER_USAGE_STORAGE_BUFFER_BIT; `offset` must be a multiple of the device's
+/// minStorageBufferOffsetAlignment.
+struct BufferSpan {
+    VkBuffer buffer = VK_NULL_HANDLE;
+    VkDeviceSize offset = 0;
+};
+
+/// Queries in one of the caller's buffers and where their results go.
+struct DeviceQueries {
+    /// `count` records of 16 bytes: x, y, z as float32, then 4 bytes gsd does not read.
+    BufferSpan queries;
+    /// `count` float32 φ; with `gradient`, `count` records of 16 bytes: φ, ∂φ/∂x, ∂φ/∂y, ∂φ/∂z.
+    BufferSpan results;
+    std::uint64_t count = 0;
+    bool gradient = false;
+};
+
+/// How gsd's submission orders against the caller's work; passed to vkQueueSubmit as given.
+/// With a fence or a signal semaphore the call returns once gsd's work is submitted; with
+/// neither it returns when the results are written. Either way gsd's command buffer starts with
+/// a barrier that makes earlier writes on the queue visible to it, and ends with one that makes
+/// its results visible to later commands on the queue and, once the fence signals, to the host.
+struct SubmitSync {
+    std::vector<VkSemaphore> wait;                  ///< binary semaphores to wait on first
+    std::vector<VkPipelineStageFlags> wait_stages;  ///< one per `wait`; empty: compute shader
+    std::vector<VkSemaphore> signal;                ///< signaled when the results are written
+    VkFence fence = VK_NULL_HANDLE;                 ///< signaled likewise (unsignaled on entry)
+};
+
+/// Evaluates a field at queries already on the device into a buffer on the device. The first
+/// call on a context uploads the field's data (points, tori or terms, tree) to it and waits;
+/// later calls only record and submit. Results match `field.evaluate` (same BlendOptions, the
+/// accelerated or exact sum) to float32 rounding. The field must outlive the work: destroying
+/// it waits for its submissions to finish. Throws gsd::Error for bad spans or counts.
+GSD_EXPORT void evaluate_into(const TorusField& field, const std::shared_ptr<Context>& context,
+                              const DeviceQueries& job, const SubmitSync& sync = {});
+/// The same for a baseline field (φ only: `job.gradient` must be false).
+GSD_EXPORT void evaluate_into(const BaselineField& field, const std::shared_ptr<Context>& context,
+                              const DeviceQueries& job, const SubmitSync& sync = {});
+
+}  // namespace gpu
+}  // namespace gsd

@@ -1,0 +1,150 @@
+// The blend engine's per-query sums (mirrors src/blend/blend_cpu.cpp), shared by blend_eval.comp
+// and the renderer (render_pat.comp). The including shader declares, before including this:
+// the KIND specialization constant (0 PAT, 1 SSPD, 2 SHC), the buffers `pts` (tree order),
+// `terms` (PAT: 3 per point; else (n, area)) and `nodes`, and the push constants `pc`
+// (point_count, first_leaf, k_fallback, r_eval, C, dmin).
+const int K_MAX = 32;     // largest fallback_k the kernel supports
+const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
+const float PI = 3.14159265358979;
+
+#define KNN_MAX K_MAX
+#include "box_tree_knn.glsl"
+
+// Running sums, as in src/blend/blend_cpu.cpp: w = e·T(d/ρ), q = e·T'(d/ρ), e = A·exp(−λ(d − σ)).
+struct Acc { float W, G, D, GD, QD, QGD, shc; vec3 Gg, U, GU, QU, QGU; };
+
+Acc acc_zero() { return Acc(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)); }
+
+// The taper T(v) = (1 − v²)³ + 1e-9 and its derivative (blend_taper in blend.hpp).
+float taper(float v) { float a = 1.0 - min(v * v, 1.0); return a * a * a + 1e-9; }
+float taper_derivative(float v) { float a = 1.0 - min(v * v, 1.0); return -6.0 * v * a * a; }
+
+// Adds point p with term data t0..t2 (PAT: the torus; else t0 = (n, area)) at distance d.
+void add_term(inout Acc a, vec3 x, vec3 p, vec4 t0, vec4 t1, vec4 t2, float d, float lambda, float sigma,
+              float rho, bool tapered, bool grad) {
+    float v = d / rho;
+    float t = tapered ? taper(v) : 1.0;
+    if (KIND == 2) {  // not tapered: SHC depends on the scale of its sum (blend_cpu.cpp)
+        float dd = max(d, pc.dmin);
+        a.shc += t0.w * (lambda * dd + 1.0) * dot(x - p, t0.xyz) / (2.0 * PI * dd * dd * dd) *
+                 exp(-lambda * (dd - sigma));
+        return;
+    }
+    float g, scale;
+    vec3 gg;
+    if (KIND == 0) {
+        g = torus_sdf(t0, t1, t2, x, gg);
+        scale = 1.0;
+    } else {
+        g = dot(x - p, t0.xyz);
+        gg = t0.xyz;
+        scale = t0.w;
+    }
+    float e = scale * exp(-lambda * (d - sigma));
+    float w = e * t;
+    a.W += w;
+    a.G += w * g;
+    if (grad) {
+        vec3 u = d > 0.0 ? (x - p) / d : vec3(0.0);
+        a.Gg += w * gg;
+        a.U += w * u;
+        a.GU += w * g * u;
+        a.D += w * d;
+        a.GD += w * g * d;
+        if (tapered) {
+            float q = e * taper_derivative(v);
+            a.QU += q * u;
+            a.QGU += q * g * u;
+            a.QD += q * d;
+            a.QGD += q * g * d;
+        }
+    }
+}
+
+void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, float rho, bool tapered, bool grad) {
+    vec4 t0, t1 = vec4(0.0), t2 = vec4(0.0);
+    if (KIND == 0) { t0 = terms[3 * j]; t1 = terms[3 * j + 1]; t2 = terms[3 * j + 2]; }
+    else t0 = terms[j];
+    add_term(a, x, pts[j].xyz, t0, t1, t2, d, lambda, sigma, rho, tapered, grad);
+}
+
+// Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
+uint sum_ball(vec3 x, inout Acc a, bool grad) {
+    float r2 = pc.r_eval * pc.r_eval;
+    float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
+    uint found = 0;
+    uint stack[STACK];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        uint i = stack[--top];
+        if (node_distance2(x, i) > r2) continue;
+        if (i >= pc.first_leaf) {
+            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+                vec3 dv = x - pts[j].xyz;
+                float d2 = dot(dv, dv);
+                if (d2 <= r2) {
+                    add_point(a, x, j, sqrt(d2), lambda, sigma, pc.r_eval, true, grad);
+                    ++found;
+                }
+            }
+        } else {
+            stack[top++] = 2 * i + 1;
+            stack[top++] = 2 * i + 2;
+        }
+    }
+    return found;
+}
+
+
+// The accelerated sum at x (the ball of radius r_eval, else the k nearest): fills the sums,
+// ρ, and, when ρ depends on x, the point that sets it.
+void blend_accelerated(vec3 x, bool grad, out Acc a, out float rho, out bool rho_varies, out vec3 far_p) {
+    a = acc_zero();
+    rho = pc.r_eval;
+    rho_varies = false;
+    far_p = vec3(0.0);
+    if (sum_ball(x, a, grad) >= pc.k_fallback) return;
+    // Fewer than k points within r_eval: the k nearest, ρ = d_k.
+    a = acc_zero();
+    float kd[K_MAX];
+    uint ki[K_MAX];
+    knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);
+    uint k = pc.k_fallback;
+    rho = max(kd[k - 1], 1e-30);
+    rho_varies = true;
+    far_p = pts[ki[k - 1]].xyz;
+    float sigma = 0.5 * rho, lambda = pc.C / sigma;
+    for (uint m = 0; m < k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
+}
+
+// φ from the sums (and ∇φ into g when `grad`; SHC has none).
+float blend_finish(Acc a, vec3 x, float rho, bool rho_varies, vec3 far_p, bool grad, out vec3 g) {
+    float sigma = 0.5 * rho, lambda = pc.C / sigma;
+    g = vec3(0.0);
+    if (KIND == 2) {
+        float mag = max(abs(a.shc), 1e-37);
+        return (a.shc < 0.0 ? -1.0 : 1.0) * (-log(mag) / lambda + sigma);
+    }
+    float phi = a.G / a.W;
+    if (!grad) return phi;
+    g = a.Gg - lambda * (a.GU - phi * a.U) + (a.QGU - phi * a.QU) / rho;
+    if (rho_varies) {
+        vec3 xf = x - far_p;
+        float dfar = length(xf);
+        if (dfar > 0.0)
+            g += (xf / dfar) * ((lambda / rho) * (a.GD - phi * a.D) - (a.QGD - phi * a.QD) / (rho * rho));
+    }
+    g /= a.W;
+    return phi;
+}
+
+// The accelerated field at x.
+float blend_field(vec3 x, bool grad, out vec3 g) {
+    Acc a;
+    float rho;
+    bool rho_varies;
+    vec3 far_p;
+    blend_accelerated(x, grad, a, rho, rho_varies, far_p);
+    return blend_finish(a, x, rho, rho_varies, far_p, grad, g);
+}

@@ -1,0 +1,35 @@
+#version 450
+#extension GL_GOOGLE_include_directive : require
+// Sphere-traces a blended field (PAT, SSPD, SHC; the accelerated sum) per pixel: the renderer's
+// GPU path (src/render/render_gpu.cpp). Bindings 0–2 and the first push constants are those of
+// blend_eval.comp, so the field's device data serves both.
+#include "box_tree.glsl"
+#include "torus.glsl"
+
+layout(local_size_x_id = 0) in;
+layout(constant_id = 1) const int KIND = 0;  // 0 PAT, 1 SSPD, 2 SHC
+
+layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };
+layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };
+layout(std430, binding = 2) readonly buffer Nodes { Node nodes[]; };
+
+layout(push_constant) uniform Push {
+    uint first_pixel;  // blend_eval's query_count: here the chunk's first pixel
+    uint point_count;
+    uint first_leaf;
+    uint k_fallback;
+    float r_eval;
+    float C;
+    float dmin;
+    uint pixel_count;
+} pc;
+
+#include "blend_field.glsl"
+
+float field_phi(vec3 x, bool grad, out vec3 g) { return blend_field(x, grad, g); }
+
+#define RENDER_PARAMS_BINDING 3
+#define RENDER_OUT_BINDING 4
+#include "render_march.glsl"
+
+void main() { render_main(pc.first_pixel, pc.pixel_count); }

@@ -1,0 +1,344 @@
+// The field renderer: camera, the CPU reference march (double precision), shading, and the
+// choice between it and the shaders (render_gpu.cpp).
+#include "render/render.hpp"
+
+#include <gsd/baselines.hpp>
+#include <gsd/gpu.hpp>
+#include <gsd/pat.hpp>
+
+#include "blend/blend.hpp"
+#include "viz/palette.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gsd::render {
+
+Eigen::Vector3d Camera::ray(int px, int py) const { return view().ray(px, py, width, height); }
+
+Camera make_camera(const Box& box, const FieldRenderOptions& o, int width, int height) {
+    Camera c;
+    c.width = width;
+    c.height = height;
+    const Eigen::Vector3d center = 0.5 * (box.lo + box.hi);
+    const double radius = 0.5 * box.diagonal();
+    const double half = 0.5 * o.fov_degrees * M_PI / 180.0;
+    const double aspect = double(width) / height;
+    // The sphere must fit the narrower of the two fields of view.
+    const double half_narrow = aspect >= 1 ? half : std::atan(std::tan(half) * aspect);
+    const Eigen::Vector3d from = o.view_from.normalized();
+    c.eye = center + from * (radius / std::sin(half_narrow));
+    c.forward = -from;
+    const Eigen::Vector3d right = c.forward.cross(o.up).normalized();
+    const Eigen::Vector3d up = right.cross(c.forward);
+    c.up = up * std::tan(half);
+    c.right = right * std::tan(half) * aspect;
+    return c;
+}
+
+March make_march(const Box& box, const FieldRenderOptions& o) {
+    March m;
+    m.box = box;
+    m.max_steps = o.max_steps;
+    m.step_scale = o.step_scale;
+    m.hit_eps = o.hit_tolerance > 0 ? o.hit_tolerance : 1e-4 * box.diagonal();
+    m.min_step = m.hit_eps;
+    m.bisection = o.bisection_steps;
+    return m;
+}
+
+namespace {
+
+bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1) {
+    t0 = 0;
+    t1 = 3e38;
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(d[a]) < 1e-30) {
+            if (o[a] < b.lo[a] || o[a] > b.hi[a]) return false;
+            continue;
+        }
+        const double ta = (b.lo[a] - o[a]) / d[a], tb = (b.hi[a] - o[a]) / d[a];
+        t0 = std::max(t0, std::min(ta, tb));
+        t1 = std::min(t1, std::max(ta, tb));
+    }
+    return t0 <= t1;
+}
+
+}  // namespace
+
+Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& o, const Eigen::Vector3d& d, const March& m) {
+    const Eigen::Vector4d miss(-1, 0, 0, 0);
+    double t0, t1;
+    if (!clip_to_box(m.box, o, d, t0, t1)) return miss;
+    double t = t0, phi = field(o + t * d, nullptr), hit = -1;
+    if (std::abs(phi) < m.hit_eps) hit = t;
+    for (int s = 0; hit < 0 && s < m.max_steps; ++s) {
+        const double tn = t + std::max(m.step_scale * std::abs(phi), m.min_step);
+        if (tn > t1) break;
+        const double pn = field(o + tn * d, nullptr);
+        if ((pn < 0) != (phi < 0)) {  // crossed the surface within the step: bisect [t, tn]
+            double a = t, b = tn, pa = phi;
+            for (int k = 0; k < m.bisection; ++k) {
+                const double mid = 0.5 * (a + b), pm = field(o + mid * d, nullptr);
+                if ((pm < 0) == (pa < 0)) { a = mid; pa = pm; } else { b = mid; }
+            }
+            hit = 0.5 * (a + b);
+        } else if (std::abs(pn) < m.hit_eps) {
+            hit = tn;
+        }
+        t = tn;
+        phi = pn;
+    }
+    if (hit < 0) return miss;
+    Eigen::Vector3d g;
+    field(o + hit * d, &g);
+    return {hit, g.x(), g.y(), g.z()};
+}
+
+namespace {
+
+// Trilinear value (and gradient of the interpolant) of a grid, as render_grid.comp samples it.
+double trilinear(const GridSpec& grid, const std::vector<float>& v, const Eigen::Vector3d& x, Eigen::Vector3d* grad) {
+    const int n[3] = {grid.nx, grid.ny, grid.nz};
+    int c[3];
+    double f[3], h[3];
+    for (int a = 0; a < 3; ++a) {
+        h[a] = (grid.box.hi[a] - grid.box.lo[a]) / (n[a] - 1);
+        const double s = (x[a] - grid.box.lo[a]) / h[a];
+        c[a] = std::clamp(int(std::floor(s)), 0, n[a] - 2);
+        f[a] = std::clamp(s - c[a], 0.0, 1.0);
+    }
+    auto at = [&](int i, int j, int k) {
+        return double(v[(std::size_t(c[0] + i) * std::size_t(n[1]) + std::size_t(c[1] + j)) * std::size_t(n[2]) +
+                        std::size_t(c[2] + k)]);
+    };
+    auto mix = [](double a, double b, double t) { return a + (b - a) * t; };
+    const double v000 = at(0, 0, 0), v100 = at(1, 0, 0), v010 = at(0, 1, 0), v110 = at(1, 1, 0);
+    const double v001 = at(0, 0, 1), v101 = at(1, 0, 1), v011 = at(0, 1, 1), v111 = at(1, 1, 1);
+    const double a00 = mix(v000, v100, f[0]), a10 = mix(v010, v110, f[0]);
+    const double a01 = mix(v001, v101, f[0]), a11 = mix(v011, v111, f[0]);
+    const double b0 = mix(a00, a10, f[1]), b1 = mix(a01, a11, f[1]);
+    if (grad) {
+        const double dx0 = mix(v100 - v000, v110 - v010, f[1]), dx1 = mix(v101 - v001, v111 - v011, f[1]);
+        *grad = {mix(dx0, dx1, f[2]) / h[0], mix(a10 - a00, a11 - a01, f[2]) / h[1], (b1 - b0) / h[2]};
+    }
+    return mix(b0, b1, f[2]);
+}
+
+void check_options(const FieldRenderOptions& o) {
+    auto bad = [](const char* field, const std::string& why) { throw Error(field, why); };
+    if (o.width < 1 || o.height < 1 || o.width > 16384 || o.height > 16384)
+        bad("FieldRenderOptions::width", "the image size must be 1 to 16384 pixels per side");
+    if (o.supersample < 1 || o.supersample > 4) bad("FieldRenderOptions::supersample", "must be 1 to 4");
+    if (double(o.width) * o.height * o.supersample * o.supersample > 1e8)
+        bad("FieldRenderOptions::width", "width × height × supersample² must stay within 10^8 rays");
+    if (!o.view_from.allFinite() || o.view_from.norm() < 1e-12) bad("FieldRenderOptions::view_from", "must be a finite, non-zero direction");
+    if (!o.up.allFinite() || o.view_from.normalized().cross(o.up).norm() < 1e-9 * std::max(o.up.norm(), 1e-300))
+        bad("FieldRenderOptions::up", "must be finite and not parallel to view_from");
+    if (!(o.fov_degrees > 1 && o.fov_degrees < 170)) bad("FieldRenderOptions::fov_degrees", "must be between 1 and 170");
+    if (o.max_steps < 1 || o.max_steps > 100000) bad("FieldRenderOptions::max_steps", "must be 1 to 100000");
+    if (!(o.step_scale > 0 && o.step_scale <= 1)) bad("FieldRenderOptions::step_scale", "must be in (0, 1]");
+    if (!(o.hit_tolerance >= 0) || !std::isfinite(o.hit_tolerance)) bad("FieldRenderOptions::hit_tolerance", "must be finite and ≥ 0");
+    if (o.bisection_steps < 0 || o.bisection_steps > 64) bad("FieldRenderOptions::bisection_steps", "must be 0 to 64");
+    if (!(o.color_range >= 0) || !std::isfinite(o.color_range)) bad("FieldRenderOptions::color_range", "must be finite and ≥ 0");
+    if (bool(o.color_grid) != bool(o.color_values))
+        bad("FieldRenderOptions::color_grid", "a color field needs both color_grid and color_values");
+    if (o.color_grid) {
+        o.color_grid->validate();
+        if (o.color_values->size() != o.color_grid->node_count())
+            bad("FieldRenderOptions::color_values", "has " + std::to_string(o.color_values->size()) +
+                                                         " values for a grid of " + std::to_string(o.color_grid->node_count()) + " nodes");
+    }
+}
+
+// Turns per-pixel hits into a picture: Lambert + ambient light from the camera's side, colored
+// uniformly or by the color field, then box-downsampled.
+RenderedField shade(const std::vector<float>& hits, const Camera& cam, const FieldRenderOptions& o, std::string device) {
+    RenderedField r;
+    r.render_width = cam.width;
+    r.render_height = cam.height;
+    r.device = std::move(device);
+    r.camera = cam.view();
+    const std::size_t n = std::size_t(cam.width) * std::size_t(cam.height);
+    r.depth.resize(n);
+    const Eigen::Vector3d light = (-cam.forward + 0.5 * cam.up.normalized() - 0.35 * cam.right.normalized()).normalized();
+
+    std::vector<double> color_value(n, std::nan(""));
+    double range = o.color_range;
+    std::size_t hit_count = 0;
+    for (std::size_t p = 0; p < n; ++p) {
+        r.depth[p] = hits[4 * p] >= 0 ? hits[4 * p] : -1.0f;
+        if (hits[4 * p] < 0) continue;
+        ++hit_count;
+        if (o.color_grid) {
+            const Eigen::Vector3d x = cam.eye + double(hits[4 * p]) * cam.ray(int(p % std::size_t(cam.width)), int(p / std::size_t(cam.width)));
+            color_value[p] = trilinear(*o.color_grid, *o.color_values, x, nullptr);
+            if (o.color_range == 0 && std::isfinite(color_value[p])) range = std::max(range, std::abs(color_value[p]));
+        }
+    }
+    r.hit_fraction = n ? double(hit_count) / double(n) : 0;
+    if (range <= 0) range = 1;
+
+    std::vector<double> rgb(3 * n);
+    for (std::size_t p = 0; p < n; ++p) {
+        viz::Rgb c{double(o.background[0]), double(o.background[1]), double(o.background[2])};
+        if (hits[4 * p] >= 0) {
+            const Eigen::Vector3d d = cam.ray(int(p % std::size_t(cam.width)), int(p / std::size_t(cam.width)));
+            Eigen::Vector3d normal(hits[4 * p + 1], hits[4 * p + 2], hits[4 * p + 3]);
+            normal = normal.norm() > 0 ? normal.normalized() : Eigen::Vector3d(-d);
+            if (normal.dot(d) > 0) normal = -normal;  // seen from inside: light the side we see
+            const double lambert = 0.25 + 0.75 * std::max(0.0, normal.dot(light));
+            viz::Rgb base{double(o.color[0]), double(o.color[1]), double(o.color[2])};
+            if (o.color_grid) base = std::isfinite(color_value[p]) ? viz::diverging(color_value[p] / range) : viz::kNoValue;
+            c = {base.r * lambert, base.g * lambert, base.b * lambert};
+        }
+        rgb[3 * p] = c.r;
+        rgb[3 * p + 1] = c.g;
+        rgb[3 * p + 2] = c.b;
+    }
+    const int ss = o.supersample;
+    r.image.width = cam.width / ss;
+    r.image.height = cam.height / ss;
+    r.image.rgb.resize(std::size_t(r.image.width) * std::size_t(r.image.height) * 3);
+    for (int y = 0; y < r.image.height; ++y)
+        for (int x = 0; x < r.image.width; ++x)
+            for (int ch = 0; ch < 3; ++ch) {
+                double sum = 0;
+                for (int dy = 0; dy < ss; ++dy)
+                    for (int dx = 0; dx < ss; ++dx)
+                        sum += rgb[3 * (std::size_t(y * ss + dy) * std::size_t(cam.width) + std::size_t(x * ss + dx)) + std::size_t(ch)];
+                r.image.rgb[3 * (std::size_t(y) * std::size_t(r.image.width) + std::size_t(x)) + std::size_t(ch)] =
+                    viz::to_byte(sum / (ss * ss));
+            }
+    return r;
+}
+
+// Marches every pixel on the CPU, each thread with its own sampler (scratch space), in bands
+// of rows so progress can be reported between them.
+std::vector<float> march_cpu(const std::function<Sampler()>& make_sampler, const Camera& cam, const March& m,
+                             const ProgressFn& progress) {
+    const long n = long(cam.width) * cam.height;
+    const long band = std::max<long>(1, (1L << 16) / cam.width) * cam.width;
+    std::vector<float> hits(std::size_t(4 * n));
+    for (long first = 0; first < n; first += band) {
+        const long last = std::min(n, first + band);
+#pragma omp parallel
+        {
+            const Sampler field = make_sampler();
+#pragma omp for schedule(dynamic, 64)
+            for (long p = first; p < last; ++p) {
+                const Eigen::Vector4d h = march_ray(field, cam.eye, cam.ray(int(p % cam.width), int(p / cam.width)), m);
+                for (int c = 0; c < 4; ++c) hits[std::size_t(4 * p + c)] = float(h[c]);
+            }
+        }
+        if (progress) progress("march", double(last) / double(n));
+    }
+    return hits;
+}
+
+struct Frame {
+    Camera cam;
+    March march;
+};
+
+// `subject`: where the surface can be (the cloud's box, a grid's nodes near or below zero),
+// which the camera frames; the rays march in all of `box`.
+Frame frame_for(const Box& box, Box subject, const FieldRenderOptions& o) {
+    check_options(o);
+    validate_box(box, "box");
+    subject.lo = subject.lo.cwiseMax(box.lo);
+    subject.hi = subject.hi.cwiseMin(box.hi);
+    if (!((subject.hi - subject.lo).array() > 0).all()) subject = box;
+    Frame f;
+    f.cam = make_camera(subject, o, o.width * o.supersample, o.height * o.supersample);
+    f.march = make_march(box, o);
+    return f;
+}
+
+// The box of the nodes within half a cell diagonal of φ ≤ 0: where a grid's surface can be.
+Box grid_subject(const GridSpec& g, const std::vector<float>& values) {
+    const double reach = 0.5 * g.box.extent().cwiseQuotient(Eigen::Vector3d(g.nx - 1, g.ny - 1, g.nz - 1)).norm();
+    Box b{Eigen::Vector3d::Constant(1e300), Eigen::Vector3d::Constant(-1e300)};
+    for (int i = 0; i < g.nx; ++i)
+        for (int j = 0; j < g.ny; ++j)
+            for (int k = 0; k < g.nz; ++k)
+                if (values[(std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k)] <= reach) {
+                    const Eigen::Vector3d x = g.node(i, j, k);
+                    b.lo = b.lo.cwiseMin(x);
+                    b.hi = b.hi.cwiseMax(x);
+                }
+    return b;
+}
+
+RenderedField render_blend(const blend::Engine& engine, const Box& box, const FieldRenderOptions& o,
+                           const ProgressFn& progress) {
+    const Frame f = frame_for(box, bounding_box(engine.source().points), o);
+    blend::Params params = engine.params(true);
+    params.exact = false;  // the shader marches the accelerated sum; so does its reference
+    const gpu::Selection sel = gpu::select(o.device);
+    if (!sel.note.empty()) log_once(sel.note);
+    std::vector<float> hits;
+    if (sel.context) {
+        std::string why_not;
+        if (march_blend_gpu(engine, sel.context, f.cam, f.march, hits, why_not, progress))
+            return shade(hits, f.cam, o, sel.device_name);
+        log_once(why_not + "; rendering on the CPU");
+    }
+    const blend::Source& src = engine.source();
+    const detail::BoxTree& tree = engine.search_tree();
+    hits = march_cpu(
+        [&] {
+            auto scratch = std::make_shared<std::vector<Neighbor>>();
+            return Sampler([&src, &tree, params, scratch](const Eigen::Vector3d& x, Eigen::Vector3d* g) {
+                return blend::evaluate_one(src, tree, params, x, g, *scratch);
+            });
+        },
+        f.cam, f.march, progress);
+    return shade(hits, f.cam, o, "cpu");
+}
+
+}  // namespace
+}  // namespace gsd::render
+
+namespace gsd {
+
+RenderedField render_field(const TorusField& field, const Box& box, const FieldRenderOptions& options,
+                           const ProgressFn& progress) {
+    return render::render_blend(detail::FieldAccess::engine(field), box, options, progress);
+}
+
+RenderedField render_field(const BaselineField& field, const Box& box, const FieldRenderOptions& options,
+                           const ProgressFn& progress) {
+    return render::render_blend(detail::FieldAccess::engine(field), box, options, progress);
+}
+
+RenderedField render_field(const GridSpec& grid, const std::vector<float>& values, const FieldRenderOptions& options,
+                           const ProgressFn& progress) {
+    grid.validate();
+    if (grid.nx < 2 || grid.ny < 2 || grid.nz < 2) throw Error("grid", "needs at least 2 nodes along each axis");
+    if (values.size() != grid.node_count())
+        throw Error("values", "has " + std::to_string(values.size()) + " values for a grid of " +
+                                  std::to_string(grid.node_count()) + " nodes");
+    for (float v : values)
+        if (!std::isfinite(v)) throw Error("values", "contain NaN or infinite values");
+    const render::Frame f = render::frame_for(grid.box, render::grid_subject(grid, values), options);
+    const gpu::Selection sel = gpu::select(options.device);
+    if (!sel.note.empty()) log_once(sel.note);
+    if (sel.context) {
+        std::vector<float> hits;
+        std::string why_not;
+        if (render::march_grid_gpu(grid, values, sel.context, f.cam, f.march, hits, why_not, progress))
+            return render::shade(hits, f.cam, options, sel.device_name);
+        log_once(why_not + "; rendering on the CPU");
+    }
+    const std::vector<float> hits = render::march_cpu(
+        [&] {
+            return render::Sampler([&](const Eigen::Vector3d& x, Eigen::Vector3d* g) {
+                return render::trilinear(grid, values, x, g);
+            });
+        },
+        f.cam, f.march, progress);
+    return render::shade(hits, f.cam, options, "cpu");
+}
+
+}  // namespace gsd

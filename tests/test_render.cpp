@@ -1,0 +1,291 @@
+// The field renderer (gsd/render.hpp): the CPU march against ray–sphere intersections, the
+// shaders against the CPU reference on a Vulkan device (lavapipe in CI), option errors.
+#include <doctest/doctest.h>
+
+#include <gsd/gpu.hpp>
+#include <gsd/io.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/render.hpp>
+#include <gsd/shapes.hpp>
+
+#include "support.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+using namespace gsd;
+
+namespace {
+
+constexpr double kRadius = 0.6;
+
+// The exact signed distance of the sphere of radius kRadius at the origin, on a grid.
+std::vector<float> sphere_grid(const GridSpec& g) {
+    std::vector<float> v(g.node_count());
+    for (int i = 0; i < g.nx; ++i)
+        for (int j = 0; j < g.ny; ++j)
+            for (int k = 0; k < g.nz; ++k)
+                v[(std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k)] =
+                    float(g.node(i, j, k).norm() - kRadius);
+    return v;
+}
+
+// Where the ray hits the sphere (−1: it misses).
+double sphere_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+    const double b = d.dot(o), c = o.squaredNorm() - kRadius * kRadius, disc = b * b - c;
+    return disc < 0 ? -1.0 : -b - std::sqrt(disc);
+}
+
+struct Agreement {
+    std::size_t pixels = 0, mask_differs = 0, both_hit = 0;
+    std::vector<double> depth_errors;  // where both hit
+    double mask_fraction() const { return double(mask_differs) / double(pixels); }
+    double depth_quantile(double q) const {
+        std::vector<double> e = depth_errors;
+        std::sort(e.begin(), e.end());
+        return e.empty() ? 0.0 : e[std::min(e.size() - 1, std::size_t(q * double(e.size())))];
+    }
+};
+
+Agreement against_sphere(const RenderedField& r) {
+    Agreement a;
+    for (int y = 0; y < r.render_height; ++y)
+        for (int x = 0; x < r.render_width; ++x) {
+            const double t = r.depth[std::size_t(y) * std::size_t(r.render_width) + std::size_t(x)];
+            const double exact = sphere_hit(r.camera.eye, r.camera.ray(x, y, r.render_width, r.render_height));
+            ++a.pixels;
+            if ((t >= 0) != (exact >= 0)) ++a.mask_differs;
+            else if (t >= 0) a.depth_errors.push_back(std::abs(t - exact));
+        }
+    a.both_hit = a.depth_errors.size();
+    return a;
+}
+
+Agreement between(const RenderedField& a, const RenderedField& b) {
+    REQUIRE(a.depth.size() == b.depth.size());
+    Agreement g;
+    for (std::size_t p = 0; p < a.depth.size(); ++p) {
+        ++g.pixels;
+        if ((a.depth[p] >= 0) != (b.depth[p] >= 0)) ++g.mask_differs;
+        else if (a.depth[p] >= 0) g.depth_errors.push_back(std::abs(double(a.depth[p]) - double(b.depth[p])));
+    }
+    g.both_hit = g.depth_errors.size();
+    return g;
+}
+
+// Share of image bytes that differ by more than `tol` levels.
+double image_difference(const Image& a, const Image& b, int tol) {
+    REQUIRE(a.rgb.size() == b.rgb.size());
+    std::size_t over = 0;
+    for (std::size_t i = 0; i < a.rgb.size(); ++i) over += std::abs(int(a.rgb[i]) - int(b.rgb[i])) > tol;
+    return double(over) / double(a.rgb.size());
+}
+
+FittedTori fitted_sphere(std::size_t n) {
+    const PointCloud cloud = shapes::sphere({0, 0, 0}, kRadius)->sample(n, 3);
+    return JetFitter().fit(cloud);
+}
+
+FieldRenderOptions small(const std::string& device) {
+    FieldRenderOptions o;
+    o.width = 64;
+    o.height = 48;
+    o.device = device;
+    return o;
+}
+
+const Box kBox{{-1, -1, -1}, {1, 1, 1}};
+
+}  // namespace
+
+TEST_CASE("render: a grid of the sphere's exact distance is hit where the rays meet the sphere") {
+    const GridSpec g = GridSpec::cube(48, kBox);
+    const std::vector<float> phi = sphere_grid(g);
+    FieldRenderOptions o = small("cpu");
+    o.view_from = {0.3, -0.5, 1.0};
+    const RenderedField r = render_field(g, phi, o);
+    CHECK(r.device == "cpu");
+    CHECK(r.image.width == 64);
+    CHECK(r.image.height == 48);
+    const Agreement a = against_sphere(r);
+    MESSAGE("mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth error median "
+                               << a.depth_quantile(0.5) << ", max " << a.depth_quantile(1.0));
+    REQUIRE(a.both_hit > 500);  // the sphere fills a good part of the frame
+    CHECK(a.mask_fraction() <= 0.01);
+    // Trilinear interpolation of |x| − R is off by about h²/(8R) = 4e-4 near the sphere; the
+    // depth error grows toward the silhouette, where rays graze the surface.
+    CHECK(a.depth_quantile(0.5) <= 1e-3);
+    CHECK(a.depth_quantile(0.95) <= 2e-3);
+    CHECK(r.hit_fraction == doctest::Approx(double(a.both_hit + a.mask_differs) / double(a.pixels)).epsilon(0.05));
+}
+
+TEST_CASE("render: PAT of a sampled sphere shows the sphere") {
+    const TorusField field(fitted_sphere(3000), BlendOptions{});
+    FieldRenderOptions o = small("cpu");
+    const RenderedField r = render_field(field, kBox, o);
+    const Agreement a = against_sphere(r);
+    MESSAGE("mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth error median "
+                               << a.depth_quantile(0.5) << ", 95% " << a.depth_quantile(0.95));
+    REQUIRE(a.both_hit > 500);
+    CHECK(a.mask_fraction() <= 0.02);
+    CHECK(a.depth_quantile(0.95) <= 5e-3);
+}
+
+TEST_CASE("render: shading faces the light, a color field colors the surface") {
+    const GridSpec g = GridSpec::cube(40, kBox);
+    const std::vector<float> phi = sphere_grid(g);
+    // Color by x: blue on the left of the picture (x < 0 seen from +z), red on the right.
+    std::vector<float> x_values(g.node_count());
+    for (int i = 0; i < g.nx; ++i)
+        for (int j = 0; j < g.ny; ++j)
+            for (int k = 0; k < g.nz; ++k)
+                x_values[(std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k)] =
+                    float(g.node(i, j, k).x());
+    FieldRenderOptions o = small("cpu");
+    o.view_from = {0, 0, 1};
+    o.color_grid = &g;
+    o.color_values = &x_values;
+    const RenderedField r = render_field(g, phi, o);
+    double blue_minus_red[2] = {0, 0};  // left, right halves of the hit pixels
+    for (int y = 0; y < r.image.height; ++y)
+        for (int x = 0; x < r.image.width; ++x) {
+            if (r.depth[std::size_t(y) * std::size_t(r.image.width) + std::size_t(x)] < 0) continue;
+            const std::uint8_t* c = &r.image.rgb[3 * (std::size_t(y) * std::size_t(r.image.width) + std::size_t(x))];
+            blue_minus_red[x < r.image.width / 2 ? 0 : 1] += double(c[2]) - double(c[0]);
+        }
+    CHECK(blue_minus_red[0] > 0);
+    CHECK(blue_minus_red[1] < 0);
+    // Uncolored: the lit side (the light sits up and to the left of the camera) is brighter.
+    o.color_grid = nullptr;
+    o.color_values = nullptr;
+    const RenderedField plain = render_field(g, phi, o);
+    auto brightness = [&](int x, int y) { return int(plain.image.rgb[3 * (std::size_t(y) * 64 + std::size_t(x)) + 1]); };
+    CHECK(brightness(26, 18) > brightness(38, 30));
+    CHECK(brightness(0, 0) == 255);  // background
+}
+
+TEST_CASE("render: supersampling averages the rays of each pixel") {
+    const GridSpec g = GridSpec::cube(32, kBox);
+    const std::vector<float> phi = sphere_grid(g);
+    FieldRenderOptions o = small("cpu");
+    o.supersample = 2;
+    const RenderedField r = render_field(g, phi, o);
+    CHECK(r.image.width == 64);
+    CHECK(r.render_width == 128);
+    CHECK(r.depth.size() == std::size_t(128 * 96));
+    // Some pixels on the silhouette are partly covered: neither background nor surface.
+    bool mixed = false;
+    for (int y = 0; y < 48 && !mixed; ++y)
+        for (int x = 0; x < 64 && !mixed; ++x) {
+            int hits = 0;
+            for (int dy = 0; dy < 2; ++dy)
+                for (int dx = 0; dx < 2; ++dx) hits += r.depth[std::size_t(2 * y + dy) * 128 + std::size_t(2 * x + dx)] >= 0;
+            mixed = hits == 2;
+        }
+    CHECK(mixed);
+}
+
+TEST_CASE("render: bad options and inputs name what is wrong") {
+    const GridSpec g = GridSpec::cube(8, kBox);
+    const std::vector<float> phi = sphere_grid(g);
+    auto refused = [&](FieldRenderOptions o, const std::string& where) {
+        o.device = "cpu";
+        try {
+            (void)render_field(g, phi, o);
+            FAIL("accepted: " << where);
+        } catch (const Error& e) {
+            CHECK(e.where() == where);
+        }
+    };
+    FieldRenderOptions o;
+    o.width = 0;
+    refused(o, "FieldRenderOptions::width");
+    o = {};
+    o.supersample = 9;
+    refused(o, "FieldRenderOptions::supersample");
+    o = {};
+    o.view_from = {0, 1, 0};  // parallel to up
+    refused(o, "FieldRenderOptions::up");
+    o = {};
+    o.step_scale = 1.5;
+    refused(o, "FieldRenderOptions::step_scale");
+    o = {};
+    o.fov_degrees = std::nan("");
+    refused(o, "FieldRenderOptions::fov_degrees");
+    o = {};
+    const std::vector<float> few(10, 0.0f);
+    o.color_grid = &g;
+    o.color_values = &few;
+    refused(o, "FieldRenderOptions::color_values");
+    std::vector<float> with_nan = phi;
+    with_nan[3] = std::nanf("");
+    CHECK_THROWS_AS(render_field(g, with_nan, small("cpu")), Error);
+    CHECK_THROWS_AS(render_field(g, std::vector<float>(5, 0.0f), small("cpu")), Error);
+    const TorusField field(fitted_sphere(500), BlendOptions{});
+    CHECK_THROWS_AS(render_field(field, Box{{0, 0, 0}, {0, 1, 1}}, small("cpu")), Error);
+}
+
+#ifdef GSD_HAVE_VULKAN
+TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validation clean") {
+    const gpu::Selection sel = gpu::select("gpu");
+    REQUIRE(sel.context);  // lavapipe in CI
+    const std::uint64_t errors_before = gpu::validation_error_count();
+
+    SUBCASE("PAT of a torus") {
+        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        FieldRenderOptions o = small("cpu");
+        o.view_from = {0.2, 1.0, 0.7};
+        const RenderedField cpu = render_field(field, kBox, o);
+        o.device = "gpu";
+        const RenderedField gpu = render_field(field, kBox, o);
+        CHECK(gpu.device != "cpu");
+        const Agreement a = between(cpu, gpu);
+        MESSAGE("PAT: mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth max "
+                                        << a.depth_quantile(1.0) << "; image bytes off by > 8: "
+                                        << image_difference(cpu.image, gpu.image, 8));
+        REQUIRE(a.both_hit > 300);
+        CHECK(a.mask_fraction() <= 0.01);
+        CHECK(a.depth_quantile(0.99) <= 1e-3);
+        CHECK(image_difference(cpu.image, gpu.image, 8) <= 0.01);
+    }
+    SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
+        const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        const Box box = padded_cube(bounding_box(cloud.points));
+        FieldRenderOptions o = small("cpu");
+        const RenderedField cpu = render_field(field, box, o);
+        o.device = "gpu";
+        const RenderedField gpu = render_field(field, box, o);
+        const Agreement a = between(cpu, gpu);
+        MESSAGE("demo cloud: mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth 99% "
+                                               << a.depth_quantile(0.99) << "; image bytes off by > 8: "
+                                               << image_difference(cpu.image, gpu.image, 8));
+        REQUIRE(a.both_hit > 300);
+        CHECK(a.mask_fraction() <= 0.01);
+        CHECK(a.depth_quantile(0.99) <= 1e-3 * box.diagonal());
+        CHECK(image_difference(cpu.image, gpu.image, 8) <= 0.01);
+    }
+    SUBCASE("a grid, colored by a second grid") {
+        const GridSpec g = GridSpec::cube(40, kBox);
+        const std::vector<float> phi = sphere_grid(g);
+        std::vector<float> color(g.node_count());
+        for (std::size_t i = 0; i < color.size(); ++i) color[i] = float(std::sin(0.01 * double(i)));
+        FieldRenderOptions o = small("cpu");
+        o.color_grid = &g;
+        o.color_values = &color;
+        o.supersample = 2;
+        const RenderedField cpu = render_field(g, phi, o);
+        o.device = "gpu";
+        const RenderedField gpu = render_field(g, phi, o);
+        CHECK(gpu.device != "cpu");
+        const Agreement a = between(cpu, gpu);
+        MESSAGE("grid: mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth max "
+                                         << a.depth_quantile(1.0));
+        CHECK(a.mask_fraction() <= 0.005);
+        CHECK(a.depth_quantile(0.99) <= 1e-4);
+        CHECK(image_difference(cpu.image, gpu.image, 8) <= 0.01);
+    }
+    CHECK(gpu::validation_error_count() == errors_before);
+}
+#endif
