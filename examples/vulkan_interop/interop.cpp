@@ -2,9 +2,12 @@
 // application creates its own instance and device with libvulkan, keeps queries and results in
 // its own buffers, hands the device to gsd with Context::adopt and orders gsd's work against its
 // own with a semaphore. Nothing passes through the host except the final check's read-back.
+// Then it pictures the field on that device with gsd's renderer.
 #include "interop.hpp"
 
 #include <gsd/pat.hpp>
+#include <gsd/render.hpp>
+#include <gsd/viz.hpp>
 #include <gsd/vulkan.hpp>
 
 #include <vulkan/vulkan.h>
@@ -255,7 +258,32 @@ std::vector<float> evaluate_on_app_device(const App& app, const std::shared_ptr<
 
 }  // namespace
 
-bool interop_check(const gsd::FittedTori& tori, const gsd::Points& queries) {
+// The field's zero set pictured on the application's device and on the CPU: they must agree.
+bool picture_check(const std::shared_ptr<gsd::gpu::Context>& ctx, const gsd::TorusField& field,
+                   const gsd::Points& points, const std::string& path) {
+    gsd::FieldRenderOptions o;
+    o.width = 160;
+    o.height = 120;
+    o.device = ctx;  // the adopted context is a device like any other
+    const gsd::Box box = gsd::padded_cube(gsd::bounding_box(points));
+    const gsd::RenderedField on_app = gsd::render_field(field, box, o);
+    o.device = "cpu";
+    const gsd::RenderedField on_cpu = gsd::render_field(field, box, o);
+    gsd::write_png(path, on_app.image);
+    std::size_t off = 0;
+    for (std::size_t i = 0; i < on_app.image.rgb.size(); ++i)
+        off += std::abs(int(on_app.image.rgb[i]) - int(on_cpu.image.rgb[i])) > 8;
+    const double share = double(off) / double(on_app.image.rgb.size());
+    std::printf("interop: rendered on %s into %s (%.1f %% of rays hit); image bytes off from the CPU's by > 8: %.2f %%\n",
+                on_app.device.c_str(), path.c_str(), 100 * on_app.hit_fraction, 100 * share);
+    if (on_app.device != ctx->info().name || on_app.hit_fraction < 0.05 || share > 0.01) {
+        std::fprintf(stderr, "interop: FAIL: the picture on the adopted device\n");
+        return false;
+    }
+    return true;
+}
+
+bool interop_check(const gsd::FittedTori& tori, const gsd::Points& queries, const std::string& picture) {
     App app;
     bool ok = true;
     try {
@@ -300,6 +328,8 @@ bool interop_check(const gsd::FittedTori& tori, const gsd::Points& queries) {
                 std::fprintf(stderr, "interop: FAIL: evaluation with the adopted context as device\n");
                 ok = false;
             }
+
+            if (!picture.empty()) ok = picture_check(ctx, field, tori.points, picture) && ok;
 
             // A null buffer and a misaligned offset are refused before anything is recorded.
             AppBuffer scratch(app, 4096, VK_BUFFER_USAGE_STORAGE_BUFFER_BIT,

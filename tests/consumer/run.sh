@@ -46,7 +46,9 @@ echo "ok: pkg-config build ran"
 cmake -S "$here/../../examples/vulkan_interop" -B "$work/example-build" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" \
   -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$work/example-build" >/dev/null
-LD_LIBRARY_PATH="$libdir" "$work/example-build/vulkan_interop" | tail -2
+LD_LIBRARY_PATH="$libdir" "$work/example-build/vulkan_interop" "$here/../../data/demo/torus-holey.ply" \
+  "$work/interop.png" | grep -E "adopted device vs|rendered on"
+test -s "$work/interop.png"
 echo "ok: examples/vulkan_interop built and ran"
 
 # 4. The Python module, when it was built (GSD_PYTHON=ON): importable from the prefix alone.
