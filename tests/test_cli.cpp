@@ -406,6 +406,8 @@ TEST_CASE("gsd render: pictures of a cloud's PAT field and of a grid (bounds fro
     REQUIRE(run_cli("render " + dir.file("g.npy") + " --size 40 30 --view-from 0 0 1 --color " + dir.file("g.npy") +
                     " -o " + dir.file("grid.png")).exit_code == 0);
     CHECK(png_size(dir.file("grid.png")) == std::pair<std::uint32_t, std::uint32_t>{40, 30});
+    CHECK(run_cli("render " + dir.file("g.npy") + " --size 40 30 --camera 0.2 0.3 2.5 -o " + dir.file("cam.png")).exit_code == 0);
+    CHECK(run_cli("render " + dir.file("g.npy") + " --camera 0 0 2 --view-from 1 0 0 -o " + dir.file("x.png")).exit_code == 2);
 
     // Usage errors (exit 2) and data errors (exit 1) write nothing.
     CHECK(run_cli("render " + cloud + " -o " + dir.file("x.jpg")).exit_code == 2);

@@ -164,6 +164,22 @@ TEST_CASE("render: shading faces the light, a color field colors the surface") {
     CHECK(brightness(0, 0) == 255);  // background
 }
 
+TEST_CASE("render: an explicit camera position looks at the center from there") {
+    const GridSpec g = GridSpec::cube(48, kBox);
+    const std::vector<float> phi = sphere_grid(g);
+    FieldRenderOptions o = small("cpu");
+    o.width = 65;  // odd: the middle pixel's ray goes through the center
+    o.height = 49;
+    o.eye = Eigen::Vector3d(0, 0, 3);
+    const RenderedField r = render_field(g, phi, o);
+    CHECK((r.camera.eye - Eigen::Vector3d(0, 0, 3)).norm() < 1e-12);
+    CHECK(r.depth[24 * 65 + 32] == doctest::Approx(3 - kRadius).epsilon(1e-3));
+    const Agreement a = against_sphere(r);
+    CHECK(a.mask_fraction() <= 0.01);
+    o.eye = Eigen::Vector3d(0, 5, 0);  // straight above the center, along up
+    CHECK_THROWS_AS(render_field(g, phi, o), Error);
+}
+
 TEST_CASE("render: supersampling averages the rays of each pixel") {
     const GridSpec g = GridSpec::cube(32, kBox);
     const std::vector<float> phi = sphere_grid(g);

@@ -18,6 +18,7 @@
 #include <gsd/viz.hpp>
 
 #include <array>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,8 +29,11 @@ class BaselineField;
 
 struct FieldRenderOptions {
     int width = 800, height = 600;
-    /// Direction the camera looks from, toward the box center (need not be unit).
+    /// Direction the camera looks from, toward the center of the surface's box (need not be
+    /// unit); the distance is chosen to frame that box.
     Eigen::Vector3d view_from{1.0, 0.8, 1.6};
+    /// Or an explicit camera position, looking at the same center (overrides view_from).
+    std::optional<Eigen::Vector3d> eye;
     Eigen::Vector3d up{0, 1, 0};  ///< must not be parallel to view_from
     double fov_degrees = 35;      ///< vertical field of view; the camera frames the whole box
     int max_steps = 256;          ///< march steps per ray before it counts as a miss

@@ -26,8 +26,8 @@ Camera make_camera(const Box& box, const FieldRenderOptions& o, int width, int h
     const double aspect = double(width) / height;
     // The sphere must fit the narrower of the two fields of view.
     const double half_narrow = aspect >= 1 ? half : std::atan(std::tan(half) * aspect);
-    const Eigen::Vector3d from = o.view_from.normalized();
-    c.eye = center + from * (radius / std::sin(half_narrow));
+    const Eigen::Vector3d from = o.eye ? Eigen::Vector3d((*o.eye - center).normalized()) : o.view_from.normalized();
+    c.eye = o.eye ? *o.eye : Eigen::Vector3d(center + from * (radius / std::sin(half_narrow)));
     c.forward = -from;
     const Eigen::Vector3d right = c.forward.cross(o.up).normalized();
     const Eigen::Vector3d up = right.cross(c.forward);
@@ -133,6 +133,7 @@ void check_options(const FieldRenderOptions& o) {
     if (double(o.width) * o.height * o.supersample * o.supersample > 1e8)
         bad("FieldRenderOptions::width", "width × height × supersample² must stay within 10^8 rays");
     if (!o.view_from.allFinite() || o.view_from.norm() < 1e-12) bad("FieldRenderOptions::view_from", "must be a finite, non-zero direction");
+    if (o.eye && !o.eye->allFinite()) bad("FieldRenderOptions::eye", "must be finite");
     if (!o.up.allFinite() || o.view_from.normalized().cross(o.up).norm() < 1e-9 * std::max(o.up.norm(), 1e-300))
         bad("FieldRenderOptions::up", "must be finite and not parallel to view_from");
     if (!(o.fov_degrees > 1 && o.fov_degrees < 170)) bad("FieldRenderOptions::fov_degrees", "must be between 1 and 170");
@@ -249,6 +250,11 @@ Frame frame_for(const Box& box, Box subject, const FieldRenderOptions& o) {
     subject.lo = subject.lo.cwiseMax(box.lo);
     subject.hi = subject.hi.cwiseMin(box.hi);
     if (!((subject.hi - subject.lo).array() > 0).all()) subject = box;
+    if (o.eye) {  // the explicit eye must see the center along a direction not parallel to up
+        const Eigen::Vector3d d = 0.5 * (subject.lo + subject.hi) - *o.eye;
+        if (d.norm() < 1e-12 * box.diagonal() || d.normalized().cross(o.up).norm() < 1e-9 * o.up.norm())
+            throw Error("FieldRenderOptions::eye", "must be away from the center of the surface's box, and not straight above or below it (along up)");
+    }
     Frame f;
     f.cam = make_camera(subject, o, o.width * o.supersample, o.height * o.supersample);
     f.march = make_march(box, o);

@@ -574,6 +574,9 @@ void add_render(CLI::App& app) {
     r->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
     r->add_option("--size", *size, "Image width and height in pixels")->expected(2)->check(CLI::Range(1, 16384))->capture_default_str();
     r->add_option("--view-from", *view, "Direction the camera looks from, toward the center (default 1 0.8 1.6)")->expected(3);
+    auto camera = std::make_shared<std::vector<double>>();
+    r->add_option("--camera", *camera, "Or the camera's position x y z, looking at the center (no automatic framing)")
+        ->expected(3)->excludes("--view-from");
     r->add_option("--up", *up, "Up direction of the picture (default 0 1 0)")->expected(3);
     r->add_option("--fov", opt->fov_degrees, "Vertical field of view in degrees")->check(CLI::Range(1.0, 170.0))->capture_default_str();
     r->add_option("--supersample", opt->supersample, "Rays per pixel along each axis (antialiasing)")->check(CLI::Range(1, 4))->capture_default_str();
@@ -596,6 +599,7 @@ void add_render(CLI::App& app) {
         opt->height = (*size)[1];
         if (!view->empty()) opt->view_from = {(*view)[0], (*view)[1], (*view)[2]};
         if (!up->empty()) opt->up = {(*up)[0], (*up)[1], (*up)[2]};
+        if (!camera->empty()) opt->eye = Eigen::Vector3d((*camera)[0], (*camera)[1], (*camera)[2]);
         opt->device = blend->device;
         std::optional<Box> box;
         if (!bounds->empty()) box = bounds_from(*bounds, "--bounds");
@@ -675,6 +679,7 @@ std::string flag_for(const std::string& where) {
         {"FieldRenderOptions::width", "--size"},
         {"FieldRenderOptions::view_from", "--view-from"},
         {"FieldRenderOptions::up", "--up"},
+        {"FieldRenderOptions::eye", "--camera"},
         {"FieldRenderOptions::color_range", "--color-range"},
         {"FieldRenderOptions::color_values", "--color"},
         {"box", "--bounds"},
