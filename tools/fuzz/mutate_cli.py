@@ -1167,6 +1167,7 @@ CLOUD_CMDS = [
     C("winding {in} --grid 8 -o out.npy DEV", "out.npy"),
     C("baseline sspd {in} --grid 8 -o out.npy DEV", "out.npy"),
     C("pat eval {in} --fitter jet --grid 8 -o out.vdb DEV", "out.vdb"),
+    C("render {in} --fitter jet --size 16 12 --supersample 1 --max-steps 64 -o out.png DEV", "out.png"),
 ]
 
 
@@ -1218,11 +1219,13 @@ FORMATS = [
         C("contour {in} --bounds %s -o out.obj" % BOX, "out.obj"),
         C("slice {in} --bounds %s --axis x --at 0.3 --width 48 -o out.png" % BOX, "out.png"),
         C("contour {in} --bounds %s --iso 0.05 -o out.ply" % BOX, "out.ply"),
+        C("render {in} --bounds %s --size 16 12 --supersample 1 -o out.png DEV" % BOX, "out.png"),
     ]),
     Format("tori", "t.tori", "tori", [
         C("pat eval --tori {in} --grid 8 -o out.npy DEV", "out.npy"),
         C("pat eval --tori {in} --queries {S}/q.npy -o out.npy DEV", "out.npy"),
         C("pat eval --tori {in} --grid 8 --exact -o out.npy DEV", "out.npy"),
+        C("render --tori {in} --size 16 12 --supersample 1 --max-steps 64 -o out.png DEV", "out.png"),
     ]),
     Format("safetensors", "torusnet.safetensors", "safetensors", [
         C("pat fit {S}/c.ply --model {in} -o out.tori DEV", "out.tori"),
