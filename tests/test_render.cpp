@@ -242,6 +242,29 @@ TEST_CASE("render: bad options and inputs name what is wrong") {
 }
 
 #ifdef GSD_HAVE_VULKAN
+namespace {
+
+// Renders on the CPU and on the device (lavapipe in CI) and holds the device to the CPU: the
+// hit masks, the depths (to `depth_tol` at the 99th percentile) and the pictures.
+template <class Render>
+void device_matches_cpu(const char* what, FieldRenderOptions o, double depth_tol, const Render& render) {
+    o.device = "cpu";
+    const RenderedField cpu = render(o);
+    o.device = "gpu";
+    const RenderedField gpu = render(o);
+    CHECK(gpu.device != "cpu");
+    const Agreement a = between(cpu, gpu);
+    const double image_off = image_difference(cpu.image, gpu.image, 8);
+    MESSAGE(std::string(what) << ": mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth 99% "
+                 << a.depth_quantile(0.99) << ", max " << a.depth_quantile(1.0) << "; image bytes off by > 8: " << image_off);
+    REQUIRE(a.both_hit > 300);
+    CHECK(a.mask_fraction() <= 0.01);
+    CHECK(a.depth_quantile(0.99) <= depth_tol);
+    CHECK(image_off <= 0.01);
+}
+
+}  // namespace
+
 TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validation clean") {
     const gpu::Selection sel = gpu::select("gpu");
     REQUIRE(sel.context);  // lavapipe in CI
@@ -252,35 +275,14 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});
         FieldRenderOptions o = small("cpu");
         o.view_from = {0.2, 1.0, 0.7};
-        const RenderedField cpu = render_field(field, kBox, o);
-        o.device = "gpu";
-        const RenderedField gpu = render_field(field, kBox, o);
-        CHECK(gpu.device != "cpu");
-        const Agreement a = between(cpu, gpu);
-        MESSAGE("PAT: mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth max "
-                                        << a.depth_quantile(1.0) << "; image bytes off by > 8: "
-                                        << image_difference(cpu.image, gpu.image, 8));
-        REQUIRE(a.both_hit > 300);
-        CHECK(a.mask_fraction() <= 0.01);
-        CHECK(a.depth_quantile(0.99) <= 1e-3);
-        CHECK(image_difference(cpu.image, gpu.image, 8) <= 0.01);
+        device_matches_cpu("PAT", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
     }
     SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
         const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});
         const Box box = padded_cube(bounding_box(cloud.points));
-        FieldRenderOptions o = small("cpu");
-        const RenderedField cpu = render_field(field, box, o);
-        o.device = "gpu";
-        const RenderedField gpu = render_field(field, box, o);
-        const Agreement a = between(cpu, gpu);
-        MESSAGE("demo cloud: mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth 99% "
-                                               << a.depth_quantile(0.99) << "; image bytes off by > 8: "
-                                               << image_difference(cpu.image, gpu.image, 8));
-        REQUIRE(a.both_hit > 300);
-        CHECK(a.mask_fraction() <= 0.01);
-        CHECK(a.depth_quantile(0.99) <= 1e-3 * box.diagonal());
-        CHECK(image_difference(cpu.image, gpu.image, 8) <= 0.01);
+        device_matches_cpu("demo cloud", small("cpu"), 1e-3 * box.diagonal(),
+                           [&](const FieldRenderOptions& r) { return render_field(field, box, r); });
     }
     SUBCASE("a grid, colored by a second grid") {
         const GridSpec g = GridSpec::cube(40, kBox);
@@ -291,16 +293,7 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         o.color_grid = &g;
         o.color_values = &color;
         o.supersample = 2;
-        const RenderedField cpu = render_field(g, phi, o);
-        o.device = "gpu";
-        const RenderedField gpu = render_field(g, phi, o);
-        CHECK(gpu.device != "cpu");
-        const Agreement a = between(cpu, gpu);
-        MESSAGE("grid: mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth max "
-                                         << a.depth_quantile(1.0));
-        CHECK(a.mask_fraction() <= 0.005);
-        CHECK(a.depth_quantile(0.99) <= 1e-4);
-        CHECK(image_difference(cpu.image, gpu.image, 8) <= 0.01);
+        device_matches_cpu("grid", o, 1e-4, [&](const FieldRenderOptions& r) { return render_field(g, phi, r); });
     }
     CHECK(gpu::validation_error_count() == errors_before);
 }
