@@ -7,6 +7,7 @@
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
+#include <gsd/render.hpp>
 #include <gsd/shm.hpp>
 #include <gsd/sums.hpp>
 #include <gsd/surface.hpp>
@@ -37,6 +38,12 @@ Points points_from(const DoubleArray& a, const char* name) {
     Points p(a.shape(0), 3);
     std::copy(a.data(), a.data() + a.size(), p.data());
     return p;
+}
+
+// An (N, 3) float64 C-order array read in place (forcecast made one if the caller's was not).
+Eigen::Map<const Points> points_view(const DoubleArray& a, const char* name) {
+    if (a.ndim() != 2 || a.shape(1) != 3) (void)points_from(a, name);  // its shape error
+    return Eigen::Map<const Points>(a.data(), a.shape(0), 3);
 }
 
 // Moves a vector into a NumPy array of the given shape (no copy: a capsule owns the vector).
@@ -120,6 +127,26 @@ py::object field_result(FieldValues&& v, bool gradient, std::vector<py::ssize_t>
     if (!gradient) return phi;
     shape.push_back(3);
     return py::make_tuple(phi, to_numpy(std::move(v.gradient), shape));
+}
+
+FieldRenderOptions render_options(int width, int height, const std::optional<std::array<double, 3>>& view_from,
+                                  const std::optional<std::array<double, 3>>& camera,
+                                  const std::optional<std::array<double, 3>>& up, double fov, int supersample,
+                                  const std::string& device) {
+    FieldRenderOptions o;
+    o.width = width;
+    o.height = height;
+    if (view_from) o.view_from = {(*view_from)[0], (*view_from)[1], (*view_from)[2]};
+    if (camera) o.eye = Eigen::Vector3d((*camera)[0], (*camera)[1], (*camera)[2]);
+    if (up) o.up = {(*up)[0], (*up)[1], (*up)[2]};
+    o.fov_degrees = fov;
+    o.supersample = supersample;
+    o.device = device;
+    return o;
+}
+
+py::array_t<std::uint8_t> image_array(Image&& image) {
+    return to_numpy(std::move(image.rgb), {image.height, image.width, 3});
 }
 
 }  // namespace
@@ -240,7 +267,7 @@ PYBIND11_MODULE(_gsd, m) {
         }, "Per point confidence (N,) float32; points below 0.5 are outliers left out of the blend (empty with keep_outliers).")
         .def_property_readonly("blended_count", &TorusField::blended_count)
         .def("evaluate", [](const TorusField& f, const DoubleArray& queries, bool gradient) {
-            const Points q = points_from(queries, "queries");
+            const Eigen::Map<const Points> q = points_view(queries, "queries");  // no copy
             FieldValues v;
             {
                 py::gil_scoped_release nogil;
@@ -259,7 +286,43 @@ PYBIND11_MODULE(_gsd, m) {
             return py::make_tuple(field_result(std::move(v), gradient, {n, n, n}), bounds_tuple(g.box));
         }, py::arg("n"), py::arg("bounds") = py::none(), py::arg("gradient") = false,
            "(φ (n,n,n), bounds) on an n³ grid; bounds (x0,y0,z0,x1,y1,z1), default the cloud's cube + 10%.")
-        .def_property_readonly("r_eval", &TorusField::r_eval);
+        .def_property_readonly("r_eval", &TorusField::r_eval)
+        .def("render", [](const TorusField& f, int width, int height, std::optional<std::array<double, 3>> view_from,
+                          std::optional<std::array<double, 3>> camera, std::optional<std::array<double, 3>> up, double fov,
+                          int supersample, std::optional<std::array<double, 6>> bounds, const std::string& device) {
+            const FieldRenderOptions o = render_options(width, height, view_from, camera, up, fov, supersample, device);
+            const Box box = bounds ? Box{{(*bounds)[0], (*bounds)[1], (*bounds)[2]}, {(*bounds)[3], (*bounds)[4], (*bounds)[5]}}
+                                   : padded_cube(bounding_box(f.tori().points));
+            RenderedField r;
+            {
+                py::gil_scoped_release nogil;
+                r = render_field(f, box, o);
+            }
+            return image_array(std::move(r.image));
+        }, py::arg("width") = 800, py::arg("height") = 600, py::arg("view_from") = py::none(), py::arg("camera") = py::none(),
+           py::arg("up") = py::none(), py::arg("fov") = 35.0, py::arg("supersample") = 1, py::arg("bounds") = py::none(),
+           py::arg("device") = "",
+           "A picture of the zero level set, sphere-traced and shaded by ∇φ (gsd render): (height, width, 3) uint8.\n"
+           "bounds: the box the rays march in (default: the cloud's cube + 10%); camera: an explicit position.");
+    m.def("render_grid", [](const py::array_t<float, py::array::c_style | py::array::forcecast>& values,
+                            std::array<double, 6> bounds, int width, int height, std::optional<std::array<double, 3>> view_from,
+                            std::optional<std::array<double, 3>> camera, std::optional<std::array<double, 3>> up, double fov,
+                            int supersample, const std::string& device) {
+        if (values.ndim() != 3) throw Error("values", "must be an (nx, ny, nz) grid");
+        const GridSpec g{int(values.shape(0)), int(values.shape(1)), int(values.shape(2)),
+                         Box{{bounds[0], bounds[1], bounds[2]}, {bounds[3], bounds[4], bounds[5]}}};
+        const std::vector<float> v(values.data(), values.data() + values.size());
+        const FieldRenderOptions o = render_options(width, height, view_from, camera, up, fov, supersample, device);
+        RenderedField r;
+        {
+            py::gil_scoped_release nogil;
+            r = render_field(g, v, o);
+        }
+        return image_array(std::move(r.image));
+    }, py::arg("values"), py::arg("bounds"), py::arg("width") = 800, py::arg("height") = 600, py::arg("view_from") = py::none(),
+       py::arg("camera") = py::none(), py::arg("up") = py::none(), py::arg("fov") = 35.0, py::arg("supersample") = 1,
+       py::arg("device") = "",
+       "A picture of a grid's zero level set (trilinear), as gsd render draws it: (height, width, 3) uint8.");
 
     // ---- Signed Heat Method on grids ----
     m.def("signed_heat_grid", [](int n, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,

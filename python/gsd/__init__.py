@@ -14,6 +14,8 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     w = gsd.winding_numbers(queries, vertices=v, faces=f)
     phi_v = gsd.signed_heat_surface(v, f, "curves.txt")            # distance along a surface
     labels, w = gsd.surface_winding_numbers(v, f, "curves.txt")    # inside/outside on a surface
+    image = field.render(640, 480)                    # (480, 640, 3) uint8: φ = 0 sphere-traced
+    image = gsd.render_grid(grid, bounds)             # the same for a grid
 
 Errors in the input raise gsd.Error (a ValueError) naming the argument or file at fault.
 """
@@ -28,6 +30,7 @@ from ._gsd import (  # noqa: F401
     point_confidence,
     read_mesh,
     read_point_cloud,
+    render_grid,
     signed_heat_grid,
     signed_heat_surface,
     surface_winding_numbers,

@@ -235,3 +235,68 @@ def test_vdb_output_opens_in_openvdb_with_the_nodes_transform(sphere, tmp_path):
     values = np.zeros((12, 12, 12), np.float32)
     w.copyToArray(values)
     np.testing.assert_array_equal(values, np.load(tmp_path / "w.npy"))
+
+
+def read_png(path):
+    """A PNG as written by gsd (8-bit RGB, not interlaced) → (H, W, 3) uint8, with zlib alone."""
+    import struct
+    import zlib
+    data = open(path, "rb").read()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    pos, idat, width, height = 8, b"", 0, 0
+    while pos < len(data):
+        length, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        body = data[pos + 8:pos + 8 + length]
+        if kind == b"IHDR":
+            width, height, depth, color = struct.unpack(">IIBB", body[:10])
+            assert (depth, color) == (8, 2)
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + length
+    raw = zlib.decompress(idat)
+    stride = 3 * width
+    out = np.zeros((height, stride), dtype=np.int32)
+    for y in range(height):
+        f, row = raw[y * (stride + 1)], np.frombuffer(raw, np.uint8, stride, y * (stride + 1) + 1).astype(np.int32)
+        prev = out[y - 1] if y else np.zeros(stride, np.int32)
+        cur = np.zeros(stride, np.int32)
+        for x in range(stride):
+            a = cur[x - 3] if x >= 3 else 0
+            b, c = prev[x], (prev[x - 3] if x >= 3 else 0)
+            if f == 0:
+                p = 0
+            elif f == 1:
+                p = a
+            elif f == 2:
+                p = b
+            elif f == 3:
+                p = (a + b) // 2
+            else:
+                pa, pb, pc = abs(b - c), abs(a - c), abs(a + b - 2 * c)
+                p = a if pa <= pb and pa <= pc else (b if pb <= pc else c)
+            cur[x] = (row[x] + p) & 255
+        out[y] = cur
+    return out.reshape(height, width, 3).astype(np.uint8)
+
+
+def test_render_matches_cli_and_gpu(sphere, tmp_path):
+    d, cloud = sphere
+    cli("pat", "fit", cloud, "--fitter", "jet", "-o", tmp_path / "s.tori")
+    cli("render", "--tori", tmp_path / "s.tori", "--size", 48, 36, "--supersample", 1, "--device", "cpu",
+        "-o", tmp_path / "s.png")
+    tori = gsd.load_tori(str(tmp_path / "s.tori"))
+    field = gsd.TorusField(tori, device="cpu")
+    image = field.render(48, 36, device="cpu")
+    assert image.shape == (36, 48, 3) and image.dtype == np.uint8
+    assert np.array_equal(image, read_png(tmp_path / "s.png"))
+    assert tuple(image[0, 0]) == (255, 255, 255)          # background
+    assert (image.sum(axis=2) < 3 * 255).mean() > 0.1     # the sphere fills part of the frame
+    on_gpu = field.render(48, 36, device="gpu")
+    assert (np.abs(on_gpu.astype(int) - image.astype(int)) > 8).mean() <= 0.01
+    grid, bounds = field.evaluate_grid(24)
+    assert gsd.render_grid(grid, bounds, 40, 30, view_from=(0, 0, 1), device="cpu").shape == (30, 40, 3)
+    with pytest.raises(gsd.Error, match="FieldRenderOptions::supersample"):
+        field.render(10, 10, supersample=9)
+    with pytest.raises(gsd.Error, match="values"):
+        gsd.render_grid(np.zeros((4, 4)), bounds)
+
