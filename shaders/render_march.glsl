@@ -43,17 +43,21 @@ bool clip_to_box(vec3 o, vec3 d, out float t0, out float t1) {
     return t0 <= t1;
 }
 
-vec4 march(vec3 o, vec3 d) {
+vec4 march(vec3 eye, vec3 d) {
     float t0, t1;
-    if (!clip_to_box(o, d, t0, t1)) return vec4(-1.0, 0.0, 0.0, 0.0);
+    if (!clip_to_box(eye, d, t0, t1)) return vec4(-1.0, 0.0, 0.0, 0.0);
+    // March from where the ray enters the box, so t stays small and float steps stay exact
+    // however far the camera is; t0 is added back at the end.
+    vec3 o = eye + t0 * d;
+    float span = t1 - t0;
     vec3 g;
-    float t = t0;
-    float phi = field_phi(o + t * d, false, g);
+    float t = 0.0;
+    float phi = field_phi(o, false, g);
     float hit = -1.0;
     if (abs(phi) < rp.march.y) hit = t;
     for (uint s = 0; hit < 0.0 && s < rp.size.z; ++s) {
         float tn = t + max(rp.march.x * abs(phi), rp.march.z);
-        if (tn > t1) break;
+        if (tn > span) break;
         float pn = field_phi(o + tn * d, false, g);
         if ((pn < 0.0) != (phi < 0.0)) {
             // Crossed the surface within the step: bisect [t, tn].
@@ -72,7 +76,7 @@ vec4 march(vec3 o, vec3 d) {
     }
     if (hit < 0.0) return vec4(-1.0, 0.0, 0.0, 0.0);
     field_phi(o + hit * d, true, g);
-    return vec4(hit, g);
+    return vec4(t0 + hit, g);
 }
 
 void render_main(uint first_pixel, uint pixel_count) {

@@ -120,7 +120,7 @@ GSD_EXPORT void check_memory(double bytes, const std::string& where, const std::
 GSD_EXPORT void validate_box(const Box& box, const std::string& where);
 
 /// Bounding box of a set of points (throws on an empty set).
-GSD_EXPORT Box bounding_box(const Points& p);
+GSD_EXPORT Box bounding_box(PointsView p);
 
 /// The cube centered on a box whose side is the box's longest side enlarged by `margin`
 /// (0.1: 10%): the default grid bounds of every command.

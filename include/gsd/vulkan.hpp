@@ -143,6 +143,8 @@ struct SubmitSync {
 /// later calls only record and submit. Results match `field.evaluate` (same BlendOptions, the
 /// accelerated or exact sum) to float32 rounding. The field must outlive the work: destroying
 /// it waits for its submissions to finish. Throws gsd::Error for bad spans or counts.
+/// Everything goes into one submission: with BlendOptions::exact (O(queries × points)) keep
+/// each call's count modest, since a display driver may reset a device busy for seconds.
 GSD_EXPORT void evaluate_into(const TorusField& field, const std::shared_ptr<Context>& context,
                               const DeviceQueries& job, const SubmitSync& sync = {});
 /// The same for a baseline field (φ only: `job.gradient` must be false).

@@ -55,6 +55,8 @@ Params resolve(const BlendOptions& opt, const Source& src, bool gradient);
 /// a 512³ grid never materializes as doubles).
 class Queries {
 public:
+    /// Keeps a pointer to the view's data: the view (and whatever it refers to, or the copy a
+    /// Ref made of a differently laid-out matrix) must outlive this object.
     explicit Queries(const PointsView& p) : points_(p.data()), rows_(std::size_t(p.rows())), stride_(std::size_t(p.outerStride())) {}
     explicit Queries(const GridSpec& g) : grid_(g) {}
     std::size_t size() const { return points_ ? rows_ : grid_.node_count(); }

@@ -48,8 +48,10 @@ FieldValues Engine::evaluate(const Queries& q, bool gradient, const ProgressFn& 
             std::lock_guard<std::mutex> lock(init_mutex_);
             if (!gpu_tried_) {
                 gpu_tried_ = true;
+                for (const auto& f : placed_)  // on_device() may have placed it there already
+                    if (gpu_field_context(*f) == sel.context.get()) gpu_ = f;
                 std::string why_not;
-                gpu_ = make_gpu_field(sel.context, src_, search_tree, params, why_not);
+                if (!gpu_) gpu_ = make_gpu_field(sel.context, src_, search_tree, params, why_not);
                 if (!gpu_) log_once(why_not);
             }
             field = gpu_;
@@ -69,6 +71,7 @@ std::shared_ptr<GpuField> Engine::on_device(const std::shared_ptr<gpu::Context>&
     if (!ctx) throw Error("device", "no device context given");
     const detail::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
     std::lock_guard<std::mutex> lock(init_mutex_);
+    if (gpu_ && gpu_field_context(*gpu_) == ctx.get()) return gpu_;  // evaluate() placed it there already
     for (const auto& f : placed_)
         if (gpu_field_context(*f) == ctx.get()) return f;
     std::string why_not;

@@ -45,7 +45,7 @@ void GridSpec::validate() const {
     validate_box(box, "GridSpec::box");
 }
 
-Box bounding_box(const Points& p) {
+Box bounding_box(PointsView p) {
     if (p.rows() == 0) throw Error("bounding box of an empty point set");
     Box b;
     b.lo = p.colwise().minCoeff().transpose();

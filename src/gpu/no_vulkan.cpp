@@ -2,6 +2,8 @@
 #include <gsd/core.hpp>
 #include <gsd/gpu.hpp>
 
+#include <algorithm>
+#include <cctype>
 #include <cstdlib>
 
 namespace gsd::gpu {
@@ -22,6 +24,7 @@ Selection select(const Device& device) {
         const char* env = std::getenv("GSD_DEVICE");
         choice = env && *env ? env : "auto";
     }
+    std::transform(choice.begin(), choice.end(), choice.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     if (choice == "cpu") return s;
     // The policy of the Vulkan build: auto and gpu fall back, a named device is a demand.
     if (choice != "auto" && choice != "gpu")

@@ -390,8 +390,16 @@ std::shared_ptr<Context> Context::adopt(VkInstance instance, VkPhysicalDevice ph
         throw Error("device", std::string("the instance handed to Context::adopt does not provide ") + missing);
     s->physical = physical;
     s->info = describe_device(s->instance, physical, ~std::uint32_t(0));
-    if (s->info.why_not == "needs Vulkan 1.1")
+    // A device without the extension cannot have enabled it (some layers hand out commands of
+    // disabled extensions anyway, so the load below is not the only check).
+    if (s->info.why_not == "needs Vulkan 1.1" || s->info.why_not == "no VK_KHR_push_descriptor")
         throw Error("device", s->info.name + " cannot run gsd: " + s->info.why_not);
+    if (options.float64_enabled) {
+        VkPhysicalDeviceFeatures supported{};
+        s->instance.vkGetPhysicalDeviceFeatures(physical, &supported);
+        if (!supported.shaderFloat64)
+            throw Error("AdoptOptions::float64_enabled", s->info.name + " does not support shaderFloat64");
+    }
     const std::vector<VkQueueFamilyProperties> families = queue_families(s->instance, physical);
     if (queue_family >= families.size() || !(families[queue_family].queueFlags & VK_QUEUE_COMPUTE_BIT))
         throw Error("device", "queue family " + std::to_string(queue_family) + " of " + s->info.name +
@@ -710,8 +718,13 @@ void Recorder::submit(const SubmitSync& sync) {
     std::lock_guard<std::mutex> lock(ctx_.queue_mutex());
     check(ctx_.vk().vkQueueSubmit(ctx_.queue(), 1, &si, sync.fence), "vkQueueSubmit");
     // An empty submission signals its fence once everything before it on the queue is done:
-    // gsd's own fence, so this recorder knows when its command buffer is free again.
-    check(ctx_.vk().vkQueueSubmit(ctx_.queue(), 0, nullptr, fence_), "vkQueueSubmit");
+    // gsd's own fence, so this recorder knows when its command buffer is free again. Should it
+    // fail, the command buffer may still be running: wait for the whole queue before saying so.
+    const VkResult r = ctx_.vk().vkQueueSubmit(ctx_.queue(), 0, nullptr, fence_);
+    if (r != VK_SUCCESS) {
+        (void)ctx_.vk().vkDeviceWaitIdle(ctx_.device());
+        check(r, "vkQueueSubmit");
+    }
     pending_ = true;
 }
 

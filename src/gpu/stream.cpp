@@ -55,7 +55,7 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     for (std::size_t m = 0; m < used; ++m) drain(slots[(index + m) % used]);
 }
 
-void fill_vec4(const Points& points, std::size_t first, std::size_t n, void* dst) {
+void fill_vec4(PointsView points, std::size_t first, std::size_t n, void* dst) {
     float* up = static_cast<float*>(dst);
     for (std::size_t i = 0; i < n; ++i) {
         for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(points(Eigen::Index(first + i), a));

@@ -27,6 +27,6 @@ struct StreamJob {
 void stream(Context& ctx, const StreamJob& job, const ProgressFn& progress);
 
 /// A StreamJob::fill for query points: rows [first, first + n) of `points` as float vec4 (w = 0).
-void fill_vec4(const Points& points, std::size_t first, std::size_t n, void* dst);
+void fill_vec4(PointsView points, std::size_t first, std::size_t n, void* dst);
 
 }  // namespace gsd::gpu

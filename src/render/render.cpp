@@ -66,15 +66,18 @@ bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& 
 
 }  // namespace
 
-Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& o, const Eigen::Vector3d& d, const March& m) {
+Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& eye, const Eigen::Vector3d& d, const March& m) {
     const Eigen::Vector4d miss(-1, 0, 0, 0);
     double t0, t1;
-    if (!clip_to_box(m.box, o, d, t0, t1)) return miss;
-    double t = t0, phi = field(o + t * d, nullptr), hit = -1;
+    if (!clip_to_box(m.box, eye, d, t0, t1)) return miss;
+    // From the box entry, as the shader does (it keeps float32 steps exact for far cameras).
+    const Eigen::Vector3d o = eye + t0 * d;
+    const double span = t1 - t0;
+    double t = 0, phi = field(o, nullptr), hit = -1;
     if (std::abs(phi) < m.hit_eps) hit = t;
     for (int s = 0; hit < 0 && s < m.max_steps; ++s) {
         const double tn = t + std::max(m.step_scale * std::abs(phi), m.min_step);
-        if (tn > t1) break;
+        if (tn > span) break;
         const double pn = field(o + tn * d, nullptr);
         if ((pn < 0) != (phi < 0)) {  // crossed the surface within the step: bisect [t, tn]
             double a = t, b = tn, pa = phi;
@@ -92,7 +95,7 @@ Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& o, const 
     if (hit < 0) return miss;
     Eigen::Vector3d g;
     field(o + hit * d, &g);
-    return {hit, g.x(), g.y(), g.z()};
+    return {t0 + hit, g.x(), g.y(), g.z()};
 }
 
 namespace {
