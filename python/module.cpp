@@ -29,12 +29,15 @@ using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecas
 using IndexArray = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
 
 // An (N, 3) array of any float dtype → gsd::Points; `name` is the argument, for errors.
+void check_points_shape(const DoubleArray& a, const char* name) {
+    if (a.ndim() == 2 && a.shape(1) == 3) return;
+    std::string shape;
+    for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
+    throw Error(name, "must be an (N, 3) array, not (" + shape + ")");
+}
+
 Points points_from(const DoubleArray& a, const char* name) {
-    if (a.ndim() != 2 || a.shape(1) != 3) {
-        std::string shape;
-        for (py::ssize_t d = 0; d < a.ndim(); ++d) shape += (d ? ", " : "") + std::to_string(a.shape(d));
-        throw Error(name, "must be an (N, 3) array, not (" + shape + ")");
-    }
+    check_points_shape(a, name);
     Points p(a.shape(0), 3);
     std::copy(a.data(), a.data() + a.size(), p.data());
     return p;
@@ -42,7 +45,7 @@ Points points_from(const DoubleArray& a, const char* name) {
 
 // An (N, 3) float64 C-order array read in place (forcecast made one if the caller's was not).
 Eigen::Map<const Points> points_view(const DoubleArray& a, const char* name) {
-    if (a.ndim() != 2 || a.shape(1) != 3) (void)points_from(a, name);  // its shape error
+    check_points_shape(a, name);
     return Eigen::Map<const Points>(a.data(), a.shape(0), 3);
 }
 

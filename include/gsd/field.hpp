@@ -45,6 +45,9 @@ public:
     virtual bool has_gradient() const = 0;
 
 protected:
+    /// Throws Error("with_gradient", …) when a gradient is asked of a field without one.
+    static void refuse_gradient(bool with_gradient, const char* field_kind);
+
     Field() = default;
     Field(const Field&) = default;
     Field(Field&&) = default;

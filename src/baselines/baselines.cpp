@@ -27,20 +27,14 @@ BaselineField::~BaselineField() = default;
 BaselineField::BaselineField(BaselineField&&) noexcept = default;
 BaselineField& BaselineField::operator=(BaselineField&&) noexcept = default;
 
-namespace {
-void no_gradient(bool with_gradient) {
-    if (with_gradient) throw Error("with_gradient", "the SSPD and signed Hopf–Cole baselines offer no gradient");
-}
-}  // namespace
-
 FieldValues BaselineField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
-    no_gradient(with_gradient);
+    refuse_gradient(with_gradient, "the SSPD and signed Hopf–Cole baselines");
     if (!queries.allFinite()) throw Error("queries", "query points must be finite");
     return impl_->engine.evaluate(blend::Queries(queries), false, progress);
 }
 
 FieldValues BaselineField::evaluate(const GridSpec& grid, bool with_gradient, const ProgressFn& progress) const {
-    no_gradient(with_gradient);
+    refuse_gradient(with_gradient, "the SSPD and signed Hopf–Cole baselines");
     grid.validate();
     return impl_->engine.evaluate(blend::Queries(grid), false, progress);
 }

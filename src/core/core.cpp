@@ -193,6 +193,10 @@ void validate(const PolygonMesh& mesh, const std::string& where) {
 
 Field::~Field() = default;  // the key function: Field's vtable lives in the library
 
+void Field::refuse_gradient(bool with_gradient, const char* field_kind) {
+    if (with_gradient) throw Error("with_gradient", std::string(field_kind) + " offer no gradient");
+}
+
 FieldValues Field::evaluate(PointsFView queries, bool with_gradient, const ProgressFn& progress) const {
     const Points q = queries.cast<double>();
     return evaluate(PointsView(q), with_gradient, progress);

@@ -279,31 +279,43 @@ Box grid_subject(const GridSpec& g, const std::vector<float>& values) {
     return b;
 }
 
-RenderedField render_blend(const blend::Engine& engine, const Box& box, const FieldRenderOptions& o,
-                           const ProgressFn& progress) {
-    const Frame f = frame_for(box, bounding_box(engine.source().points), o);
-    blend::Params params = engine.params(true);
-    params.exact = false;  // the shader marches the accelerated sum; so does its reference
+// The march on the chosen device, else (no device, or the field does not fit it) on the CPU,
+// then the shading both share. `on_device` marches on a context and says why it could not.
+using DeviceMarch = std::function<bool(const std::shared_ptr<gpu::Context>&, std::vector<float>&, std::string&)>;
+
+RenderedField march_and_shade(const Frame& f, const FieldRenderOptions& o, const DeviceMarch& on_device,
+                              const std::function<Sampler()>& make_sampler, const ProgressFn& progress) {
     const gpu::Selection sel = gpu::select(o.device);
     if (!sel.note.empty()) log_once(sel.note);
     std::vector<float> hits;
     if (sel.context) {
         std::string why_not;
-        if (march_blend_gpu(engine, sel.context, f.cam, f.march, hits, why_not, progress))
-            return shade(hits, f.cam, o, sel.device_name);
+        if (on_device(sel.context, hits, why_not)) return shade(hits, f.cam, o, sel.device_name);
         log_once(why_not + "; rendering on the CPU");
     }
+    hits = march_cpu(make_sampler, f.cam, f.march, progress);
+    return shade(hits, f.cam, o, "cpu");
+}
+
+RenderedField render_blend(const blend::Engine& engine, const Box& box, const FieldRenderOptions& o,
+                           const ProgressFn& progress) {
+    const Frame f = frame_for(box, bounding_box(engine.source().points), o);
+    blend::Params params = engine.params(true);
+    params.exact = false;  // the shader marches the accelerated sum; so does its reference
     const blend::Source& src = engine.source();
     const detail::BoxTree& tree = engine.search_tree();
-    hits = march_cpu(
+    return march_and_shade(
+        f, o,
+        [&](const std::shared_ptr<gpu::Context>& ctx, std::vector<float>& hits, std::string& why_not) {
+            return march_blend_gpu(engine, ctx, f.cam, f.march, hits, why_not, progress);
+        },
         [&] {
             auto scratch = std::make_shared<std::vector<Neighbor>>();
             return Sampler([&src, &tree, params, scratch](const Eigen::Vector3d& x, Eigen::Vector3d* g) {
                 return blend::evaluate_one(src, tree, params, x, g, *scratch);
             });
         },
-        f.cam, f.march, progress);
-    return shade(hits, f.cam, o, "cpu");
+        progress);
 }
 
 }  // namespace
@@ -331,23 +343,17 @@ RenderedField render_field(const GridSpec& grid, const std::vector<float>& value
     for (float v : values)
         if (!std::isfinite(v)) throw Error("values", "contain NaN or infinite values");
     const render::Frame f = render::frame_for(grid.box, render::grid_subject(grid, values), options);
-    const gpu::Selection sel = gpu::select(options.device);
-    if (!sel.note.empty()) log_once(sel.note);
-    if (sel.context) {
-        std::vector<float> hits;
-        std::string why_not;
-        if (render::march_grid_gpu(grid, values, sel.context, f.cam, f.march, hits, why_not, progress))
-            return render::shade(hits, f.cam, options, sel.device_name);
-        log_once(why_not + "; rendering on the CPU");
-    }
-    const std::vector<float> hits = render::march_cpu(
+    return render::march_and_shade(
+        f, options,
+        [&](const std::shared_ptr<gpu::Context>& ctx, std::vector<float>& hits, std::string& why_not) {
+            return render::march_grid_gpu(grid, values, ctx, f.cam, f.march, hits, why_not, progress);
+        },
         [&] {
             return render::Sampler([&](const Eigen::Vector3d& x, Eigen::Vector3d* g) {
                 return render::trilinear(grid, values, x, g);
             });
         },
-        f.cam, f.march, progress);
-    return render::shade(hits, f.cam, options, "cpu");
+        progress);
 }
 
 }  // namespace gsd

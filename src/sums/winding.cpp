@@ -216,18 +216,15 @@ FieldValues as_field_values(const WindingResult& r) {
     v.device = r.device;
     return v;
 }
-void no_gradient(bool with_gradient) {
-    if (with_gradient) throw Error("with_gradient", "winding numbers are offered without a gradient");
-}
 }  // namespace
 
 FieldValues WindingField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
-    no_gradient(with_gradient);
+    refuse_gradient(with_gradient, "winding numbers");
     return as_field_values(winding_numbers(queries, progress));
 }
 
 FieldValues WindingField::evaluate(const GridSpec& grid, bool with_gradient, const ProgressFn& progress) const {
-    no_gradient(with_gradient);
+    refuse_gradient(with_gradient, "winding numbers");
     grid.validate();
     return as_field_values(winding_numbers(grid.nodes(), progress));
 }
