@@ -70,7 +70,8 @@ struct SwnResult {
     bool simply_connected = true;                ///< every component a disk or a sphere: steps ②–⑤ skipped
     bool split = false;                          ///< curves off the edges: solved on a mesh cut along them
     std::size_t lp_variables = 0, lp_rows = 0;   ///< size of the residual's linear program
-    double lp_objective = 0;                     ///< Σ length·|jump| of the residual (curve_weight on curves)
+    double lp_objective = 0;                     ///< Σ length·|jump| of the residual over every edge (curve_weight
+                                                 ///< on curves): the full program's cost, whichever ran
     double lp_violation = 0;                     ///< how far a jump on a curve leaves [0, multiplicity] (0: none)
     double seconds_jump = 0, seconds_hodge = 0, seconds_residual = 0, seconds_boundary = 0, seconds_total = 0;
 };

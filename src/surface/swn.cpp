@@ -23,6 +23,7 @@
 #include <numeric>
 #include <optional>
 #include <queue>
+#include <tuple>
 
 namespace gsd {
 
@@ -367,6 +368,24 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
     return r;
 }
 
+/// Σ length·|J| (curve_weight on curve edges) over every interior edge, in the units of the
+/// mesh, and how far the jumps on curve edges leave [0, multiplicity].
+std::pair<double, double> residual_cost(const Topology& t, const std::vector<double>& jumps,
+                                        const std::vector<double>& chain, const SwnOptions& o) {
+    const Triangulation& T = t.mesh;
+    double cost = 0, violation = 0;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        const double m = chain[e], J = jumps[e];
+        if (std::abs(m) > 1e-9) {
+            cost += o.curve_weight * T.edge_lengths[e] * std::abs(J);
+            violation = std::max({violation, std::min(0.0, m) - J, J - std::max(0.0, m)});
+        } else {
+            cost += T.edge_lengths[e] * std::abs(J);
+        }
+    }
+    return {cost, violation};
+}
+
 /// Jumps of a corner function across every interior edge (left − right at the first vertex).
 std::vector<double> edge_jumps(const Topology& t, const std::vector<double>& v) {
     std::vector<double> J(t.mesh.edge_count(), 0.0);
@@ -379,67 +398,86 @@ std::vector<double> edge_jumps(const Topology& t, const std::vector<double>& v) 
 
 // ---- the reduced program's cut ----------------------------------------------------------------
 
-/// Shortest paths along edges (Dijkstra, edge lengths) from each interior curve end to the nearest
-/// end of the opposite sign, paired greedily: where broken nonbounding curves get completed.
+/// Where the full program's jumps may leave the curves: shortest paths along edges (Dijkstra,
+/// edge lengths) from each interior curve end to the nearest few ends of the opposite sign, and
+/// to the nearest vertex of another piece of the curves (a broken loop can be completed into
+/// the middle of a neighbouring curve, along which jumps are nearly free). The reduced program
+/// cuts along all of them, so its optimum is the full program's whenever the full optimum's
+/// jumps off the curves run along such paths.
 std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<double>& chain,
                                            const std::vector<std::uint8_t>& endpoint) {
     const Triangulation& T = t.mesh;
+    const std::size_t V = T.vertex_count;
     std::vector<std::uint8_t> on_path(T.edge_count(), 0);
-    // Signed multiplicity of each end: the chain's boundary there.
-    std::map<std::uint32_t, double> ends;
+    // Signed multiplicity of each end (the chain's boundary there), and the pieces of the curves.
+    std::vector<double> end_sign(V, 0.0);
+    std::vector<std::uint32_t> piece(V);
+    std::iota(piece.begin(), piece.end(), 0u);
+    auto root = [&](std::uint32_t x) {
+        while (piece[x] != x) x = piece[x] = piece[piece[x]];
+        return x;
+    };
+    std::vector<std::uint8_t> on_curve(V, 0);
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         if (chain[e] == 0) continue;
-        if (endpoint[T.edges[e][0]]) ends[T.edges[e][0]] -= chain[e];
-        if (endpoint[T.edges[e][1]]) ends[T.edges[e][1]] += chain[e];
+        const auto [a, b] = T.edges[e];
+        if (endpoint[a]) end_sign[a] -= chain[e];
+        if (endpoint[b]) end_sign[b] += chain[e];
+        on_curve[a] = on_curve[b] = 1;
+        piece[root(a)] = root(b);
     }
-    std::vector<std::pair<std::uint32_t, bool>> open;  // (vertex, sign) once per unit of multiplicity
-    for (const auto& [v, m] : ends)
-        for (long k = 0; k < std::lround(std::abs(m)); ++k) open.push_back({v, m > 0});
-    // Vertex adjacency through edges.
-    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(T.vertex_count);
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(V);
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         const auto [a, b] = T.edges[e];
         if (a == b) continue;
         nbr[a].push_back({b, std::uint32_t(e)});
         nbr[b].push_back({a, std::uint32_t(e)});
     }
-    while (!open.empty()) {
-        const auto [start, sign] = open.back();
-        open.pop_back();
-        std::map<std::uint32_t, std::size_t> targets;
-        for (std::size_t i = 0; i < open.size(); ++i)
-            if (open[i].second != sign) targets.emplace(open[i].first, i);
-        if (targets.empty()) continue;
-        std::map<std::uint32_t, std::pair<double, std::uint32_t>> best;  // vertex → (distance, edge in)
-        using Item = std::pair<double, std::uint32_t>;
+    constexpr int kEnds = 3;  // opposite ends reached from each end
+    std::vector<double> dist(V, std::numeric_limits<double>::infinity());
+    std::vector<std::uint32_t> via(V, kNone), touched;
+    using Item = std::pair<double, std::uint32_t>;
+    for (std::uint32_t start = 0; start < V; ++start) {
+        if (std::abs(end_sign[start]) < 0.5) continue;
+        const bool sign = end_sign[start] > 0;
+        const std::uint32_t own = root(start);
         std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-        best[start] = {0.0, kNone};
+        dist[start] = 0;
+        touched.push_back(start);
         heap.push({0.0, start});
-        std::uint32_t found = kNone;
-        while (!heap.empty()) {
+        int ends = 0;
+        bool other_piece = false;
+        while (!heap.empty() && (ends < kEnds || !other_piece)) {
             const auto [d, v] = heap.top();
             heap.pop();
-            if (d > best[v].first) continue;
-            if (v != start && targets.count(v)) {
-                found = v;
-                break;
+            if (d > dist[v]) continue;
+            bool take = false;
+            if (v != start && std::abs(end_sign[v]) >= 0.5 && (end_sign[v] > 0) != sign && ends < kEnds) {
+                ++ends;
+                take = true;
             }
+            if (!other_piece && on_curve[v] && root(v) != own) {
+                other_piece = true;
+                take = true;
+            }
+            if (take)
+                for (std::uint32_t u = v; u != start;) {
+                    const std::uint32_t e = via[u];
+                    on_path[e] = 1;
+                    u = T.edges[e][0] == u ? T.edges[e][1] : T.edges[e][0];
+                }
             for (const auto& [w, e] : nbr[v]) {
                 const double nd = d + T.edge_lengths[e];
-                auto it = best.find(w);
-                if (it == best.end() || nd < it->second.first) {
-                    best[w] = {nd, e};
+                if (nd < dist[w]) {
+                    if (std::isinf(dist[w])) touched.push_back(w);
+                    dist[w] = nd;
+                    via[w] = e;
                     heap.push({nd, w});
                 }
             }
         }
-        if (found == kNone) continue;
-        for (std::uint32_t v = found; v != start;) {
-            const std::uint32_t e = best[v].second;
-            on_path[e] = 1;
-            v = T.edges[e][0] == v ? T.edges[e][1] : T.edges[e][0];
-        }
-        open.erase(open.begin() + std::ptrdiff_t(targets[found]));
+        for (std::uint32_t v : touched) dist[v] = std::numeric_limits<double>::infinity();
+        touched.clear();
     }
     return on_path;
 }
@@ -890,11 +928,12 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
             for (int k = 0; k < 3; ++k) v[corner_id(f, k)] += lp.shift[group[f]];
         r.lp_variables = lp.variables;
         r.lp_rows = lp.rows;
-        r.lp_objective = lp.objective;
-        r.lp_violation = lp.violation;
         // ⑤ The residual's jumps on the input curves are their nonbounding part; elsewhere they
         // complete it. The bounding part is what remains of the curves.
         const std::vector<double> jumps = edge_jumps(t, v);
+        // The full program's cost at v, over every edge: the same measure whichever program
+        // found v (the reduced one's own cost leaves out the edges inside its pieces).
+        std::tie(r.lp_objective, r.lp_violation) = residual_cost(t, jumps, chain, o);
         std::vector<double> nonbounding(T.edge_count(), 0.0), completed(T.edge_count(), 0.0);
         for (std::size_t e = 0; e < T.edge_count(); ++e) {
             if (std::abs(chain[e]) > 1e-9) {

@@ -386,7 +386,8 @@ int accuracy(int argc, char** argv) {
     const std::vector<Case> cases = make_cases(per);
     const std::vector<std::string> methods = {"swn-full", "swn-reduced", "naive-u", "shm-sign", "reference"};
     std::map<std::string, std::map<std::string, Stats>> by_group;  // group → method → mislabeled %
-    Stats full_vs_reduced, t_full, t_reduced, t_ref;
+    Stats full_vs_reduced, objective_gap, t_full, t_reduced, t_ref;
+    std::size_t equal_optimum = 0, programs = 0;
     if (!quiet)
         std::printf("%-34s %7s %9s %9s %9s %9s %9s   %7s %7s %7s\n", "case", "faces", "full %", "reduced %", "naive %",
                     "shm %", "ref %", "full s", "red. s", "ref s");
@@ -405,6 +406,13 @@ int accuracy(int argc, char** argv) {
         err["naive-u"] = 100 * mislabeled_area(mesh, rf.naive_labels, c.truth, true);
         err["shm-sign"] = 100 * mislabeled_area(mesh, shm_l, c.truth, true);
         full_vs_reduced.add(100 * mislabeled_area(mesh, rr.labels, rf.labels, true));
+        if (!rf.simply_connected && rf.lp_objective > 0) {
+            // The reduced program is the full one restricted: its optimum is never lower.
+            const double gap = (rr.lp_objective - rf.lp_objective) / rf.lp_objective;
+            objective_gap.add(100 * gap);
+            equal_optimum += gap < 1e-6;
+            ++programs;
+        }
         t_full.add(rf.seconds_residual);
         t_reduced.add(rr.seconds_residual);
         double ref_seconds = NAN;
@@ -454,6 +462,9 @@ int accuracy(int argc, char** argv) {
     }
     std::printf("\nfull vs reduced program: labels differ on %.3f %% of the area on average (max %.3f %%)\n",
                 full_vs_reduced.mean(), full_vs_reduced.max());
+    if (programs)
+        std::printf("reduced program's optimum above the full one's by %.3f %% on average (max %.3f %%); equal in %zu of %zu\n",
+                    objective_gap.mean(), objective_gap.max(), equal_optimum, programs);
     std::printf("residual step: full %.3f s, reduced %.4f s on average (%.0fx)", t_full.mean(), t_reduced.mean(),
                 t_full.mean() / t_reduced.mean());
     if (!t_ref.v.empty()) std::printf("; reference whole run %.2f s on average", t_ref.mean());
