@@ -1,6 +1,6 @@
 // gsd-swn-bench — Surface Winding Numbers: accuracy on a synthetic benchmark and timing.
 //
-//   gsd-swn-bench accuracy [--cases N] [--reference PROGRAM] [--work DIR] [--quiet]
+//   gsd-swn-bench accuracy [--cases N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]
 //       A benchmark in the style of thesis §6.3: on a sphere, a torus and a double torus, the
 //       regions below a level of a random low-frequency function are the ground truth; their
 //       boundaries (on mesh edges, or across faces), clean or with 30 % / 50 % cut away, plus
@@ -370,8 +370,10 @@ int accuracy(int argc, char** argv) {
     int per = 3;
     std::string reference, work;
     bool quiet = false;
+    SwnOptions defaults;
     for (int i = 2; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--cases") && i + 1 < argc) per = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--curve-weight") && i + 1 < argc) defaults.curve_weight = std::atof(argv[++i]);
         else if (!std::strcmp(argv[i], "--reference") && i + 1 < argc) reference = argv[++i];
         else if (!std::strcmp(argv[i], "--work") && i + 1 < argc) work = argv[++i];
         else if (!std::strcmp(argv[i], "--quiet")) quiet = true;
@@ -394,7 +396,7 @@ int accuracy(int argc, char** argv) {
     for (const Case& c : cases) {
         const SurfaceMesh mesh(c.mesh, c.name);
         SurfaceWindingNumbers swn(mesh);
-        SwnOptions full, reduced;
+        SwnOptions full = defaults, reduced = defaults;
         reduced.residual = SwnResidual::Reduced;
         const SwnResult rf = swn.solve(c.curves, full);
         const SwnResult rr = swn.solve(c.curves, reduced);
@@ -563,7 +565,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "gsd-swn-bench: %s\n", e.what());
         return 1;
     }
-    std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--reference PROGRAM] [--work DIR] [--quiet]\n"
+    std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]\n"
                          "       gsd-swn-bench timing [--sizes 32,48,64] [--clp-max 48]\n"
                          "       gsd-swn-bench write CASE PREFIX\n");
     return 2;
