@@ -329,8 +329,18 @@ EdgeSides sides(const Topology& t, std::size_t e) {
 struct ResidualLp {
     std::vector<double> shift;
     std::size_t variables = 0, rows = 0;
-    double objective = 0, violation = 0;
 };
+
+/// Edge e's term of the residual program: cost per unit length and |J| (1; curve_weight on curve
+/// edges) and the bounds of J (on curve edges, between 0 and the multiplicity).
+struct ResidualTerm {
+    double weight, lo = -surface::TensionProblem::kInfinity, hi = surface::TensionProblem::kInfinity;
+};
+ResidualTerm residual_term(std::size_t e, const std::vector<double>& chain, const SwnOptions& o) {
+    const double m = chain[e];
+    if (std::abs(m) <= 1e-9) return {1.0};
+    return {o.curve_weight, std::min(0.0, m), std::max(0.0, m)};
+}
 
 ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, const std::vector<std::uint32_t>& group,
                              std::size_t groups, const std::vector<double>& chain, const SwnOptions& o) {
@@ -347,14 +357,11 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
         edge.right = group[s.right];
         if (edge.left == edge.right) continue;
         edge.offset = v0[s.left_corner] - v0[s.right_corner];
+        const ResidualTerm term = residual_term(e, chain, o);
         // Zero-length edges still cost a little: every cost must be positive.
-        edge.cost = std::max(T.edge_lengths[e] * unit, 1e-9);
-        const double m = chain[e];
-        if (std::abs(m) > 1e-9) {
-            edge.cost *= o.curve_weight;
-            edge.lo = std::min(0.0, m);
-            edge.hi = std::max(0.0, m);
-        }
+        edge.cost = term.weight * std::max(T.edge_lengths[e] * unit, 1e-9);
+        edge.lo = term.lo;
+        edge.hi = term.hi;
         p.edges.push_back(edge);
     }
     const surface::TensionSolution s =
@@ -363,8 +370,6 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
     r.shift = s.x;
     r.variables = groups + 2 * p.edges.size();  // as a linear program: shifts and |J|'s two parts
     r.rows = p.edges.size();
-    r.objective = s.objective / unit;
-    r.violation = s.violation;
     return r;
 }
 
@@ -375,13 +380,9 @@ std::pair<double, double> residual_cost(const Topology& t, const std::vector<dou
     const Triangulation& T = t.mesh;
     double cost = 0, violation = 0;
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
-        const double m = chain[e], J = jumps[e];
-        if (std::abs(m) > 1e-9) {
-            cost += o.curve_weight * T.edge_lengths[e] * std::abs(J);
-            violation = std::max({violation, std::min(0.0, m) - J, J - std::max(0.0, m)});
-        } else {
-            cost += T.edge_lengths[e] * std::abs(J);
-        }
+        const ResidualTerm term = residual_term(e, chain, o);
+        cost += term.weight * T.edge_lengths[e] * std::abs(jumps[e]);
+        violation = std::max({violation, term.lo - jumps[e], jumps[e] - term.hi});
     }
     return {cost, violation};
 }
@@ -397,6 +398,18 @@ std::vector<double> edge_jumps(const Topology& t, const std::vector<double>& v) 
 }
 
 // ---- the reduced program's cut ----------------------------------------------------------------
+
+/// Per vertex: (neighbour, edge) through every edge that joins two distinct vertices.
+std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edge_neighbours(const Triangulation& T) {
+    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(T.vertex_count);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        const auto [a, b] = T.edges[e];
+        if (a == b) continue;
+        nbr[a].push_back({b, std::uint32_t(e)});
+        nbr[b].push_back({a, std::uint32_t(e)});
+    }
+    return nbr;
+}
 
 /// Where the full program's jumps may leave the curves: shortest paths along edges (Dijkstra,
 /// edge lengths) from each interior curve end to the nearest few ends of the opposite sign, and
@@ -426,13 +439,7 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
         on_curve[a] = on_curve[b] = 1;
         piece[root(a)] = root(b);
     }
-    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(V);
-    for (std::size_t e = 0; e < T.edge_count(); ++e) {
-        const auto [a, b] = T.edges[e];
-        if (a == b) continue;
-        nbr[a].push_back({b, std::uint32_t(e)});
-        nbr[b].push_back({a, std::uint32_t(e)});
-    }
+    const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
     constexpr int kEnds = 3;  // opposite ends reached from each end
     std::vector<double> dist(V, std::numeric_limits<double>::infinity());
     std::vector<std::uint32_t> via(V, kNone), touched;
@@ -491,13 +498,7 @@ std::vector<std::uint8_t> cut_graph(const Topology& t) {
     const Triangulation& T = t.mesh;
     const std::size_t V = T.vertex_count, E = T.edge_count(), F = T.face_count();
     // Shortest-path tree of vertices (per component).
-    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(V);
-    for (std::size_t e = 0; e < E; ++e) {
-        const auto [a, b] = T.edges[e];
-        if (a == b) continue;
-        nbr[a].push_back({b, std::uint32_t(e)});
-        nbr[b].push_back({a, std::uint32_t(e)});
-    }
+    const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
     std::vector<double> dist(V, INFINITY);
     std::vector<std::uint32_t> parent_edge(V, kNone);
     std::vector<std::uint8_t> in_tree(E, 0);
