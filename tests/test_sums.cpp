@@ -211,6 +211,62 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
     CHECK_THROWS_AS(tree.winding(nullptr, nullptr, nullptr, detail::SumTree::kLanes + 1, 1.5, 5e-3, nullptr, terms_alone), Error);
 }
 
+TEST_CASE("the packet walk's arithmetic: its atan2 and its square-root-free opening test") {
+    // atan2_lanes against libm over every octant, magnitudes from 1e-300 to 1e300, the octant
+    // and range-reduction boundaries, signed zeros.
+    std::mt19937_64 rng(17);
+    std::uniform_real_distribution<double> angle(-M_PI, M_PI), exponent(-300, 300);
+    double worst = 0;
+    for (int i = 0; i < 200000; ++i) {
+        const double a = angle(rng), r = std::pow(10.0, exponent(rng));
+        const double y = r * std::sin(a), x = r * std::cos(a);
+        worst = std::max(worst, std::abs(detail::sums::atan2_lanes(y, x) - std::atan2(y, x)));
+    }
+    for (const double t : {0.0, 0.41421356237309503, 0.41421356237309509, 1.0, 2.414213562373095, 1e-20, 1e20})
+        for (const double sx : {1.0, -1.0})
+            for (const double sy : {1.0, -1.0})
+                if (t != 0 || sy > 0)
+                    worst = std::max(worst, std::abs(detail::sums::atan2_lanes(sy * t, sx) - std::atan2(sy * t, sx)));
+    MESSAGE("max |atan2_lanes − std::atan2| = " << worst);
+    CHECK(worst <= 4e-15);
+    CHECK(detail::sums::atan2_lanes(0.0, 0.0) == 0.0);
+    CHECK(detail::sums::atan2_lanes(0.0, -1.0) == doctest::Approx(M_PI).epsilon(1e-15));
+    CHECK(detail::sums::atan2_lanes(-0.0, -1.0) == doctest::Approx(-M_PI).epsilon(1e-15));
+
+    // winding_reach2 decides as accept_winding does, away from the boundary itself.
+    std::uniform_real_distribution<double> u(0, 1);
+    int disagree = 0;
+    for (int i = 0; i < 100000; ++i) {
+        const double rho = std::pow(10.0, 4 * u(rng) - 2), area = rho * rho * std::pow(10.0, 3 * u(rng) - 2);
+        const double beta = 1 + 2 * u(rng), tol = u(rng) < 0.2 ? 0.0 : std::pow(10.0, 3 * u(rng) - 4);
+        const double d = rho * std::pow(10.0, 1.5 * u(rng)), d2 = d * d;
+        const double q = std::pow(area * rho * rho * rho / M_PI, 0.2);
+        const double reach2 = detail::sums::winding_reach2(rho, q, beta, detail::sums::winding_reach_scale(tol));
+        if (std::abs(d2 - reach2) <= 1e-9 * reach2) continue;
+        disagree += (d2 > reach2) != detail::sums::accept_winding(rho, d2, area, beta, tol);
+    }
+    CHECK(disagree == 0);
+}
+
+TEST_CASE("fast winding numbers: a walk that opens every node is the exact sum (meshes and clouds)") {
+    // β so large that no node with a radius is expanded: every element is summed by the
+    // packet walk's own lane arithmetic, which must then match the reference sum to rounding.
+    const PolygonMesh m = broken("capsule", 20, 2);
+    const PointCloud c = shapes::by_name("torus")->sample(500, 3);
+    for (const OrientedElements& e : {OrientedElements::from_mesh(m), OrientedElements::from_cloud(c)}) {
+        const detail::SumTree tree(e);
+        const Points q = random_queries(300, 1.2, 9);
+        double worst = 0;
+        std::size_t terms = 0;
+        for (Eigen::Index i = 0; i < q.rows(); ++i) {
+            const Vec3 x = q.row(i).transpose();
+            worst = std::max(worst, std::abs(tree.winding(x, 1e12, 0, terms) - tree.winding_exact(x)));
+        }
+        MESSAGE("max |walk − exact| = " << worst);
+        CHECK(worst <= 1e-12);
+    }
+}
+
 TEST_CASE("fast winding numbers: bad input is refused") {
     OrientedElements e;
     Points q = Points::Zero(1, 3);

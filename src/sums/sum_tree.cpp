@@ -67,6 +67,26 @@ GSD_ALWAYS_INLINE double winding_expansion(const SumTree::WindingNode& n, double
     return t0 - (A * q1 + B * tr) + 0.5 * (C * cubic + D * pu);
 }
 
+/// sums::triangle_winding for one lane (corners p: a, b, c), with atan2_lanes.
+GSD_ALWAYS_INLINE double triangle_winding_lane(double x, double y, double z, const double* p) {
+    const double ax = p[0] - x, ay = p[1] - y, az = p[2] - z;
+    const double bx = p[3] - x, by = p[4] - y, bz = p[5] - z;
+    const double cx = p[6] - x, cy = p[7] - y, cz = p[8] - z;
+    const double la = std::sqrt(ax * ax + ay * ay + az * az), lb = std::sqrt(bx * bx + by * by + bz * bz),
+                 lc = std::sqrt(cx * cx + cy * cy + cz * cz);
+    const double num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
+    const double den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la +
+                       (cx * ax + cy * ay + cz * az) * lb;
+    return sums::atan2_lanes(num, den) / (2 * M_PI);
+}
+
+/// A point element's dipole v·(y − x)/(4π|y − x|³) for one lane; nothing at the point itself.
+GSD_ALWAYS_INLINE double point_winding_lane(double x, double y, double z, const double* p, const double* v) {
+    const double dx = p[0] - x, dy = p[1] - y, dz = p[2] - z, r2 = dx * dx + dy * dy + dz * dz;
+    const double r2s = std::max(r2, DBL_MIN);  // r2 = 0: the numerator is 0 too
+    return (v[0] * dx + v[1] * dy + v[2] * dz) / (kFourPi * r2s * std::sqrt(r2s));
+}
+
 /// The symmetric reduction of a node's moments for winding_expansion.
 SumTree::WindingNode winding_node(const SumTree::Node& n) {
     SumTree::WindingNode w;
@@ -189,6 +209,7 @@ SumTree::SumTree(const OrientedElements& e) {
     p_.resize(9 * n);
     v_.resize(3 * n);
     cov_.resize(6 * n);
+    is_point_.resize(n);
     for (std::size_t j = 0; j < n; ++j) {
         const auto J = Eigen::Index(order_[j]);
         for (int k = 0; k < 3; ++k)
@@ -197,7 +218,8 @@ SumTree::SumTree(const OrientedElements& e) {
         double cov[6];
         triangle_covariance(&p_[9 * j], cov);
         std::copy(cov, cov + 6, &cov_[6 * j]);
-        triangles_ = triangles_ || e.corners.row(3 * J) != e.corners.row(3 * J + 1) || e.corners.row(3 * J) != e.corners.row(3 * J + 2);
+        is_point_[j] = e.corners.row(3 * J) == e.corners.row(3 * J + 1) && e.corners.row(3 * J) == e.corners.row(3 * J + 2);
+        triangles_ = triangles_ || !is_point_[j];
     }
     nodes_.resize(tree.nodes().size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -213,7 +235,7 @@ SumTree::SumTree(const OrientedElements& e) {
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
         const Node& nd = nodes_[i];
         wnodes_[i] = winding_node(nd);
-        wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, nd.area};
+        wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, std::pow(nd.area * nd.rho * nd.rho * nd.rho / M_PI, 0.2)};
     }
     hot_.resize(nodes_.size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -310,40 +332,48 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
     int top = 0;
     stack[top++] = {0, (1u << n) - 1};
     std::size_t count = 0;
+    const double reach_scale = sums::winding_reach_scale(tolerance);
     while (top > 0) {
         const Entry e = stack[--top];
         const WindingTest& t = wtests_[e.node];
-        alignas(64) double dx[L], dy[L], dz[L], ir[L], term[L];
+        const double reach2 = sums::winding_reach2(t.rho, t.q, beta, reach_scale);
+        alignas(64) double dx[L], dy[L], dz[L], d2[L], term[L];
         alignas(64) std::int64_t ok[L];
 #pragma omp simd
         for (int l = 0; l < L; ++l) {
             dx[l] = X[l] - t.c[0];
             dy[l] = Y[l] - t.c[1];
             dz[l] = Z[l] - t.c[2];
-            const double d2 = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
-            ir[l] = 1 / std::sqrt(d2);
-            ok[l] = sums::accept_winding(t.rho, d2, t.area, beta, tolerance);
+            d2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
+            ok[l] = d2[l] > reach2;
         }
         std::uint32_t accepted = 0;
         for (int l = 0; l < L; ++l) accepted |= std::uint32_t(ok[l] & 1) << l;
         accepted &= e.lanes;
-        if (accepted) {
+        if (accepted) {  // the square roots only now, for the packet's expansion
             const WindingNode& nd = wnodes_[e.node];
 #pragma omp simd
-            for (int l = 0; l < L; ++l) term[l] = winding_expansion(nd, dx[l], dy[l], dz[l], ir[l]);
+            for (int l = 0; l < L; ++l) term[l] = winding_expansion(nd, dx[l], dy[l], dz[l], 1 / std::sqrt(d2[l]));
             for (int l = 0; l < L; ++l) W[l] += (accepted >> l & 1) ? term[l] : 0.0;
             count += std::size_t(__builtin_popcount(accepted));
         }
         const std::uint32_t rest = e.lanes & ~accepted;
         if (!rest) continue;
-        if (e.node >= first_leaf_) {
+        if (e.node >= first_leaf_) {  // a leaf's elements exactly, every lane at once
             const Hot& h = hot_[e.node];
-            for (int l = 0; l < L; ++l) {
-                if (!(rest >> l & 1)) continue;
-                const Vec3 q(X[l], Y[l], Z[l]);
-                for (std::uint32_t j = h.begin; j < h.end; ++j) W[l] += element_winding(q, j);
-                count += h.end - h.begin;
+            for (std::uint32_t j = h.begin; j < h.end; ++j) {
+                const double* p = corners(j);
+                if (is_point_[j]) {
+                    const double* v = vector(j);
+#pragma omp simd
+                    for (int l = 0; l < L; ++l) term[l] = point_winding_lane(X[l], Y[l], Z[l], p, v);
+                } else {
+#pragma omp simd
+                    for (int l = 0; l < L; ++l) term[l] = triangle_winding_lane(X[l], Y[l], Z[l], p);
+                }
+                for (int l = 0; l < L; ++l) W[l] += (rest >> l & 1) ? term[l] : 0.0;
             }
+            count += std::size_t(__builtin_popcount(rest)) * (h.end - h.begin);
         } else {
             stack[top++] = {2 * e.node + 1, rest};
             stack[top++] = {2 * e.node + 2, rest};
