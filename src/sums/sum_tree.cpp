@@ -48,23 +48,22 @@ double trace(const double* s) { return s[0] + s[1] + s[2]; }
 /// Second-order expansion of Σ v·∇Φ(x − y), Φ = 1/(4πr), about c, d = x − c, ir = 1/|d|. With
 /// radial derivatives f1..f3 of Φ: ∂_aΦ = f1 u_a, ∂_aiΦ = A u_a u_i + B δ_ai,
 /// ∂_aijΦ = C u_a u_i u_j + D (u_a δ_ij + u_i δ_aj + u_j δ_ai), so
-/// w = f1 M0·u − (A uᵀS1u + B tr S1) + ½ (C T3(u) + D p·u).
-/// Scalar code that the packet walk runs on every lane at once.
+/// w = f1 M0·u − (A uᵀS1u + B tr S1) + ½ (C T3(u) + D p·u). With k = 1/4π, f1 = −k/r²,
+/// A = 3k/r³, B = −k/r³, C = −15k/r⁴ and D = 3k/r⁴, and u = d/r, that is
+///   w = k/r³ · [tr S1 − M0·d + (1.5 p·d − 3 dᵀS1d)/r² − 7.5 T3(d)/r⁴],
+/// a polynomial in d whose coefficients winding_node() scales once per node (fewer operations
+/// per query than the form in u). Scalar code that the packet walk runs on every lane at once.
 GSD_ALWAYS_INLINE double winding_expansion(const SumTree::WindingNode& n, double dx, double dy, double dz, double ir) {
     const double ir2 = ir * ir;
-    const double ux = dx * ir, uy = dy * ir, uz = dz * ir;
-    constexpr double k = 1 / kFourPi;
-    const double f1 = -k * ir2, f2 = 2 * k * ir2 * ir, f3 = -6 * k * ir2 * ir2;
-    const double A = f2 - f1 * ir, B = f1 * ir, C = f3 - 3 * f2 * ir + 3 * f1 * ir2, D = A * ir;
-    const double t0 = f1 * (n.m0[0] * ux + n.m0[1] * uy + n.m0[2] * uz);
+    const double xx = dx * dx, yy = dy * dy, zz = dz * dz;
     const double* s = n.s1;
-    const double q1 = s[0] * ux * ux + s[1] * uy * uy + s[2] * uz * uz + 2 * (s[3] * ux * uy + s[4] * ux * uz + s[5] * uy * uz);
-    const double tr = s[0] + s[1] + s[2];
     const double* t = n.t3;
-    const double cubic = t[0] * ux * ux * ux + t[1] * uy * uy * uy + t[2] * uz * uz * uz + ux * ux * (t[3] * uy + t[4] * uz) +
-                         uy * uy * (t[5] * ux + t[6] * uz) + uz * uz * (t[7] * ux + t[8] * uy) + t[9] * ux * uy * uz;
-    const double pu = n.p[0] * ux + n.p[1] * uy + n.p[2] * uz;
-    return t0 - (A * q1 + B * tr) + 0.5 * (C * cubic + D * pu);
+    const double linear = n.k0 + n.m0[0] * dx + n.m0[1] * dy + n.m0[2] * dz;
+    const double second = n.p[0] * dx + n.p[1] * dy + n.p[2] * dz + s[0] * xx + s[1] * yy + s[2] * zz +
+                          dx * (s[3] * dy + s[4] * dz) + s[5] * dy * dz;
+    const double third = dx * (t[0] * xx + t[5] * yy + t[7] * zz + t[9] * dy * dz) + dy * (t[1] * yy + t[3] * xx + t[8] * zz) +
+                         dz * (t[2] * zz + t[4] * xx + t[6] * yy);
+    return ir * ir2 * (linear + ir2 * (second + ir2 * third));
 }
 
 /// sums::triangle_winding for one lane (corners p: a, b, c), with atan2_lanes.
@@ -87,39 +86,36 @@ GSD_ALWAYS_INLINE double point_winding_lane(double x, double y, double z, const 
     return (v[0] * dx + v[1] * dy + v[2] * dz) / (kFourPi * r2s * std::sqrt(r2s));
 }
 
-/// The symmetric reduction of a node's moments for winding_expansion.
+/// The symmetric reduction of a node's moments, scaled for winding_expansion.
 SumTree::WindingNode winding_node(const SumTree::Node& n) {
+    constexpr double k = 1 / kFourPi;
     SumTree::WindingNode w;
-    for (int a = 0; a < 3; ++a) {
-        w.c[a] = n.c[a];
-        w.m0[a] = n.m0[a];
-    }
-    w.rho = n.rho;
-    w.area = n.area;
     const double* m1 = n.m1;  // m1[3a + i]
-    w.s1[0] = m1[0];
-    w.s1[1] = m1[4];
-    w.s1[2] = m1[8];
-    w.s1[3] = 0.5 * (m1[1] + m1[3]);
-    w.s1[4] = 0.5 * (m1[2] + m1[6]);
-    w.s1[5] = 0.5 * (m1[5] + m1[7]);
+    const double s1[6] = {m1[0], m1[4], m1[8], 0.5 * (m1[1] + m1[3]), 0.5 * (m1[2] + m1[6]), 0.5 * (m1[5] + m1[7])};
+    w.k0 = k * (s1[0] + s1[1] + s1[2]);
+    for (int a = 0; a < 3; ++a) w.m0[a] = -k * n.m0[a];
+    // −3k dᵀS1d: diagonal, then the off-diagonal terms twice.
+    for (int b = 0; b < 6; ++b) w.s1[b] = -3 * k * s1[b] * (b < 3 ? 1 : 2);
     // M2_a[i][j] = m2[6a + (xx yy zz xy xz yz)].
     auto M = [&](int a, int i, int j) {
         static constexpr int idx[3][3] = {{0, 3, 4}, {3, 1, 5}, {4, 5, 2}};
         return n.m2[6 * a + idx[i][j]];
     };
     enum { X, Y, Z };
-    w.t3[0] = M(X, X, X);
-    w.t3[1] = M(Y, Y, Y);
-    w.t3[2] = M(Z, Z, Z);
-    w.t3[3] = M(Y, X, X) + 2 * M(X, X, Y);  // u_x² u_y
-    w.t3[4] = M(Z, X, X) + 2 * M(X, X, Z);  // u_x² u_z
-    w.t3[5] = M(X, Y, Y) + 2 * M(Y, X, Y);  // u_y² u_x
-    w.t3[6] = M(Z, Y, Y) + 2 * M(Y, Y, Z);  // u_y² u_z
-    w.t3[7] = M(X, Z, Z) + 2 * M(Z, X, Z);  // u_z² u_x
-    w.t3[8] = M(Y, Z, Z) + 2 * M(Z, Y, Z);  // u_z² u_y
-    w.t3[9] = 2 * (M(X, Y, Z) + M(Y, X, Z) + M(Z, X, Y));
-    for (int j = 0; j < 3; ++j) w.p[j] = (M(j, X, X) + M(j, Y, Y) + M(j, Z, Z)) + 2 * (M(X, X, j) + M(Y, Y, j) + M(Z, Z, j));
+    double t3[10];
+    t3[0] = M(X, X, X);
+    t3[1] = M(Y, Y, Y);
+    t3[2] = M(Z, Z, Z);
+    t3[3] = M(Y, X, X) + 2 * M(X, X, Y);  // d_x² d_y
+    t3[4] = M(Z, X, X) + 2 * M(X, X, Z);  // d_x² d_z
+    t3[5] = M(X, Y, Y) + 2 * M(Y, X, Y);  // d_y² d_x
+    t3[6] = M(Z, Y, Y) + 2 * M(Y, Y, Z);  // d_y² d_z
+    t3[7] = M(X, Z, Z) + 2 * M(Z, X, Z);  // d_z² d_x
+    t3[8] = M(Y, Z, Z) + 2 * M(Z, Y, Z);  // d_z² d_y
+    t3[9] = 2 * (M(X, Y, Z) + M(Y, X, Z) + M(Z, X, Y));
+    for (int b = 0; b < 10; ++b) w.t3[b] = -7.5 * k * t3[b];
+    for (int j = 0; j < 3; ++j)
+        w.p[j] = 1.5 * k * ((M(j, X, X) + M(j, Y, Y) + M(j, Z, Z)) + 2 * (M(X, X, j) + M(Y, Y, j) + M(Z, Z, j)));
     return w;
 }
 

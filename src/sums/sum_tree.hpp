@@ -49,12 +49,11 @@ public:
     };
 
     // The dipole kernel's derivatives are symmetric in all their indices, so its expansion needs
-    // only the symmetric parts of the moments: M0 (3), sym M1 (6), the symmetrized M2 as a cubic
-    // form (10) and t + 2s (3; t_a = tr M2_a, s_j = Σ_a M2_a[a][j]) — with c and ρ, one
-    // contiguous 208-byte record per node for the winding walk.
+    // only the symmetric parts of the moments: tr M1, M0 (3), sym M1 (6), the symmetrized M2 as
+    // a cubic form (10) and t + 2s (3; t_a = tr M2_a, s_j = Σ_a M2_a[a][j]), each scaled by its
+    // factor in winding_expansion — one contiguous 184-byte record per node.
     struct WindingNode {
-        double c[3], rho, area;
-        double m0[3], s1[6], t3[10], p[3];
+        double k0, m0[3], p[3], s1[6], t3[10];
     };
     /// What the winding walk's acceptance test reads (40 bytes): center, ρ and the node's part
     /// of its reach, q = (A·ρ³/π)^(1/5) (sums::winding_reach2).
