@@ -86,6 +86,19 @@ GSD_ALWAYS_INLINE double point_winding_lane(double x, double y, double z, const 
     return (v[0] * dx + v[1] * dy + v[2] * dz) / (kFourPi * r2s * std::sqrt(r2s));
 }
 
+/// The bit mask of the lanes l with d[l] > r. Written as a sum of powers of two, a `simd`
+/// reduction (compare, blend, add), because compilers build the obvious loop one lane at a time
+/// (an extract, a shift and an or per lane).
+GSD_ALWAYS_INLINE std::uint32_t lanes_greater(const double* d, double r) {
+    constexpr int L = SumTree::kLanes;
+    alignas(64) static constexpr double bit[8] = {1, 2, 4, 8, 16, 32, 64, 128};
+    static_assert(L <= 8, "one bit per lane");
+    double sum = 0;
+#pragma omp simd reduction(+ : sum)
+    for (int l = 0; l < L; ++l) sum += d[l] > r ? bit[l] : 0.0;
+    return std::uint32_t(sum);
+}
+
 /// The symmetric reduction of a node's moments, scaled for winding_expansion.
 SumTree::WindingNode winding_node(const SumTree::Node& n) {
     constexpr double k = 1 / kFourPi;
@@ -334,18 +347,14 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
         const WindingTest& t = wtests_[e.node];
         const double reach2 = sums::winding_reach2(t.rho, t.q, beta, reach_scale);
         alignas(64) double dx[L], dy[L], dz[L], d2[L], term[L];
-        alignas(64) std::int64_t ok[L];
 #pragma omp simd
         for (int l = 0; l < L; ++l) {
             dx[l] = X[l] - t.c[0];
             dy[l] = Y[l] - t.c[1];
             dz[l] = Z[l] - t.c[2];
             d2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
-            ok[l] = d2[l] > reach2;
         }
-        std::uint32_t accepted = 0;
-        for (int l = 0; l < L; ++l) accepted |= std::uint32_t(ok[l] & 1) << l;
-        accepted &= e.lanes;
+        const std::uint32_t accepted = lanes_greater(d2, reach2) & e.lanes;
         if (accepted) {  // the square roots only now, for the packet's expansion
             const WindingNode& nd = wnodes_[e.node];
 #pragma omp simd
