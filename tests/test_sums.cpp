@@ -203,6 +203,37 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
         }
         CHECK(terms == terms_alone);
     }
+    // From the frontier of a box around a group of queries (the nodes all of them would open
+    // skipped), as the CPU path walks: bit-equal again.
+    std::mt19937_64 rng(8);
+    std::uniform_real_distribution<double> u(-1, 1);
+    std::size_t skipped = 0;
+    for (int group = 0; group < 40; ++group) {
+        const double half = 0.02 + 0.1 * (group % 5);  // boxes from small to a fifth of the model
+        const Vec3 center(u(rng), u(rng), u(rng));
+        double x[detail::SumTree::kLanes], y[detail::SumTree::kLanes], z[detail::SumTree::kLanes], w[detail::SumTree::kLanes];
+        double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+        for (int l = 0; l < detail::SumTree::kLanes; ++l) {
+            const Vec3 p = center + half * Vec3(u(rng), u(rng), u(rng));
+            x[l] = p[0];
+            y[l] = p[1];
+            z[l] = p[2];
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = std::min(lo[a], p[a]);
+                hi[a] = std::max(hi[a], p[a]);
+            }
+        }
+        std::vector<std::uint32_t> frontier;
+        tree.winding_frontier(lo, hi, 1.5, 5e-3, frontier);
+        skipped += frontier.size() > 1 || frontier[0] != 0;
+        std::size_t terms = 0;
+        tree.winding_from(frontier.data(), frontier.size(), x, y, z, detail::SumTree::kLanes, 1.5, 5e-3, w, terms);
+        for (int l = 0; l < detail::SumTree::kLanes; ++l) {
+            std::size_t t = 0;
+            REQUIRE(w[l] == tree.winding(Vec3(x[l], y[l], z[l]), 1.5, 5e-3, t));
+        }
+    }
+    CHECK(skipped > 20);  // the frontiers did skip nodes
     double worst = 0;
     for (Eigen::Index i = 0; i < q.rows(); ++i)
         if (tree.nearest_distance(q.row(i).transpose()) > mean_edge(m))

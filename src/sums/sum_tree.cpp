@@ -323,8 +323,9 @@ void SumTree::compute_node(std::uint32_t i) {
 // and the lanes that still need it; at a node, the lanes that accept it add its expansion,
 // the rest go on to its children (or sum its elements exactly, lane by lane, at a leaf).
 // Always inlined: each caller in WindingDispatch compiles it for its own instruction set.
-GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, const double* z, int n, double beta,
-                                              double tolerance, double* w, std::size_t& terms) const {
+GSD_ALWAYS_INLINE void SumTree::winding_lanes(const std::uint32_t* starts, std::size_t start_count, const double* x,
+                                              const double* y, const double* z, int n, double beta, double tolerance, double* w,
+                                              std::size_t& terms) const {
     constexpr int L = kLanes;
     alignas(64) double X[L], Y[L], Z[L], W[L];
     for (int l = 0; l < L; ++l) {
@@ -339,49 +340,53 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
     };
     Entry stack[kStack];
     int top = 0;
-    stack[top++] = {0, (1u << n) - 1};
     std::size_t count = 0;
     const double reach_scale = sums::winding_reach_scale(tolerance);
-    while (top > 0) {
-        const Entry e = stack[--top];
-        const WindingTest& t = wtests_[e.node];
-        const double reach2 = sums::winding_reach2(t.rho, t.q, beta, reach_scale);
-        alignas(64) double dx[L], dy[L], dz[L], d2[L], term[L];
+    // Each start's subtree in turn, depth first: with the starts in the order the walk from
+    // the root would reach them, the lanes visit the same nodes in the same order.
+    for (std::size_t first = 0; first < start_count; ++first) {
+        stack[top++] = {starts[first], (1u << n) - 1};
+        while (top > 0) {
+            const Entry e = stack[--top];
+            const WindingTest& t = wtests_[e.node];
+            const double reach2 = sums::winding_reach2(t.rho, t.q, beta, reach_scale);
+            alignas(64) double dx[L], dy[L], dz[L], d2[L], term[L];
 #pragma omp simd
-        for (int l = 0; l < L; ++l) {
-            dx[l] = X[l] - t.c[0];
-            dy[l] = Y[l] - t.c[1];
-            dz[l] = Z[l] - t.c[2];
-            d2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
-        }
-        const std::uint32_t accepted = lanes_greater(d2, reach2) & e.lanes;
-        if (accepted) {  // the square roots only now, for the packet's expansion
-            const WindingNode& nd = wnodes_[e.node];
-#pragma omp simd
-            for (int l = 0; l < L; ++l) term[l] = winding_expansion(nd, dx[l], dy[l], dz[l], 1 / std::sqrt(d2[l]));
-            for (int l = 0; l < L; ++l) W[l] += (accepted >> l & 1) ? term[l] : 0.0;
-            count += std::size_t(__builtin_popcount(accepted));
-        }
-        const std::uint32_t rest = e.lanes & ~accepted;
-        if (!rest) continue;
-        if (e.node >= first_leaf_) {  // a leaf's elements exactly, every lane at once
-            const Hot& h = hot_[e.node];
-            for (std::uint32_t j = h.begin; j < h.end; ++j) {
-                const double* p = corners(j);
-                if (is_point_[j]) {
-                    const double* v = vector(j);
-#pragma omp simd
-                    for (int l = 0; l < L; ++l) term[l] = point_winding_lane(X[l], Y[l], Z[l], p, v);
-                } else {
-#pragma omp simd
-                    for (int l = 0; l < L; ++l) term[l] = triangle_winding_lane(X[l], Y[l], Z[l], p);
-                }
-                for (int l = 0; l < L; ++l) W[l] += (rest >> l & 1) ? term[l] : 0.0;
+            for (int l = 0; l < L; ++l) {
+                dx[l] = X[l] - t.c[0];
+                dy[l] = Y[l] - t.c[1];
+                dz[l] = Z[l] - t.c[2];
+                d2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
             }
-            count += std::size_t(__builtin_popcount(rest)) * (h.end - h.begin);
-        } else {
-            stack[top++] = {2 * e.node + 1, rest};
-            stack[top++] = {2 * e.node + 2, rest};
+            const std::uint32_t accepted = lanes_greater(d2, reach2) & e.lanes;
+            if (accepted) {  // the square roots only now, for the packet's expansion
+                const WindingNode& nd = wnodes_[e.node];
+#pragma omp simd
+                for (int l = 0; l < L; ++l) term[l] = winding_expansion(nd, dx[l], dy[l], dz[l], 1 / std::sqrt(d2[l]));
+                for (int l = 0; l < L; ++l) W[l] += (accepted >> l & 1) ? term[l] : 0.0;
+                count += std::size_t(__builtin_popcount(accepted));
+            }
+            const std::uint32_t rest = e.lanes & ~accepted;
+            if (!rest) continue;
+            if (e.node >= first_leaf_) {  // a leaf's elements exactly, every lane at once
+                const Hot& h = hot_[e.node];
+                for (std::uint32_t j = h.begin; j < h.end; ++j) {
+                    const double* p = corners(j);
+                    if (is_point_[j]) {
+                        const double* v = vector(j);
+#pragma omp simd
+                        for (int l = 0; l < L; ++l) term[l] = point_winding_lane(X[l], Y[l], Z[l], p, v);
+                    } else {
+#pragma omp simd
+                        for (int l = 0; l < L; ++l) term[l] = triangle_winding_lane(X[l], Y[l], Z[l], p);
+                    }
+                    for (int l = 0; l < L; ++l) W[l] += (rest >> l & 1) ? term[l] : 0.0;
+                }
+                count += std::size_t(__builtin_popcount(rest)) * (h.end - h.begin);
+            } else {
+                stack[top++] = {2 * e.node + 1, rest};
+                stack[top++] = {2 * e.node + 2, rest};
+            }
         }
     }
     for (int l = 0; l < n; ++l) w[l] = W[l];
@@ -390,23 +395,24 @@ GSD_ALWAYS_INLINE void SumTree::winding_lanes(const double* x, const double* y, 
 
 // One build for every x86-64 and one for CPUs with AVX2 and FMA, chosen once at run time.
 struct WindingDispatch {
-    static void generic(const SumTree& t, const double* x, const double* y, const double* z, int n, double beta, double tol,
-                        double* w, std::size_t& terms) {
-        t.winding_lanes(x, y, z, n, beta, tol, w, terms);
+    static void generic(const SumTree& t, const std::uint32_t* s, std::size_t c, const double* x, const double* y,
+                        const double* z, int n, double beta, double tol, double* w, std::size_t& terms) {
+        t.winding_lanes(s, c, x, y, z, n, beta, tol, w, terms);
     }
 #if defined(__x86_64__) && defined(__GNUC__)
-    __attribute__((target("avx2,fma"))) static void avx2(const SumTree& t, const double* x, const double* y, const double* z,
-                                                         int n, double beta, double tol, double* w, std::size_t& terms) {
-        t.winding_lanes(x, y, z, n, beta, tol, w, terms);
+    __attribute__((target("avx2,fma"))) static void avx2(const SumTree& t, const std::uint32_t* s, std::size_t c,
+                                                         const double* x, const double* y, const double* z, int n, double beta,
+                                                         double tol, double* w, std::size_t& terms) {
+        t.winding_lanes(s, c, x, y, z, n, beta, tol, w, terms);
     }
     static bool has_avx2() {
         static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
         return yes;
     }
 #else
-    static void avx2(const SumTree& t, const double* x, const double* y, const double* z, int n, double beta, double tol,
-                     double* w, std::size_t& terms) {
-        generic(t, x, y, z, n, beta, tol, w, terms);
+    static void avx2(const SumTree& t, const std::uint32_t* s, std::size_t c, const double* x, const double* y,
+                     const double* z, int n, double beta, double tol, double* w, std::size_t& terms) {
+        generic(t, s, c, x, y, z, n, beta, tol, w, terms);
     }
     static bool has_avx2() { return false; }
 #endif
@@ -416,8 +422,41 @@ void SumTree::winding(const double* x, const double* y, const double* z, int n, 
                       std::size_t& terms) const {
     if (n <= 0) return;
     if (n > kLanes) throw Error("packet", "more than " + std::to_string(kLanes) + " queries");
-    if (WindingDispatch::has_avx2()) WindingDispatch::avx2(*this, x, y, z, n, beta, tolerance, w, terms);
-    else WindingDispatch::generic(*this, x, y, z, n, beta, tolerance, w, terms);
+    const std::uint32_t root = 0;
+    winding_from(&root, 1, x, y, z, n, beta, tolerance, w, terms);
+}
+
+void SumTree::winding_from(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z,
+                           int n, double beta, double tolerance, double* w, std::size_t& terms) const {
+    if (n <= 0) return;
+    if (n > kLanes) throw Error("packet", "more than " + std::to_string(kLanes) + " queries");
+    if (WindingDispatch::has_avx2()) WindingDispatch::avx2(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
+    else WindingDispatch::generic(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
+}
+
+void SumTree::winding_frontier(const double* lo, const double* hi, double beta, double tolerance,
+                               std::vector<std::uint32_t>& frontier) const {
+    frontier.clear();
+    const double reach_scale = sums::winding_reach_scale(tolerance);
+    std::uint32_t stack[kStack];
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+        const std::uint32_t i = stack[--top];
+        const WindingTest& t = wtests_[i];
+        // The farthest point of the box from the node's center.
+        double far2 = 0;
+        for (int a = 0; a < 3; ++a) {
+            const double e = std::max(t.c[a] - lo[a], hi[a] - t.c[a]);
+            far2 += e * e;
+        }
+        if (i < first_leaf_ && far2 <= sums::winding_reach2(t.rho, t.q, beta, reach_scale)) {
+            stack[top++] = 2 * i + 1;  // every query in the box opens it: on to its children, in
+            stack[top++] = 2 * i + 2;  // the order the walk takes them (the second child first)
+        } else {
+            frontier.push_back(i);
+        }
+    }
 }
 
 double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_t& terms) const {

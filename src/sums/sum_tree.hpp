@@ -91,6 +91,15 @@ public:
     static constexpr int kLanes = 8;
     void winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
                  std::size_t& terms) const;
+    /// The nodes where the walk of any query in the box [lo, hi] first does something other
+    /// than open the node: it skips every node that all of them would open (the farthest point
+    /// of the box is within the node's reach). In the order the walk from the root reaches them.
+    void winding_frontier(const double* lo, const double* hi, double beta, double tolerance,
+                          std::vector<std::uint32_t>& frontier) const;
+    /// The packet walk started from such a frontier of a box that holds the packet's queries:
+    /// the same nodes, the same order and the same result as from the root, fewer visits.
+    void winding_from(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
+                      double beta, double tolerance, double* w, std::size_t& terms) const;
     /// The exact sum over every element (the reference).
     double winding_exact(const Eigen::Vector3d& x) const;
 
@@ -121,8 +130,8 @@ private:
     std::vector<Hot> hot_;
     std::vector<WindingNode> wnodes_;
     std::vector<WindingTest> wtests_;
-    void winding_lanes(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
-                       std::size_t& terms) const;
+    void winding_lanes(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
+                       double beta, double tolerance, double* w, std::size_t& terms) const;
     friend struct WindingDispatch;
     std::vector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
     double decay_lambda_ = -1;
