@@ -8,9 +8,11 @@
 #   scripts/bench.sh surface    SHM on surfaces: accuracy vs exact distances (and vs a reference
 #                               program when one is there), setup/solve times and memory vs mesh
 #                               size, first vs repeated solves, whole runs side by side
-#   scripts/bench.sh sums       the fast summation engine: winding numbers (treecode vs exact sum:
-#                               time, terms per query, max error; CPU and GPU) and SHM step 1 on
-#                               broken meshes with coarse faces (step 1 / step 3 seconds, terms)
+#   scripts/bench.sh sums       the fast summation engine: winding numbers (whole runs of 10⁶
+#                               queries against the exact sum and libigl's fast_winding_number;
+#                               treecode vs exact sum on grids: time, terms per query; CPU and GPU)
+#                               and SHM step 1 on broken meshes with coarse faces (step 1 / step 3
+#                               seconds, terms)
 #   scripts/bench.sh swn        Surface Winding Numbers: mislabeled area on a synthetic benchmark
 #                               (SWN full and reduced, naive rounding, SHM sign, a reference program
 #                               when one is there), time per step vs mesh size, whole runs
@@ -22,7 +24,9 @@
 # with, e.g. geometry-central's signed heat solver; default: ../shared/anchors/gc_shm if present),
 # GSD_BENCH_SWN_CASES (random functions per mesh, default 3), GSD_BENCH_SWN_SIZES (double-torus grid
 # sizes for the SWN timing), GSD_SWN_REFERENCE (a program `REF MESH.obj CURVES.txt -o PREFIX` writing
-# PREFIX.labels.npy, e.g. the SWN reference code; default: ../shared/anchors/swn_clp if present).
+# PREFIX.labels.npy, e.g. the SWN reference code; default: ../shared/anchors/swn_clp if present),
+# GSD_IGL_WN (libigl's fast winding number as `REF mesh MESH.obj Q.npy OUT.npy --threads T`;
+# default: ../shared/anchors/igl_wn if present).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh
@@ -132,7 +136,14 @@ if [ "$what" = all ] || [ "$what" = surface ]; then
 fi
 
 if [ "$what" = all ] || [ "$what" = sums ]; then
-  echo "## Fast winding numbers: broken double torus (10% of the area in 3 holes, 5% flipped)"
+  echo "## Fast winding numbers against the exact sum and libigl (CPU, 2 threads; GPU if there is one)"
+  igl=${GSD_IGL_WN:-}
+  [ -z "$igl" ] && [ -x ../shared/anchors/igl_wn ] && igl=../shared/anchors/igl_wn
+  gpu_flag=""  # a hardware device only: lavapipe would take minutes for 10⁶ queries
+  "$gsd" info | grep -- '--device auto' | grep -qv 'CPU path' && gpu_flag="--gpu"
+  build/bin/gsd-winding-bench --work "$work/wn" ${igl:+--igl "$igl"} $gpu_flag
+  echo
+  echo "## Fast winding numbers on grids: broken double torus (10% of the area in 3 holes, 5% flipped)"
   "$gsd" -q mesh double-torus -r 110 -o "$work/dt.obj"
   "$gsd" -q mesh --from "$work/dt.obj" --holes 3 --hole-area 0.1 --flip 0.05 -o "$work/dtb.obj"
   printf "%-28s %10s %14s %12s\n" "run" "seconds" "queries/s" "terms/query"
