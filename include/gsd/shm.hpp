@@ -75,9 +75,12 @@ struct ShmOptions {
     /// Cycles (multigrid) or iterations (CG); 0: 50 cycles, 5000 CG iterations.
     int max_iterations = 0;
     bool f_cycle = false;       ///< F-cycles instead of V-cycles
-    /// 0: shift φ so the area-weighted mean of φ over the source is zero. w > 0: add penalty rows
-    /// w·A_j·φ(y_j) = 0 (trilinear φ at each source) to the least-squares problem.
-    double fit_zero_set = 0.0;
+    /// φ is first shifted so that its area-weighted mean over the source is zero. w > 0 then fits
+    /// φ = 0 on the source softly: a smooth correction, on a grid of half the resolution, that
+    /// minimizes its Poisson energy plus (w/h) Σ_j A_j φ(y_j)² (trilinear φ at each source sample).
+    /// It bends the zero set back onto the source where holes and flips pulled it away (docs/shm.md:
+    /// inside/outside on broken meshes); 0: the shift alone.
+    double fit_zero_set = 1.0;
     /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
     /// the default (empty) is $GSD_DEVICE, else auto.
     Device device;
@@ -89,6 +92,7 @@ struct ShmOptions {
 struct ShmResult {
     std::vector<float> phi;                ///< φ per node, GridSpec storage order
     std::vector<double> residual_history;  ///< relative residual after each cycle/iteration
+    std::vector<double> fit_history;       ///< the same for the zero-set fit (empty without one)
     double seconds_diffuse = 0, seconds_solve = 0;
     std::size_t exact_nodes = 0;           ///< nodes where step 1 summed the kernel (the rest interpolated)
     std::size_t kernel_terms = 0;          ///< source terms summed in step 1 (its cost)

@@ -448,12 +448,19 @@ void add_shm(CLI::App& app) {
                  std::to_string(*n) + "^3 on " + r.device);
             note("step 1 (diffuse): " + fmt("%.2f s", r.seconds_diffuse) + ", " + std::to_string(r.exact_nodes) + " of " +
                  std::to_string(g.node_count()) + " nodes summed exactly, " + std::to_string(r.kernel_terms) + " kernel terms");
+            std::string fit;
+            if (!r.fit_history.empty())
+                fit = "; zero-set fit " + std::to_string(r.fit_history.size()) + " iterations, relative residual " +
+                      fmt("%.2e", r.fit_history.back());
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
-                 " iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()));
+                 " iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()) + fit);
             note("peak memory: " + peak_memory());
         }
         if (!r.residual_history.empty() && r.residual_history.back() > opt->tolerance)
             note("warning: the solver stopped at relative residual " + fmt("%.2e", r.residual_history.back()) + " (tolerance " +
+                 fmt("%.1e", opt->tolerance) + ")");
+        if (!r.fit_history.empty() && r.fit_history.back() > opt->tolerance)
+            note("warning: the zero-set fit stopped at relative residual " + fmt("%.2e", r.fit_history.back()) + " (tolerance " +
                  fmt("%.1e", opt->tolerance) + ")");
         // Build everything before writing anything: no partial outputs.
         PolygonMesh zero;
