@@ -171,9 +171,9 @@ int main(int argc, char** argv) {
     std::printf("%d threads; whole runs, %d each in turn. Errors against the exact sum at %zu queries (%zu farther than\n",
                 o.threads, o.repeat, o.check, n_far);
     std::printf("one mean edge length, %.4f, from the surface).\n\n", edge);
-    std::printf("| %-22s | %-15s | %-9s | %-9s | %-11s | %-9s |\n", "run", "whole run (s)", "median", "max error", "mean error",
+    std::printf("| %-24s | %-15s | %-9s | %-9s | %-11s | %-9s |\n", "run", "whole run (s)", "median", "max error", "mean error",
                 "max (all)");
-    std::printf("|------------------------|-----------------|-----------|-----------|-------------|-----------|\n");
+    std::printf("|--------------------------|-----------------|-----------|-----------|-------------|-----------|\n");
     double gsd_median = 0, igl_median = 0;
     for (Run& run : runs) {
         std::sort(run.times.begin(), run.times.end());
@@ -183,7 +183,7 @@ int main(int argc, char** argv) {
         const Errors e = errors(exact, far, io::read_npy(run.output));
         char range[32];
         std::snprintf(range, sizeof(range), "%.2f-%.2f", run.times.front(), run.times.back());
-        std::printf("| %-22s | %-15s | %9.3f | %9.2e | %11.2e | %9.2e |\n", run.label.c_str(), range, median, e.far_max, e.far_mean,
+        std::printf("| %-24s | %-15s | %9.3f | %9.2e | %11.2e | %9.2e |\n", run.label.c_str(), range, median, e.far_max, e.far_mean,
                     e.all_max);
     }
     if (igl_median > 0) std::printf("\ngsd defaults / libigl (medians): %.2f\n", gsd_median / igl_median);
