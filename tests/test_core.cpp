@@ -25,6 +25,16 @@ TEST_CASE("grid nodes follow the .npy C-order layout") {
     CHECK_THROWS_AS((GridSpec{4, 4, 4, Box{{0, 0, 0}, {1, 0, 1}}}.validate()), Error);
 }
 
+TEST_CASE("mean edge length: every face's edges, a shared edge once per face") {
+    PolygonMesh m;
+    m.vertices.resize(5, 3);
+    m.vertices << 0, 0, 0, 3, 0, 0, 3, 4, 0, 0, 4, 0, 0, 0, 7;
+    m.add_face({0, 1, 2});     // edges 3, 4, 5
+    m.add_face({0, 1, 2, 3});  // edges 3, 4, 3, 4
+    CHECK(mean_edge_length(m) == doctest::Approx((3 + 4 + 5 + 3 + 4 + 3 + 4) / 7.0).epsilon(1e-15));
+    CHECK(mean_edge_length(PolygonMesh{}) == 0.0);
+}
+
 TEST_CASE("validate rejects bad clouds and normalizes normals") {
     PointCloud c;
     CHECK_THROWS_AS(validate(c), Error);

@@ -38,19 +38,6 @@ Points random_queries(int n, double half, std::uint64_t seed) {
     return q;
 }
 
-// Mean edge length of a mesh's faces.
-double mean_edge(const PolygonMesh& m) {
-    double sum = 0;
-    std::size_t n = 0;
-    for (std::size_t f = 0; f < m.face_count(); ++f)
-        for (auto k = m.offsets[f]; k < m.offsets[f + 1]; ++k) {
-            const auto next = k + 1 < m.offsets[f + 1] ? k + 1 : m.offsets[f];
-            sum += (m.vertices.row(m.indices[k]) - m.vertices.row(m.indices[next])).norm();
-            ++n;
-        }
-    return sum / double(n);
-}
-
 // The screened sum by brute force: every triangle split into 4^levels pieces, each a point
 // source at its centroid (independent of the tree, its moments and its acceptance rule).
 Vec3 screened_by_quadrature(const OrientedElements& e, const Vec3& x, double lambda, int levels, double& r_min) {
@@ -151,7 +138,7 @@ TEST_CASE("fast winding numbers: within 1e-3 of the exact sum beyond one edge le
         o.exact = true;
         const WindingResult exact = fast_winding_numbers(e, q, o);
         const std::vector<double> baseline = winding_numbers(m, q);
-        const double h = mean_edge(m);
+        const double h = mean_edge_length(m);
         const detail::SumTree tree(e);
         double worst = 0;
         std::size_t far = 0;
@@ -236,7 +223,7 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
     CHECK(skipped > 20);  // the frontiers did skip nodes
     double worst = 0;
     for (Eigen::Index i = 0; i < q.rows(); ++i)
-        if (tree.nearest_distance(q.row(i).transpose()) > mean_edge(m))
+        if (tree.nearest_distance(q.row(i).transpose()) > mean_edge_length(m))
             worst = std::max(worst, std::abs(alone[std::size_t(i)] - tree.winding_exact(q.row(i).transpose())));
     CHECK(worst <= 1e-3);
     CHECK_THROWS_AS(tree.winding(nullptr, nullptr, nullptr, detail::SumTree::kLanes + 1, 1.5, 5e-3, nullptr, terms_alone), Error);
@@ -319,7 +306,7 @@ TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine q
     const PolygonMesh m = broken("torus", 12, 3);
     const OrientedElements e = OrientedElements::from_mesh(m);
     const detail::SumTree tree(e);
-    const double h = mean_edge(m);
+    const double h = mean_edge_length(m);
     detail::SumTree::Screened k;
     k.lambda = 1 / h;
     k.cutoff = 40;  // everything counts: the quadrature drops nothing either

@@ -141,4 +141,9 @@ GSD_EXPORT void validate(PointCloud& cloud, const std::string& where = {});
 /// them say so.
 GSD_EXPORT void validate(const PolygonMesh& mesh, const std::string& where = {});
 
+/// The mean length of the faces' edges, each edge counted once per face that has it (0 for a
+/// mesh without faces). The mesh's scale: SHM's h, the distance past which fast winding numbers
+/// keep their error bound.
+GSD_EXPORT double mean_edge_length(const PolygonMesh& mesh);
+
 }  // namespace gsd

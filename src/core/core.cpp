@@ -172,6 +172,18 @@ void validate(PointCloud& cloud, const std::string& where) {
     if (!(b.diagonal() > 0)) throw Error(where, "all points coincide");
 }
 
+double mean_edge_length(const PolygonMesh& mesh) {
+    double length = 0;
+    std::size_t edges = 0;
+    for (std::size_t f = 0; f < mesh.face_count(); ++f)
+        for (auto k = mesh.offsets[f]; k < mesh.offsets[f + 1]; ++k) {
+            const auto next = k + 1 < mesh.offsets[f + 1] ? k + 1 : mesh.offsets[f];
+            length += (mesh.vertices.row(mesh.indices[k]) - mesh.vertices.row(mesh.indices[next])).norm();
+            ++edges;
+        }
+    return edges > 0 ? length / double(edges) : 0.0;
+}
+
 void validate(const PolygonMesh& mesh, const std::string& where) {
     if (mesh.vertices.rows() == 0) throw Error(where, "mesh has no vertices");
     if (mesh.face_count() == 0) throw Error(where, "mesh has no faces");

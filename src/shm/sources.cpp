@@ -83,15 +83,7 @@ ShmSource shm_source(const PolygonMesh& mesh) {
     validate(mesh);
     // h = mean edge length over all face edges (each shared edge counted per face: the mean
     // is what matters).
-    double length = 0;
-    std::size_t edges = 0;
-    for (std::size_t f = 0; f < mesh.face_count(); ++f)
-        for (auto k = mesh.offsets[f]; k < mesh.offsets[f + 1]; ++k) {
-            const auto next = k + 1 < mesh.offsets[f + 1] ? k + 1 : mesh.offsets[f];
-            length += (mesh.vertices.row(mesh.indices[k]) - mesh.vertices.row(mesh.indices[next])).norm();
-            ++edges;
-        }
-    const double h = length / double(edges);
+    const double h = mean_edge_length(mesh);
     if (!(h > 0)) throw Error("mesh", "all faces are degenerate (zero area)");
     ShmSource s;
     s.elements = OrientedElements::from_mesh(mesh);

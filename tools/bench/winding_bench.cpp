@@ -53,18 +53,6 @@ double seconds(const std::string& command) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-double mean_edge(const PolygonMesh& m) {
-    double sum = 0;
-    std::size_t n = 0;
-    for (std::size_t f = 0; f < m.face_count(); ++f)
-        for (auto k = m.offsets[f]; k < m.offsets[f + 1]; ++k) {
-            const auto next = k + 1 < m.offsets[f + 1] ? k + 1 : m.offsets[f];
-            sum += (m.vertices.row(m.indices[k]) - m.vertices.row(m.indices[next])).norm();
-            ++n;
-        }
-    return sum / double(n);
-}
-
 Errors errors(const std::vector<double>& exact, const std::vector<bool>& far, const io::NpyArray& w) {
     Errors e;
     std::size_t n_far = 0;
@@ -144,7 +132,7 @@ int main(int argc, char** argv) {
     exact_options.exact = true;
     exact_options.device = "cpu";
     const std::vector<double> exact = fast_winding_numbers(elements, check, exact_options).w;
-    const double edge = mean_edge(mesh);
+    const double edge = mean_edge_length(mesh);
     std::vector<bool> far(o.check);
     std::size_t n_far = 0;
     for (std::size_t i = 0; i < o.check; ++i) n_far += far[i] = tree.nearest_distance(check.row(Eigen::Index(i)).transpose()) > edge;
