@@ -167,8 +167,8 @@ if [ "$what" = all ] || [ "$what" = sums ]; then
     [ -f "../shared/data/meshes/$m.obj" ] && real="$real ../shared/data/meshes/$m.obj"
   done
   build/bin/gsd-broken-bench $real
-  echo "(the same with the zero set fitted softly)"
-  build/bin/gsd-broken-bench --fit-zero-set 1 $real
+  echo "(the same with the mean shift alone, no zero-set fit: --fit-zero-set 0)"
+  build/bin/gsd-broken-bench --fit-zero-set 0 $real
   echo
   echo "## SHM step 1 on broken meshes with coarse faces (whole runs, default bounds)"
   "$gsd" -q mesh capsule -r 16 -o "$work/cap.obj"
