@@ -73,21 +73,22 @@ struct SignedHeatGrid::Impl {
         return shm_detail::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
     }
 
-    // Area samples of the source inside the box: triangles split to the grid spacing.
+    // Area samples of the source inside the box (triangles split to the grid spacing): their
+    // trilinear nodes and weights on the grid, their area and position.
     template <class Emit>
     void samples(Emit&& emit) const {
         const double cell = grid.box.extent().maxCoeff() / double(std::max({grid.nx, grid.ny, grid.nz}) - 1);
         shm_detail::for_each_sample(source, cell, grid.box, [&](const Eigen::Vector3d& p, double area) {
             std::size_t node[8];
             double w[8];
-            if (trilinear(grid, p, node, w)) emit(node, w, area);
+            if (trilinear(grid, p, node, w)) emit(node, w, area, p);
         });
     }
 
     // Area-weighted mean of φ over the source inside the box.
     double mean_on_source(const std::vector<double>& phi) const {
         double sum = 0, weight = 0;
-        samples([&](const std::size_t (&node)[8], const double (&w)[8], double a) {
+        samples([&](const std::size_t (&node)[8], const double (&w)[8], double a, const Eigen::Vector3d&) {
             double v = 0;
             for (int c = 0; c < 8; ++c) v += w[c] * phi[node[c]];
             sum += a * v;
@@ -178,17 +179,12 @@ struct SignedHeatGrid::Impl {
         coarse.ny = std::min(grid.ny, std::max(9, grid.ny / 4 + 1));
         coarse.nz = std::min(grid.nz, std::max(9, grid.nz / 4 + 1));
         std::vector<Sample> samples;
-        const double cell = grid.box.extent().maxCoeff() / double(std::max({grid.nx, grid.ny, grid.nz}) - 1);
-        shm_detail::for_each_sample(source, cell, grid.box, [&](const Eigen::Vector3d& p, double area) {
-            std::size_t node[8];
-            double w[8];
-            if (!trilinear(grid, p, node, w)) return;
+        this->samples([&](const std::size_t (&node)[8], const double (&w)[8], double area, const Eigen::Vector3d& p) {
             Sample s;
             s.area = area;
             s.value = 0;
             for (int c = 0; c < 8; ++c) s.value += w[c] * phi0[node[c]];
-            if (!trilinear(coarse, p, s.node, s.w)) return;
-            samples.push_back(s);
+            if (trilinear(coarse, p, s.node, s.w)) samples.push_back(s);
         });
         if (samples.empty()) throw Error("the source lies outside the grid's bounds");
         const std::vector<double> psi = penalized_solve(coarse, samples, penalty_weight(coarse), history);

@@ -321,7 +321,8 @@ void SumTree::compute_node(std::uint32_t i) {
 // loop of fixed length, so the compiler turns it into vector code (2 lanes per SSE2 register,
 // 4 per AVX2 one; -fno-math-errno lets sqrt vectorize). An entry on the stack carries the node
 // and the lanes that still need it; at a node, the lanes that accept it add its expansion,
-// the rest go on to its children (or sum its elements exactly, lane by lane, at a leaf).
+// the rest go on to its children (or, at a leaf, get its elements summed exactly: on every lane
+// at once, added to those that need them). The walk runs from each of `starts` in turn.
 // Always inlined: each caller in WindingDispatch compiles it for its own instruction set.
 GSD_ALWAYS_INLINE void SumTree::winding_lanes(const std::uint32_t* starts, std::size_t start_count, const double* x,
                                               const double* y, const double* z, int n, double beta, double tolerance, double* w,
@@ -420,8 +421,6 @@ struct WindingDispatch {
 
 void SumTree::winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
                       std::size_t& terms) const {
-    if (n <= 0) return;
-    if (n > kLanes) throw Error("packet", "more than " + std::to_string(kLanes) + " queries");
     const std::uint32_t root = 0;
     winding_from(&root, 1, x, y, z, n, beta, tolerance, w, terms);
 }
@@ -467,12 +466,8 @@ double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_
 
 double SumTree::element_winding(const Vec3& x, std::size_t j) const {
     const double* p = corners(j);
-    const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
-    if (a != b || a != c) return sums::triangle_winding(x, a, b, c);
-    // A point: the dipole v·(y − x)/(4π|y − x|³); nothing at the point itself.
-    const Vec3 y = a - x;
-    const double r2 = y.squaredNorm();
-    return r2 > 0 ? vec(vector(j)).dot(y) / (kFourPi * r2 * std::sqrt(r2)) : 0.0;
+    if (is_point_[j]) return point_winding_lane(x[0], x[1], x[2], p, vector(j));
+    return sums::triangle_winding(x, vec(p), vec(p + 3), vec(p + 6));
 }
 
 double SumTree::winding_exact(const Vec3& x) const {
