@@ -210,11 +210,11 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
                 hi[a] = std::max(hi[a], p[a]);
             }
         }
-        std::vector<std::uint32_t> frontier;
+        detail::SumTree::WindingFrontier frontier;
         tree.winding_frontier(lo, hi, 1.5, 5e-3, frontier);
-        skipped += frontier.size() > 1 || frontier[0] != 0;
+        skipped += frontier.nodes.size() > 1 || frontier.nodes[0] != 0;
         std::size_t terms = 0;
-        tree.winding_from(frontier.data(), frontier.size(), x, y, z, detail::SumTree::kLanes, 1.5, 5e-3, w, terms);
+        tree.winding_from(frontier, x, y, z, detail::SumTree::kLanes, 1.5, 5e-3, w, terms);
         for (int l = 0; l < detail::SumTree::kLanes; ++l) {
             std::size_t t = 0;
             REQUIRE(w[l] == tree.winding(Vec3(x[l], y[l], z[l]), 1.5, 5e-3, t));
@@ -269,6 +269,8 @@ TEST_CASE("the packet walk's arithmetic: its atan2 and its square-root-free open
 TEST_CASE("fast winding numbers: a walk that opens every node is the exact sum (meshes and clouds)") {
     // β so large that no node with a radius is expanded: every element is summed by the
     // packet walk's own lane arithmetic, which must then match the reference sum to rounding.
+    // (A cloud's leaves of one point have ρ = 0 and are still expanded, exactly: at this β in
+    // double, SumTree::single_enough.)
     const PolygonMesh m = broken("capsule", 20, 2);
     const PointCloud c = shapes::by_name("torus")->sample(500, 3);
     for (const OrientedElements& e : {OrientedElements::from_mesh(m), OrientedElements::from_cloud(c)}) {
@@ -328,6 +330,54 @@ TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine q
     }
     MESSAGE("direction error vs 4^5-piece quadrature: max " << worst << " rad, mean " << mean << " rad");
     CHECK(worst < 0.02);
+}
+
+TEST_CASE("fast winding numbers: the float32 far field keeps its precision wherever the model is; far queries walk in double") {
+    const PolygonMesh m = broken("torus", 24, 4);
+    const Points q = random_queries(400, 1.0, 11);
+    const double h = mean_edge_length(m);
+    // The model and its queries at home and 1e7 away from the origin, where float32 coordinates
+    // would be 1 apart: the walk's coordinates are centered on the root. Float32 far field
+    // against double on the same tree: the same up to ~1e-6. (Nearer than one edge length the
+    // vertices' own rounding in double at 1e7 moves exact solid angles by more.)
+    for (const double shift : {0.0, 1e7}) {
+        CAPTURE(shift);
+        const Eigen::RowVector3d offset = shift * Eigen::RowVector3d(1, -3, 2);
+        PolygonMesh moved = m;
+        moved.vertices.rowwise() += offset;
+        const detail::SumTree tree(OrientedElements::from_mesh(moved));
+        double worst_precision = 0, worst_error = 0;
+        for (Eigen::Index i = 0; i < q.rows(); ++i) {
+            const Vec3 x = (q.row(i) + offset).transpose();
+            if (!(tree.nearest_distance(x) > h)) continue;
+            double single = 0, twice = 0;
+            std::size_t terms = 0;
+            tree.winding(&x[0], &x[1], &x[2], 1, 1.5, 5e-3, &single, terms, true);
+            tree.winding(&x[0], &x[1], &x[2], 1, 1.5, 5e-3, &twice, terms, false);
+            worst_precision = std::max(worst_precision, std::abs(single - twice));
+            worst_error = std::max(worst_error, std::abs(single - tree.winding_exact(x)));
+        }
+        MESSAGE("float32 far field − double: " << worst_precision << "; fast − exact: " << worst_error);
+        CHECK(worst_precision < 1e-6);
+        CHECK(worst_error <= 1e-3);
+    }
+    // Queries beyond SumTree::kSingleReach root radii walk in double: within 1e-12 of the exact
+    // sum (float32 would underflow there), alone or in a packet with near queries.
+    const detail::SumTree tree(OrientedElements::from_mesh(m));
+    double x[8], y[8], z[8], w[8];
+    for (int l = 0; l < 8; ++l) {
+        const double r = l < 4 ? 1e6 * (l + 1) : 0.1 * l;
+        x[l] = r;
+        y[l] = -0.5 * r;
+        z[l] = 0.25;
+    }
+    std::size_t terms = 0;
+    tree.winding(x, y, z, 8, 1.5, 5e-3, w, terms);
+    for (int l = 0; l < 8; ++l) {
+        const double exact = tree.winding_exact(Vec3(x[l], y[l], z[l]));
+        CAPTURE(l);
+        CHECK(std::abs(w[l] - exact) <= (l < 4 ? 1e-12 : 1e-3));
+    }
 }
 
 TEST_CASE("fast winding numbers are scale invariant, also at 1e20 (past float32's squares: the GPU hands over to the CPU)") {

@@ -52,6 +52,8 @@ struct WindingOptions {
     /// series converges; Barill et al. and libigl use β = 2 alone) and its truncation error
     /// bound A·ρ³/(π(d − ρ)⁵) is at most `tolerance` (0: β alone). The defaults keep the error
     /// under 1e-3 at queries more than one edge length from the surface (docs/sums.md).
+    /// On the CPU the expansions run in float32 (~1e-6 from double) unless the criterion asks
+    /// for more than that can give: tolerance below 1e-4, or β above 4 with tolerance 0.
     double beta = 1.5;
     double tolerance = 5e-3;
     /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
@@ -70,8 +72,9 @@ struct WindingResult {
 /// The generalized winding number at each query: Σ over elements of their signed solid angle
 /// / 4π (points: the dipole v·(y − x)/(4π|y − x|³)). 1 inside and 0 outside a closed,
 /// outward-oriented mesh; fractional where the surface is open or broken. Per-query results
-/// do not depend on the other queries or on how they are chunked. CPU in double (OpenMP); the
-/// GPU path computes in float32 and agrees to ~1e-5.
+/// do not depend on the other queries or on how they are chunked. CPU (OpenMP): exact terms in
+/// double, node expansions in float32 at the default criterion (WindingOptions); the GPU path
+/// computes in float32 and agrees to ~1e-5.
 GSD_EXPORT WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries,
                                    const WindingOptions& options = {}, const ProgressFn& progress = {});
 

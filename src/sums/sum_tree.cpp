@@ -6,6 +6,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <type_traits>
+
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+#endif
 
 namespace gsd::detail {
 
@@ -53,15 +59,16 @@ double trace(const double* s) { return s[0] + s[1] + s[2]; }
 ///   w = k/r³ · [tr S1 − M0·d + (1.5 p·d − 3 dᵀS1d)/r² − 7.5 T3(d)/r⁴],
 /// a polynomial in d whose coefficients winding_node() scales once per node (fewer operations
 /// per query than the form in u). Scalar code that the packet walk runs on every lane at once.
-GSD_ALWAYS_INLINE double winding_expansion(const SumTree::WindingNode& n, double dx, double dy, double dz, double ir) {
-    const double ir2 = ir * ir;
-    const double xx = dx * dx, yy = dy * dy, zz = dz * dz;
-    const double* s = n.s1;
-    const double* t = n.t3;
-    const double linear = n.k0 + n.m0[0] * dx + n.m0[1] * dy + n.m0[2] * dz;
-    const double second = n.p[0] * dx + n.p[1] * dy + n.p[2] * dz + s[0] * xx + s[1] * yy + s[2] * zz +
+template <class Real>
+GSD_ALWAYS_INLINE Real winding_expansion(const SumTree::WindingNodeT<Real>& n, Real dx, Real dy, Real dz, Real ir) {
+    const Real ir2 = ir * ir;
+    const Real xx = dx * dx, yy = dy * dy, zz = dz * dz;
+    const Real* s = n.s1;
+    const Real* t = n.t3;
+    const Real linear = n.k0 + n.m0[0] * dx + n.m0[1] * dy + n.m0[2] * dz;
+    const Real second = n.p[0] * dx + n.p[1] * dy + n.p[2] * dz + s[0] * xx + s[1] * yy + s[2] * zz +
                           dx * (s[3] * dy + s[4] * dz) + s[5] * dy * dz;
-    const double third = dx * (t[0] * xx + t[5] * yy + t[7] * zz + t[9] * dy * dz) + dy * (t[1] * yy + t[3] * xx + t[8] * zz) +
+    const Real third = dx * (t[0] * xx + t[5] * yy + t[7] * zz + t[9] * dy * dz) + dy * (t[1] * yy + t[3] * xx + t[8] * zz) +
                          dz * (t[2] * zz + t[4] * xx + t[6] * yy);
     return ir * ir2 * (linear + ir2 * (second + ir2 * third));
 }
@@ -88,21 +95,22 @@ GSD_ALWAYS_INLINE double point_winding_lane(double x, double y, double z, const 
 
 /// The bit mask of the lanes l with d[l] > r. Written as a sum of powers of two, a `simd`
 /// reduction (compare, blend, add), because compilers build the obvious loop one lane at a time
-/// (an extract, a shift and an or per lane).
-GSD_ALWAYS_INLINE std::uint32_t lanes_greater(const double* d, double r) {
+/// (an extract, a shift and an or per lane). The AVX2 walk uses lanes_greater_avx2 instead.
+template <class Real>
+GSD_ALWAYS_INLINE std::uint32_t lanes_greater(const Real* d, Real r) {
     constexpr int L = SumTree::kLanes;
-    alignas(64) static constexpr double bit[8] = {1, 2, 4, 8, 16, 32, 64, 128};
+    alignas(64) static constexpr Real bit[8] = {1, 2, 4, 8, 16, 32, 64, 128};
     static_assert(L <= 8, "one bit per lane");
-    double sum = 0;
+    Real sum = 0;
 #pragma omp simd reduction(+ : sum)
-    for (int l = 0; l < L; ++l) sum += d[l] > r ? bit[l] : 0.0;
+    for (int l = 0; l < L; ++l) sum += d[l] > r ? bit[l] : Real(0);
     return std::uint32_t(sum);
 }
 
 /// The symmetric reduction of a node's moments, scaled for winding_expansion.
-SumTree::WindingNode winding_node(const SumTree::Node& n) {
+SumTree::WindingNodeT<double> winding_node(const SumTree::Node& n) {
     constexpr double k = 1 / kFourPi;
-    SumTree::WindingNode w;
+    SumTree::WindingNodeT<double> w;
     const double* m1 = n.m1;  // m1[3a + i]
     const double s1[6] = {m1[0], m1[4], m1[8], 0.5 * (m1[1] + m1[3]), 0.5 * (m1[2] + m1[6]), 0.5 * (m1[5] + m1[7])};
     w.k0 = k * (s1[0] + s1[1] + s1[2]);
@@ -130,6 +138,34 @@ SumTree::WindingNode winding_node(const SumTree::Node& n) {
     for (int j = 0; j < 3; ++j)
         w.p[j] = 1.5 * k * ((M(j, X, X) + M(j, Y, Y) + M(j, Z, Z)) + 2 * (M(X, X, j) + M(Y, Y, j) + M(Z, Z, j)));
     return w;
+}
+
+/// The node in the winding walk's coordinates, (x − origin)·scale: moments of order k carry
+/// the vector area (scale²) and k lengths.
+SumTree::Node normalized(const SumTree::Node& n, const double* origin, double scale) {
+    SumTree::Node m = n;
+    for (int a = 0; a < 3; ++a) m.c[a] = (n.c[a] - origin[a]) * scale;
+    m.rho = n.rho * scale;
+    m.area = n.area * scale * scale;
+    for (double& v : m.m0) v *= scale * scale;
+    for (double& v : m.m1) v *= scale * scale * scale;
+    for (double& v : m.m2) v *= scale * scale * scale * scale;
+    return m;
+}
+
+template <class Out, class In, std::size_t N>
+void narrow(Out (&out)[N], const In (&in)[N]) {
+    for (std::size_t i = 0; i < N; ++i) out[i] = Out(in[i]);
+}
+
+SumTree::WindingNodeT<float> to_float(const SumTree::WindingNodeT<double>& d) {
+    SumTree::WindingNodeT<float> f;
+    f.k0 = float(d.k0);
+    narrow(f.m0, d.m0);
+    narrow(f.p, d.p);
+    narrow(f.s1, d.s1);
+    narrow(f.t3, d.t3);
+    return f;
 }
 
 /// The screened kernel f(r) = e^(−λ(r − r_min))/r and its first two radial derivatives.
@@ -239,12 +275,22 @@ SumTree::SumTree(const OrientedElements& e) {
     // moments up the tree.
 #pragma omp parallel for schedule(dynamic, 16)
     for (std::size_t i = 0; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
+    // The winding walk's coordinates: centered on the root, in units of its radius.
+    std::copy(nodes_[0].c, nodes_[0].c + 3, w_origin_);
+    w_scale_ = nodes_[0].rho > 0 ? 1 / nodes_[0].rho : 1.0;
     wnodes_.resize(nodes_.size());
     wtests_.resize(nodes_.size());
+    wnodes_f_.resize(nodes_.size());
+    wtests_f_.resize(nodes_.size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
-        const Node& nd = nodes_[i];
+        const Node nd = normalized(nodes_[i], w_origin_, w_scale_);
         wnodes_[i] = winding_node(nd);
         wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, std::pow(nd.area * nd.rho * nd.rho * nd.rho / M_PI, 0.2)};
+        wnodes_f_[i] = to_float(wnodes_[i]);
+        const auto& t = wtests_[i];
+        // ρ and q rounded up, so float32 never accepts a node that double would refuse for them.
+        auto up = [](double v) { return float(v) < v ? std::nextafter(float(v), INFINITY) : float(v); };
+        wtests_f_[i] = {{float(t.c[0]), float(t.c[1]), float(t.c[2])}, up(t.rho), up(t.q)};
     }
     hot_.resize(nodes_.size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
@@ -317,145 +363,127 @@ void SumTree::compute_node(std::uint32_t i) {
     nd.area = area;
 }
 
-// The packet walk. Lanes are arrays of kLanes doubles, and every per-lane loop is a `simd`
-// loop of fixed length, so the compiler turns it into vector code (2 lanes per SSE2 register,
-// 4 per AVX2 one; -fno-math-errno lets sqrt vectorize). An entry on the stack carries the node
-// and the lanes that still need it; at a node, the lanes that accept it add its expansion,
-// the rest go on to its children (or, at a leaf, get its elements summed exactly: on every lane
-// at once, added to those that need them). The walk runs from each of `starts` in turn.
-// Always inlined: each caller in WindingDispatch compiles it for its own instruction set.
-GSD_ALWAYS_INLINE void SumTree::winding_lanes(const std::uint32_t* starts, std::size_t start_count, const double* x,
-                                              const double* y, const double* z, int n, double beta, double tolerance, double* w,
-                                              std::size_t& terms) const {
-    constexpr int L = kLanes;
-    alignas(64) double X[L], Y[L], Z[L], W[L];
-    for (int l = 0; l < L; ++l) {
-        const int s = l < n ? l : 0;  // idle lanes repeat lane 0 and are masked off
-        X[l] = x[s];
-        Y[l] = y[s];
-        Z[l] = z[s];
-        W[l] = 0;
-    }
-    struct Entry {
-        std::uint32_t node, lanes;
-    };
-    Entry stack[kStack];
-    int top = 0;
-    std::size_t count = 0;
-    const double reach_scale = sums::winding_reach_scale(tolerance);
-    // Each start's subtree in turn, depth first: with the starts in the order the walk from
-    // the root would reach them, the lanes visit the same nodes in the same order.
-    for (std::size_t first = 0; first < start_count; ++first) {
-        stack[top++] = {starts[first], (1u << n) - 1};
-        while (top > 0) {
-            const Entry e = stack[--top];
-            const WindingTest& t = wtests_[e.node];
-            const double reach2 = sums::winding_reach2(t.rho, t.q, beta, reach_scale);
-            alignas(64) double dx[L], dy[L], dz[L], d2[L], term[L];
-#pragma omp simd
-            for (int l = 0; l < L; ++l) {
-                dx[l] = X[l] - t.c[0];
-                dy[l] = Y[l] - t.c[1];
-                dz[l] = Z[l] - t.c[2];
-                d2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
-            }
-            const std::uint32_t accepted = lanes_greater(d2, reach2) & e.lanes;
-            if (accepted) {  // the square roots only now, for the packet's expansion
-                const WindingNode& nd = wnodes_[e.node];
-#pragma omp simd
-                for (int l = 0; l < L; ++l) term[l] = winding_expansion(nd, dx[l], dy[l], dz[l], 1 / std::sqrt(d2[l]));
-                for (int l = 0; l < L; ++l) W[l] += (accepted >> l & 1) ? term[l] : 0.0;
-                count += std::size_t(__builtin_popcount(accepted));
-            }
-            const std::uint32_t rest = e.lanes & ~accepted;
-            if (!rest) continue;
-            if (e.node >= first_leaf_) {  // a leaf's elements exactly, every lane at once
-                const Hot& h = hot_[e.node];
-                for (std::uint32_t j = h.begin; j < h.end; ++j) {
-                    const double* p = corners(j);
-                    if (is_point_[j]) {
-                        const double* v = vector(j);
-#pragma omp simd
-                        for (int l = 0; l < L; ++l) term[l] = point_winding_lane(X[l], Y[l], Z[l], p, v);
-                    } else {
-#pragma omp simd
-                        for (int l = 0; l < L; ++l) term[l] = triangle_winding_lane(X[l], Y[l], Z[l], p);
-                    }
-                    for (int l = 0; l < L; ++l) W[l] += (rest >> l & 1) ? term[l] : 0.0;
-                }
-                count += std::size_t(__builtin_popcount(rest)) * (h.end - h.begin);
-            } else {
-                stack[top++] = {2 * e.node + 1, rest};
-                stack[top++] = {2 * e.node + 2, rest};
-            }
-        }
-    }
-    for (int l = 0; l < n; ++l) w[l] = W[l];
-    terms += count;
-}
+// The walk compiled twice: for every x86-64, and for CPUs with AVX2 and FMA (chosen once at
+// run time), where the lane masks come from one vmovmskps/pd per register instead of a sum.
+#define GSD_WALK_FN winding_lanes_generic
+#define GSD_WALK_MASK lanes_greater
+#include "sums/winding_walk.inl"
+#undef GSD_WALK_FN
+#undef GSD_WALK_MASK
 
-// One build for every x86-64 and one for CPUs with AVX2 and FMA, chosen once at run time.
-struct WindingDispatch {
-    static void generic(const SumTree& t, const std::uint32_t* s, std::size_t c, const double* x, const double* y,
-                        const double* z, int n, double beta, double tol, double* w, std::size_t& terms) {
-        t.winding_lanes(s, c, x, y, z, n, beta, tol, w, terms);
-    }
 #if defined(__x86_64__) && defined(__GNUC__)
-    __attribute__((target("avx2,fma"))) static void avx2(const SumTree& t, const std::uint32_t* s, std::size_t c,
-                                                         const double* x, const double* y, const double* z, int n, double beta,
-                                                         double tol, double* w, std::size_t& terms) {
-        t.winding_lanes(s, c, x, y, z, n, beta, tol, w, terms);
-    }
-    static bool has_avx2() {
-        static const bool yes = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-        return yes;
-    }
+#if defined(__clang__)
+#pragma clang attribute push(__attribute__((target("avx2,fma"))), apply_to = function)
 #else
-    static void avx2(const SumTree& t, const std::uint32_t* s, std::size_t c, const double* x, const double* y,
-                     const double* z, int n, double beta, double tol, double* w, std::size_t& terms) {
-        generic(t, s, c, x, y, z, n, beta, tol, w, terms);
-    }
-    static bool has_avx2() { return false; }
+#pragma GCC push_options
+#pragma GCC target("avx2,fma")
 #endif
+GSD_ALWAYS_INLINE std::uint32_t lanes_greater_avx2(const float* d, float r) {
+    static_assert(SumTree::kLanes == 8, "one AVX register of float32 lanes");
+    return std::uint32_t(_mm256_movemask_ps(_mm256_cmp_ps(_mm256_load_ps(d), _mm256_set1_ps(r), _CMP_GT_OQ)));
+}
+GSD_ALWAYS_INLINE std::uint32_t lanes_greater_avx2(const double* d, double r) {
+    const __m256d b = _mm256_set1_pd(r);
+    return std::uint32_t(_mm256_movemask_pd(_mm256_cmp_pd(_mm256_load_pd(d), b, _CMP_GT_OQ))) |
+           std::uint32_t(_mm256_movemask_pd(_mm256_cmp_pd(_mm256_load_pd(d + 4), b, _CMP_GT_OQ))) << 4;
+}
+#define GSD_WALK_FN winding_lanes_avx2
+#define GSD_WALK_MASK lanes_greater_avx2
+#include "sums/winding_walk.inl"
+#undef GSD_WALK_FN
+#undef GSD_WALK_MASK
+#if defined(__clang__)
+#pragma clang attribute pop
+#else
+#pragma GCC pop_options
+#endif
+#endif
+
+struct WindingDispatch {
+    template <class Real>
+    static void run(const SumTree& t, const std::uint32_t* s, std::size_t c, const double* x, const double* y, const double* z,
+                    int n, double beta, double tol, double* w, std::size_t& terms) {
+#if defined(__x86_64__) && defined(__GNUC__)
+        static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+        if (avx2) return t.winding_lanes_avx2<Real>(s, c, x, y, z, n, beta, tol, w, terms);
+#endif
+        t.winding_lanes_generic<Real>(s, c, x, y, z, n, beta, tol, w, terms);
+    }
 };
 
-void SumTree::winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
-                      std::size_t& terms) const {
-    const std::uint32_t root = 0;
-    winding_from(&root, 1, x, y, z, n, beta, tolerance, w, terms);
+bool SumTree::single_reach(double x, double y, double z) const {
+    const double r = kSingleReach / w_scale_;
+    return std::abs(x - w_origin_[0]) <= r && std::abs(y - w_origin_[1]) <= r && std::abs(z - w_origin_[2]) <= r;
 }
 
-void SumTree::winding_from(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z,
-                           int n, double beta, double tolerance, double* w, std::size_t& terms) const {
+void SumTree::walk(bool single, const std::uint32_t* starts, std::size_t count, const double* x, const double* y,
+                   const double* z, int n, double beta, double tolerance, double* w, std::size_t& terms) const {
     if (n <= 0) return;
     if (n > kLanes) throw Error("packet", "more than " + std::to_string(kLanes) + " queries");
-    if (WindingDispatch::has_avx2()) WindingDispatch::avx2(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
-    else WindingDispatch::generic(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
+    single = single && single_enough(beta, tolerance);
+    for (int l = 0; l < n && single; ++l) single = single_reach(x[l], y[l], z[l]);
+    const std::uint32_t root = 0;
+    if (single) WindingDispatch::run<float>(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
+    else WindingDispatch::run<double>(*this, &root, 1, x, y, z, n, beta, tolerance, w, terms);  // from the root: see walk()'s callers
 }
 
-void SumTree::winding_frontier(const double* lo, const double* hi, double beta, double tolerance,
-                               std::vector<std::uint32_t>& frontier) const {
-    frontier.clear();
-    const double reach_scale = sums::winding_reach_scale(tolerance);
+void SumTree::winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
+                      std::size_t& terms, bool single) const {
+    const std::uint32_t root = 0;
+    walk(single, &root, 1, x, y, z, n, beta, tolerance, w, terms);
+}
+
+void SumTree::winding_from(const WindingFrontier& frontier, const double* x, const double* y, const double* z, int n,
+                           double beta, double tolerance, double* w, std::size_t& terms) const {
+    // A frontier made for double walks is the root's (frontier_in is not run for them), so
+    // walk() restarting those at the root loses nothing.
+    walk(frontier.single, frontier.nodes.data(), frontier.nodes.size(), x, y, z, n, beta, tolerance, w, terms);
+}
+
+template <class Real>
+void SumTree::frontier_in(const double* lo, const double* hi, double beta, double tolerance, std::vector<std::uint32_t>& nodes) const {
+    const WindingTestT<Real>* tests;
+    if constexpr (sizeof(Real) == sizeof(float)) tests = wtests_f_.data();
+    else tests = wtests_.data();
+    // The box in the walk's coordinates, rounded as the lanes round their queries: every
+    // query's coordinate stays within the box's (rounding is monotone).
+    Real blo[3], bhi[3];
+    for (int a = 0; a < 3; ++a) {
+        blo[a] = Real((lo[a] - w_origin_[a]) * w_scale_);
+        bhi[a] = Real((hi[a] - w_origin_[a]) * w_scale_);
+    }
+    const Real reach_scale = Real(sums::winding_reach_scale(tolerance)), beta_r = Real(beta);
+    // The lanes may round their squared distance and reach (fused or not) a few units in the
+    // last place away from this scalar code: only a node opened with that much room is skipped.
+    constexpr Real margin = 1 + 16 * std::numeric_limits<Real>::epsilon();
     std::uint32_t stack[kStack];
     int top = 0;
     stack[top++] = 0;
     while (top > 0) {
         const std::uint32_t i = stack[--top];
-        const WindingTest& t = wtests_[i];
+        const WindingTestT<Real>& t = tests[i];
         // The farthest point of the box from the node's center.
-        double far2 = 0;
+        Real far2 = 0;
         for (int a = 0; a < 3; ++a) {
-            const double e = std::max(t.c[a] - lo[a], hi[a] - t.c[a]);
+            const Real e = std::max(t.c[a] - blo[a], bhi[a] - t.c[a]);
             far2 += e * e;
         }
-        if (i < first_leaf_ && far2 <= sums::winding_reach2(t.rho, t.q, beta, reach_scale)) {
+        if (i < first_leaf_ && far2 * margin <= sums::winding_reach2(t.rho, t.q, beta_r, reach_scale)) {
             stack[top++] = 2 * i + 1;  // every query in the box opens it: on to its children, in
             stack[top++] = 2 * i + 2;  // the order the walk takes them (the second child first)
         } else {
-            frontier.push_back(i);
+            nodes.push_back(i);
         }
     }
+}
+
+void SumTree::winding_frontier(const double* lo, const double* hi, double beta, double tolerance, WindingFrontier& frontier) const {
+    frontier.nodes.clear();
+    frontier.single = single_enough(beta, tolerance) && single_reach(lo[0], lo[1], lo[2]) && single_reach(hi[0], hi[1], hi[2]);
+    // Double walks (queries far from the model, which open few nodes, or criteria finer than
+    // float32) start from the root.
+    if (frontier.single) frontier_in<float>(lo, hi, beta, tolerance, frontier.nodes);
+    else frontier.nodes.push_back(0);
 }
 
 double SumTree::winding(const Vec3& x, double beta, double tolerance, std::size_t& terms) const {

@@ -51,14 +51,23 @@ public:
     // The dipole kernel's derivatives are symmetric in all their indices, so its expansion needs
     // only the symmetric parts of the moments: tr M1, M0 (3), sym M1 (6), the symmetrized M2 as
     // a cubic form (10) and t + 2s (3; t_a = tr M2_a, s_j = Σ_a M2_a[a][j]), each scaled by its
-    // factor in winding_expansion — one contiguous 184-byte record per node.
-    struct WindingNode {
-        double k0, m0[3], p[3], s1[6], t3[10];
+    // factor in winding_expansion — one contiguous record per node. The winding walk reads these
+    // in coordinates centered on the root and scaled by its radius (so that float32 keeps its
+    // precision wherever the model is and whatever its size), in float32 or in double.
+    template <class Real>
+    struct WindingNodeT {
+        Real k0, m0[3], p[3], s1[6], t3[10];
     };
-    /// What the winding walk's acceptance test reads (40 bytes): center, ρ and the node's part
-    /// of its reach, q = (A·ρ³/π)^(1/5) (sums::winding_reach2).
-    struct WindingTest {
-        double c[3], rho, q;
+    /// What the winding walk's acceptance test reads: center, ρ and the node's part of its
+    /// reach, q = (A·ρ³/π)^(1/5) (sums::winding_reach2), in those coordinates.
+    template <class Real>
+    struct WindingTestT {
+        Real c[3], rho, q;
+    };
+    /// Where a group of winding queries starts its walks (winding_frontier()).
+    struct WindingFrontier {
+        std::vector<std::uint32_t> nodes;
+        bool single = true;  ///< the walks run their far field in float32
     };
 
     explicit SumTree(const OrientedElements& elements);
@@ -87,19 +96,30 @@ public:
     /// which walk the tree together: a node is read once for the packet, and the acceptance
     /// tests and expansions run on every lane at once (SIMD; AVX2 where the CPU has it). Each
     /// lane visits the nodes its own walk would, in the same order, with the same arithmetic:
-    /// its result does not depend on the other lanes.
+    /// its result does not depend on the other lanes (unless one of them makes the packet walk
+    /// in double, below).
+    ///
+    /// Precision: the far field (acceptance tests and node expansions, 90 % of the terms) runs
+    /// in float32 — 8 lanes per AVX2 register instead of 4 — in the root's normalized
+    /// coordinates, which bounds its rounding error by ~1e-6 in the winding number; elements
+    /// summed exactly run in double. Queries farther than kSingleReach root radii from the
+    /// root's center (their far field could under- or overflow in float32) walk in double, and
+    /// so do all queries when the criterion asks for more accuracy than float32 gives
+    /// (single_enough()).
     static constexpr int kLanes = 8;
+    /// `single` false walks the far field in double too (the reference for its precision).
+    static constexpr double kSingleReach = 1e4;
     void winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
-                 std::size_t& terms) const;
+                 std::size_t& terms, bool single = true) const;
     /// The nodes where the walk of any query in the box [lo, hi] first does something other
     /// than open the node: it skips every node that all of them would open (the farthest point
-    /// of the box is within the node's reach). In the order the walk from the root reaches them.
-    void winding_frontier(const double* lo, const double* hi, double beta, double tolerance,
-                          std::vector<std::uint32_t>& frontier) const;
-    /// The packet walk started from such a frontier of a box that holds the packet's queries:
-    /// the same nodes, the same order and the same result as from the root, fewer visits.
-    void winding_from(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
-                      double beta, double tolerance, double* w, std::size_t& terms) const;
+    /// of the box is within the node's reach, with a margin for rounding). In the order the walk
+    /// from the root reaches them; for the precision the box's queries walk in.
+    void winding_frontier(const double* lo, const double* hi, double beta, double tolerance, WindingFrontier& frontier) const;
+    /// The packet walk started from the frontier of a box that holds the packet's queries: the
+    /// same nodes, the same order and the same result as from the root, fewer visits.
+    void winding_from(const WindingFrontier& frontier, const double* x, const double* y, const double* z, int n, double beta,
+                      double tolerance, double* w, std::size_t& terms) const;
     /// The exact sum over every element (the reference).
     double winding_exact(const Eigen::Vector3d& x) const;
 
@@ -128,10 +148,27 @@ private:
 
     std::vector<Node> nodes_;
     std::vector<Hot> hot_;
-    std::vector<WindingNode> wnodes_;
-    std::vector<WindingTest> wtests_;
-    void winding_lanes(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
-                       double beta, double tolerance, double* w, std::size_t& terms) const;
+    std::vector<WindingNodeT<double>> wnodes_;
+    std::vector<WindingTestT<double>> wtests_;
+    std::vector<WindingNodeT<float>> wnodes_f_;
+    std::vector<WindingTestT<float>> wtests_f_;
+    double w_origin_[3] = {0, 0, 0}, w_scale_ = 1;  // the walk's coordinates: (x − origin)·scale
+    /// Whether a query at (x, y, z) may walk in float32 (within kSingleReach of the root).
+    bool single_reach(double x, double y, double z) const;
+    /// Whether float32's ~1e-6 is far below the criterion's truncation error: tolerance ≥ 1e-4,
+    /// or β ≤ 4 when tolerance is 0.
+    static bool single_enough(double beta, double tolerance) { return tolerance > 0 ? tolerance >= 1e-4 : beta <= 4; }
+    // The packet walk, compiled for any x86-64 and for AVX2 + FMA (sum_tree.cpp, winding_walk.inl).
+    template <class Real>
+    void winding_lanes_generic(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z,
+                               int n, double beta, double tolerance, double* w, std::size_t& terms) const;
+    template <class Real>
+    void winding_lanes_avx2(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z,
+                            int n, double beta, double tolerance, double* w, std::size_t& terms) const;
+    template <class Real>
+    void frontier_in(const double* lo, const double* hi, double beta, double tolerance, std::vector<std::uint32_t>& nodes) const;
+    void walk(bool single, const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
+              double beta, double tolerance, double* w, std::size_t& terms) const;
     friend struct WindingDispatch;
     std::vector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
     double decay_lambda_ = -1;
@@ -189,8 +226,9 @@ inline bool accept_winding(double rho, double d2, double area, double beta, doub
 /// accept_winding() solved for the distance, so that the walk takes no square root to test a
 /// node: with q = (A·ρ³/π)^(1/5) stored per node and s = tolerance^(−1/5) (0 for tolerance 0)
 /// per walk, the node is accepted iff d² > reach², reach = max(β·ρ, ρ + q·s).
-inline double winding_reach2(double rho, double q, double beta, double s) {
-    const double a = beta * rho, b = rho + q * s;
+template <class Real>
+inline Real winding_reach2(Real rho, Real q, Real beta, Real s) {
+    const Real a = beta * rho, b = rho + q * s;
     return a > b ? a * a : b * b;
 }
 inline double winding_reach_scale(double tolerance) { return tolerance > 0 ? std::pow(tolerance, -0.2) : 0.0; }

@@ -95,17 +95,25 @@ std::vector<std::uint32_t> spatial_order(PointsView q) {
         v = (v | (v << 2)) & 0x09249249ull;
         return v;
     };
-    std::vector<std::uint64_t> key(n);
+    std::vector<std::uint64_t> item(n), next(n);  // key << 32 | index
     for (std::size_t i = 0; i < n; ++i) {
         std::uint64_t k = 0;
         for (int a = 0; a < 3; ++a) {
             const double u = std::clamp((q(Eigen::Index(i), a) - b.lo[a]) * scale[a], 0.0, 1023.0);
             k |= spread(std::uint64_t(u)) << a;
         }
-        key[i] = k << 32 | i;
+        item[i] = k << 32 | i;
     }
-    std::sort(key.begin(), key.end());
-    for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(key[i] & 0xffffffffu);
+    // By key, stable: three counting passes of 10 bits (std::sort of 10⁶ keys took 6 % of a
+    // whole `gsd winding` run).
+    for (int shift = 32; shift < 62; shift += 10) {
+        std::size_t start[1025] = {};
+        for (const std::uint64_t v : item) ++start[(v >> shift & 1023) + 1];
+        for (std::size_t d = 0; d < 1024; ++d) start[d + 1] += start[d];
+        for (const std::uint64_t v : item) next[start[v >> shift & 1023]++] = v;
+        item.swap(next);
+    }
+    for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(item[i] & 0xffffffffu);
     return order;
 }
 
@@ -152,7 +160,7 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
         for (std::size_t g = first; g < last; g += group) {
             const std::size_t g_end = std::min(last, g + group);
             // The group's frontier: the nodes every one of its queries would open are skipped.
-            thread_local std::vector<std::uint32_t> frontier;
+            thread_local detail::SumTree::WindingFrontier frontier;
             if (!opt.exact) {
                 double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
                 for (std::size_t i = g; i < g_end; ++i)
@@ -175,7 +183,7 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
                     for (int l = 0; l < m; ++l) w[l] = tree.winding_exact(Eigen::Vector3d(x[l], y[l], z[l]));
                     terms += std::size_t(m) * tree.size();
                 } else {
-                    tree.winding_from(frontier.data(), frontier.size(), x, y, z, m, opt.beta, opt.tolerance, w, terms);
+                    tree.winding_from(frontier, x, y, z, m, opt.beta, opt.tolerance, w, terms);
                 }
                 for (int l = 0; l < m; ++l) out.w[order[p + std::size_t(l)]] = w[l];
             }
