@@ -302,6 +302,34 @@ TEST_CASE("fast winding numbers: bad input is refused") {
     CHECK_THROWS_AS(OrientedElements::from_points(Points::Zero(2, 3), Points::Ones(3, 3)), Error);
 }
 
+TEST_CASE("nearest element: the tree search equals brute force, whatever bound and start element it is given") {
+    const PolygonMesh m = broken("torus", 20, 6);
+    const detail::SumTree tree(OrientedElements::from_mesh(m));
+    const Points q = random_queries(300, 1.3, 12);
+    std::mt19937_64 rng(13);
+    std::uniform_int_distribution<std::uint32_t> any(0, std::uint32_t(tree.size()) + 5);  // a few past the end: no start
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const Vec3 x = q.row(i).transpose();
+        auto dist2 = [&](std::uint32_t j) {
+            const double* p = tree.corners(j);
+            return detail::sums::point_triangle_distance2(x, Vec3(p[0], p[1], p[2]), Vec3(p[3], p[4], p[5]), Vec3(p[6], p[7], p[8]));
+        };
+        double brute2 = INFINITY;
+        for (std::uint32_t j = 0; j < tree.size(); ++j) brute2 = std::min(brute2, dist2(j));
+        const double brute = std::sqrt(brute2);
+        REQUIRE(tree.nearest_distance(x) == brute);
+        // A loose bound, then the exact one (as from a neighbor), with a random start element:
+        // the same distance, and the element reported attains it.
+        const std::uint32_t start = any(rng);
+        for (const double bound : {brute + 0.3, brute}) {
+            std::uint32_t nearest = start;
+            REQUIRE(tree.nearest_distance(x, bound, &nearest) == brute);
+            REQUIRE(nearest < tree.size());
+            CHECK(dist2(nearest) == brute2);
+        }
+    }
+}
+
 TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine quadrature, coarse faces included") {
     // A coarse broken mesh (faces several times 1/λ near some queries) and queries from on the
     // surface out to the cutoff.

@@ -30,9 +30,10 @@ public:
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : terms)
             for (std::size_t r = 0; r < runs; ++r) {
                 double bound = INFINITY;
+                std::uint32_t nearest = std::uint32_t(-1);  // the previous point's nearest element: usually this one's too
                 for (std::size_t i = first + r * run; i < std::min(last, first + (r + 1) * run); ++i) {
                     const Eigen::Vector3d xi = x.row(Eigen::Index(i)).transpose();
-                    const Eigen::Vector3d X = tree_.screened(xi, k_, r_min[i], terms, bound);
+                    const Eigen::Vector3d X = tree_.screened(xi, k_, r_min[i], terms, bound, &nearest);
                     if (i + 1 < last) bound = r_min[i] + (x.row(Eigen::Index(i + 1)).transpose() - xi).norm();
                     const double len = X.norm();
                     if (len > 0)

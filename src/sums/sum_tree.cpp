@@ -504,9 +504,21 @@ double SumTree::winding_exact(const Vec3& x) const {
     return w;
 }
 
-double SumTree::nearest_distance(const Vec3& x, double bound) const {
+double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nearest) const {
     // Slightly above the bound so rounding never prunes the element that attains it.
     double best2 = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
+    std::uint32_t best = std::uint32_t(-1);
+    auto element2 = [&](std::uint32_t j) {
+        const double* p = corners(j);
+        return sums::point_triangle_distance2(x, vec(p), vec(p + 3), vec(p + 6));
+    };
+    if (nearest && *nearest < size()) {  // a candidate's own distance: the search only looks for better
+        const double d2 = element2(*nearest);
+        if (d2 < best2) {
+            best2 = d2;
+            best = *nearest;
+        }
+    }
     std::uint32_t stack[kStack];
     int top = 0;
     stack[top++] = 0;
@@ -523,8 +535,11 @@ double SumTree::nearest_distance(const Vec3& x, double bound) const {
         if (box2(i) >= best2) continue;
         if (i >= first_leaf_) {
             for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) {
-                const double* p = corners(j);
-                best2 = std::min(best2, sums::point_triangle_distance2(x, vec(p), vec(p + 3), vec(p + 6)));
+                const double d2 = element2(j);
+                if (d2 < best2) {
+                    best2 = d2;
+                    best = j;
+                }
             }
         } else {
             const std::uint32_t l = 2 * i + 1, r = 2 * i + 2;
@@ -533,11 +548,13 @@ double SumTree::nearest_distance(const Vec3& x, double bound) const {
             stack[top++] = left_first ? l : r;
         }
     }
+    if (nearest) *nearest = best;
     return std::sqrt(best2);
 }
 
-Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound) const {
-    r_min = nearest_distance(x, r_bound);
+Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound,
+                       std::uint32_t* nearest) const {
+    r_min = nearest_distance(x, r_bound, nearest);
     const double R = r_min + k.cutoff / k.lambda;
     const double budget = k.tolerance * 2 * M_PI / k.lambda;
     const bool cached = decay_lambda_ == k.lambda;

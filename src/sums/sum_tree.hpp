@@ -133,13 +133,17 @@ public:
     /// Distance from x to the nearest element (exact point–triangle distance).
     /// `bound`: a known upper bound of it (e.g. a neighbor's distance plus the step: the
     /// distance is 1-Lipschitz), which prunes the search; exact either way.
-    double nearest_distance(const Eigen::Vector3d& x, double bound = INFINITY) const;
+    /// `nearest`, if given: in, an element index whose distance also bounds the search (the
+    /// previous query's nearest, for a neighbor: usually the answer; ≥ size() for none); out,
+    /// the element that attains the distance.
+    double nearest_distance(const Eigen::Vector3d& x, double bound = INFINITY, std::uint32_t* nearest = nullptr) const;
     /// X = Σ_j v_j ∫ e^(−λ(r − r_min))/r dA_j / A_j over elements within r_min + cutoff/λ, by
     /// node expansions where accept_screened() says so and by adaptive subdivision of the
     /// triangles elsewhere. Returns X (only its direction matters) and sets r_min.
-    /// r_bound: an upper bound of r_min if one is known (see nearest_distance).
+    /// r_bound, nearest: an upper bound of r_min and a start element, if known (see
+    /// nearest_distance).
     Eigen::Vector3d screened(const Eigen::Vector3d& x, const Screened& k, double& r_min, std::size_t& terms,
-                             double r_bound = INFINITY) const;
+                             double r_bound = INFINITY, std::uint32_t* nearest = nullptr) const;
 
 private:
     void compute_node(std::uint32_t i);
