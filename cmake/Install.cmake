@@ -11,7 +11,7 @@ set(gsd_static_deps "")
 if(NOT GSD_SHARED)
   target_link_libraries(gsd INTERFACE
     $<INSTALL_INTERFACE:OpenMP::OpenMP_CXX ${CLP_LINK_LIBRARIES} ${CHOLMOD_LIBRARY}
-                        ${STB_LINK_LIBRARIES} ${GSD_OPENVDB_LIBRARIES} ${CMAKE_DL_LIBS}>)
+                        ${STB_LINK_LIBRARIES} ${CMAKE_DL_LIBS}>)
   set(gsd_static_deps "find_dependency(OpenMP COMPONENTS CXX)")
 endif()
 
@@ -44,8 +44,7 @@ install(FILES ${CMAKE_CURRENT_BINARY_DIR}/gsdConfig.cmake ${CMAKE_CURRENT_BINARY
 set(gsd_pc_private "")
 if(NOT GSD_SHARED)
   list(JOIN CLP_LINK_LIBRARIES " " clp_libs)
-  list(JOIN GSD_OPENVDB_LIBRARIES " " vdb_libs)
-  set(gsd_pc_private "Libs.private: -fopenmp ${clp_libs} ${CHOLMOD_LIBRARY} ${STB_LINK_LIBRARIES} ${vdb_libs} -ldl")
+  set(gsd_pc_private "Libs.private: -fopenmp ${clp_libs} ${CHOLMOD_LIBRARY} ${STB_LINK_LIBRARIES} -ldl")
 endif()
 # The prefix is found from the file's own place, so `cmake --install --prefix P` anywhere works.
 file(RELATIVE_PATH gsd_pc_to_prefix /${CMAKE_INSTALL_LIBDIR}/pkgconfig /)

@@ -1,35 +1,63 @@
-// .vdb output through OpenVDB (Debian's libopenvdb-dev): a FloatGrid per scalar grid, with the
-// transform that puts voxel (i, j, k) on gsd's node (i, j, k).
+// .vdb output: the checks here, the OpenVDB part in the plugin libgsd_vdb.so (vdb_plugin.h),
+// loaded on first use so that programs that never write a .vdb never pay for OpenVDB.
 #include <gsd/io.hpp>
 
-// OpenVDB's types must keep default visibility in this file: gsd builds with hidden visibility,
-// and a hidden copy of their type_info breaks the library's own casts (a segfault on write).
-#pragma GCC visibility push(default)
-#include <openvdb/io/Stream.h>
-#include <openvdb/openvdb.h>
-#pragma GCC visibility pop
+#include "io/vdb_plugin.h"
+
+#include <dlfcn.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <mutex>
-#include <sstream>
+#include <vector>
 
 namespace gsd::io {
 
 namespace {
 
-void initialize_once() {
-    static std::once_flag once;
-    std::call_once(once, [] { openvdb::initialize(); });
+// Where the plugin may be, in order: $GSD_VDB_PLUGIN; beside the module that holds this code
+// (libgsd.so) or in ../lib from it (a program in bin/); the build tree; the install tree; the
+// loader's search path.
+std::vector<std::string> plugin_candidates() {
+    std::vector<std::string> out;
+    if (const char* env = std::getenv("GSD_VDB_PLUGIN"); env && *env) out.emplace_back(env);
+    Dl_info info{};
+    if (dladdr(reinterpret_cast<void*>(&plugin_candidates), &info) && info.dli_fname) {
+        std::string dir = info.dli_fname;
+        const auto slash = dir.find_last_of('/');
+        dir = slash == std::string::npos ? "." : dir.substr(0, slash);
+        out.push_back(dir + "/" GSD_VDB_PLUGIN_NAME);
+        out.push_back(dir + "/../lib/" GSD_VDB_PLUGIN_NAME);
+    }
+#ifdef GSD_VDB_BUILD_PATH
+    out.emplace_back(GSD_VDB_BUILD_PATH);
+#endif
+#ifdef GSD_VDB_INSTALL_PATH
+    out.emplace_back(GSD_VDB_INSTALL_PATH);
+#endif
+    out.emplace_back(GSD_VDB_PLUGIN_NAME);
+    return out;
 }
 
-openvdb::math::Transform::Ptr node_transform(const GridSpec& g, const Eigen::Vector3d& step) {
-    const openvdb::Vec3d scale(step[0], step[1], step[2]), lo(g.box.lo[0], g.box.lo[1], g.box.lo[2]);
-    return std::make_shared<openvdb::math::Transform>(std::make_shared<openvdb::math::ScaleTranslateMap>(scale, lo));
+GsdVdbEncode plugin() {
+    static GsdVdbEncode encode = nullptr;
+    static std::once_flag once;
+    std::call_once(once, [] {
+        for (const std::string& path : plugin_candidates())
+            if (void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {  // kept for the process's life
+                encode = reinterpret_cast<GsdVdbEncode>(dlsym(handle, GSD_VDB_ENCODE_SYMBOL));
+                if (encode) return;
+                dlclose(handle);
+            }
+    });
+    return encode;
 }
+
+void append(void* context, const char* bytes, size_t size) { static_cast<std::string*>(context)->append(bytes, size); }
 
 }  // namespace
 
-bool vdb_available() { return true; }
+bool vdb_available() { return plugin() != nullptr; }
 
 void write_vdb(const std::string& path, const GridSpec& g, const std::vector<float>& values, const VdbOptions& o) {
     g.validate();
@@ -45,36 +73,18 @@ void write_vdb(const std::string& path, const GridSpec& g, const std::vector<flo
         throw Error(path, "a level set needs cubic voxels, and this grid's spacing is " + std::to_string(step[0]) + ", " +
                               std::to_string(step[1]) + ", " + std::to_string(step[2]) +
                               " (equal extents per node count, e.g. the default cubic bounds, give cubes)");
-    initialize_once();
-
-    const float background = o.level_set ? float(o.half_width * step[0]) : 0.0f;
-    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(background);
-    grid->setTransform(node_transform(g, step));
-    grid->setName(o.name);
-    grid->setGridClass(o.level_set ? openvdb::GRID_LEVEL_SET : openvdb::GRID_UNKNOWN);
-    grid->setCreator(std::string("gsd ").append(version()));
-    if (!o.method.empty()) grid->insertMeta("gsd_method", openvdb::StringMetadata(o.method));
-    openvdb::FloatGrid::Accessor acc = grid->getAccessor();
-    std::size_t n = 0;
-    for (int i = 0; i < g.nx; ++i)
-        for (int j = 0; j < g.ny; ++j)
-            for (int k = 0; k < g.nz; ++k, ++n) {
-                const openvdb::Coord ijk(i, j, k);
-                const float v = values[n];
-                if (!o.level_set || std::abs(v) < background) acc.setValue(ijk, v);
-                // Outside the band: inactive, ±background by the sign gsd computed there (no
-                // flood fill: a band cut by the grid's box would leave its sign to guesswork).
-                else acc.setValueOff(ijk, v < 0 ? -background : background);
-            }
-    grid->pruneGrid(0.0f);  // uniform regions (the inactive outside and inside) become tiles
-
-    std::ostringstream bytes(std::ios_base::binary);
-    try {
-        openvdb::io::Stream(bytes).write(openvdb::GridCPtrVec{grid});
-    } catch (const openvdb::Exception& e) {
-        throw Error(path, std::string("OpenVDB could not encode the grid: ") + e.what());
-    }
-    write_file_atomic(path, bytes.str());
+    const GsdVdbEncode encode = plugin();
+    if (!encode)
+        throw Error(path, "this gsd cannot write .vdb: its OpenVDB plugin " GSD_VDB_PLUGIN_NAME
+                          " was not found (gsd was built without libopenvdb-dev, or the plugin is not installed beside "
+                          "libgsd; $GSD_VDB_PLUGIN may name it); write .npy instead");
+    const std::string creator = std::string("gsd ").append(version());
+    GsdVdbGrid grid{g.nx, g.ny, g.nz, {g.box.lo[0], g.box.lo[1], g.box.lo[2]}, {step[0], step[1], step[2]}, values.data(),
+                    o.name.c_str(), o.level_set ? 1 : 0, o.half_width, o.method.c_str(), creator.c_str()};
+    std::string bytes;
+    char error[512] = "";
+    if (encode(&grid, append, &bytes, error, sizeof error) != 0) throw Error(path, error);
+    write_file_atomic(path, bytes);
 }
 
 }  // namespace gsd::io

@@ -26,6 +26,13 @@ if [ -n "$archive" ]; then
   echo "ok: libgsd.a defines no global vk*/volk* symbol"
 fi
 
+# The .vdb plugin, when it was built, is installed beside the library that loads it.
+if [ -e "$build/lib/libgsd_vdb.so" ]; then
+  plugin=$(ls "$prefix"/lib/*/libgsd_vdb.so "$prefix"/lib/libgsd_vdb.so 2>/dev/null | head -1 || true)
+  [ -n "$plugin" ] || { echo "FAIL: libgsd_vdb.so not installed"; exit 1; }
+  echo "ok: the OpenVDB plugin is installed"
+fi
+
 # 1. CMake package.
 cmake -S "$here" -B "$work/cmake-build" -G Ninja -DCMAKE_PREFIX_PATH="$prefix" -DCMAKE_BUILD_TYPE=Release >/dev/null
 cmake --build "$work/cmake-build" >/dev/null

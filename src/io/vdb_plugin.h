@@ -1,0 +1,38 @@
+/* The C interface between libgsd and its OpenVDB plugin, libgsd_vdb.so (src/io/vdb_plugin.cpp).
+   OpenVDB lives in the plugin, which libgsd loads with dlopen the first time a .vdb is written:
+   linked into every gsd program, OpenVDB's relocations cost ~40 ms at each start, which is
+   more than a whole `gsd winding` run spends on some inputs. */
+#pragma once
+
+#include <stddef.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A scalar grid, already validated by gsd::io::write_vdb: node (i, j, k) at lo + (i, j, k)·step,
+   values in C order (k fastest). */
+struct GsdVdbGrid {
+    int nx, ny, nz;
+    double lo[3], step[3];
+    const float* values;
+    const char* name;
+    int level_set; /* 1: narrow band of half_width voxels (cubic voxels) */
+    double half_width;
+    const char* method;  /* "gsd_method" metadata, may be empty */
+    const char* creator; /* the grid's creator string */
+};
+
+/* Receives the encoded file, possibly in several pieces. */
+typedef void (*GsdVdbSink)(void* context, const char* bytes, size_t size);
+
+/* Encodes the grid as a .vdb stream into sink. 0 on success; otherwise nonzero with a message
+   in error (error_size bytes, NUL-terminated). */
+typedef int (*GsdVdbEncode)(const struct GsdVdbGrid* grid, GsdVdbSink sink, void* context, char* error, size_t error_size);
+
+#define GSD_VDB_ENCODE_SYMBOL "gsd_vdb_encode"
+#define GSD_VDB_PLUGIN_NAME "libgsd_vdb.so"
+
+#ifdef __cplusplus
+}
+#endif
