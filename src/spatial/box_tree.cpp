@@ -17,30 +17,38 @@ BoxTree::BoxTree(const Points& p, std::uint32_t leaf_size) {
     nodes_.resize((std::size_t(1) << (depth + 1)) - 1);
     first_leaf_ = std::uint32_t((std::size_t(1) << depth) - 1);
 
-    struct Task { std::uint32_t node, begin, end; int level; };
-    std::vector<Task> pending{{0, 0, n, 0}};
-    while (!pending.empty()) {
-        const Task t = pending.back();
-        pending.pop_back();
-        Node& node = nodes_[t.node];
-        node.begin = t.begin;
-        node.end = t.end;
+    // Each node: its box, then a median split along its longest side. The two halves are
+    // independent, so large ones are built as OpenMP tasks (the same tree as in serial).
+    auto build = [&](auto&& self, std::uint32_t index, std::uint32_t begin, std::uint32_t end, int level) -> void {
+        Node& node = nodes_[index];
+        node.begin = begin;
+        node.end = end;
         for (int a = 0; a < 3; ++a) { node.lo[a] = INFINITY; node.hi[a] = -INFINITY; }
-        for (std::uint32_t j = t.begin; j < t.end; ++j)
+        for (std::uint32_t j = begin; j < end; ++j)
             for (int a = 0; a < 3; ++a) {
                 node.lo[a] = std::min(node.lo[a], p(order_[j], a));
                 node.hi[a] = std::max(node.hi[a], p(order_[j], a));
             }
-        if (t.level == depth) continue;
+        if (level == depth) return;
         int axis = 0;
         for (int a = 1; a < 3; ++a)
             if (node.hi[a] - node.lo[a] > node.hi[axis] - node.lo[axis]) axis = a;
-        const std::uint32_t mid = t.begin + (t.end - t.begin) / 2;
-        std::nth_element(order_.begin() + t.begin, order_.begin() + mid, order_.begin() + t.end,
+        const std::uint32_t mid = begin + (end - begin) / 2;
+        std::nth_element(order_.begin() + begin, order_.begin() + mid, order_.begin() + end,
                          [&](std::uint32_t a, std::uint32_t b) { return p(a, axis) < p(b, axis); });
-        pending.push_back({2 * t.node + 1, t.begin, mid, t.level + 1});
-        pending.push_back({2 * t.node + 2, mid, t.end, t.level + 1});
-    }
+        if (end - begin > 16384) {
+#pragma omp task default(shared) firstprivate(index, begin, mid, level)
+            self(self, 2 * index + 1, begin, mid, level + 1);
+            self(self, 2 * index + 2, mid, end, level + 1);
+#pragma omp taskwait
+        } else {
+            self(self, 2 * index + 1, begin, mid, level + 1);
+            self(self, 2 * index + 2, mid, end, level + 1);
+        }
+    };
+#pragma omp parallel if (n > 16384)
+#pragma omp single
+    build(build, 0, 0, n, 0);
     xyz_.resize(3 * std::size_t(n));
     for (std::uint32_t j = 0; j < n; ++j)
         for (int a = 0; a < 3; ++a) xyz_[3 * j + std::uint32_t(a)] = p(order_[j], a);

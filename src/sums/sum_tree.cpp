@@ -240,8 +240,9 @@ double triangle_winding(const Vec3& x, const Vec3& a0, const Vec3& b0, const Vec
 SumTree::SumTree(const OrientedElements& e) {
     e.validate();
     const std::size_t n = e.size();
-    // Measured: ~1.2 KiB per element with the mesh it came from (up to 2 nodes per element, each
-    // with its moments three ways: ~700 B); docs/io.md.
+    // Measured: 0.8–0.9 KiB per element for `gsd winding` with the mesh it came from (up to 3
+    // nodes per element, each with its moments and the float32 walk's records; the double walk's
+    // and SHM's records come on demand); docs/io.md.
     check_memory(2048.0 * double(n), "elements", "a summation tree over " + std::to_string(n) + " elements");
     Points centroids(Eigen::Index(n), 3);
     for (std::size_t j = 0; j < n; ++j) {
@@ -255,6 +256,8 @@ SumTree::SumTree(const OrientedElements& e) {
     v_.resize(3 * n);
     cov_.resize(6 * n);
     is_point_.resize(n);
+    bool triangles = false;
+#pragma omp parallel for schedule(static) reduction(|| : triangles)
     for (std::size_t j = 0; j < n; ++j) {
         const auto J = Eigen::Index(order_[j]);
         for (int k = 0; k < 3; ++k)
@@ -264,48 +267,43 @@ SumTree::SumTree(const OrientedElements& e) {
         triangle_covariance(&p_[9 * j], cov);
         std::copy(cov, cov + 6, &cov_[6 * j]);
         is_point_[j] = e.corners.row(3 * J) == e.corners.row(3 * J + 1) && e.corners.row(3 * J) == e.corners.row(3 * J + 2);
-        triangles_ = triangles_ || !is_point_[j];
+        triangles = triangles || !is_point_[j];
     }
+    triangles_ = triangles;
     nodes_.resize(tree.nodes().size());
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
         nodes_[i].begin = tree.nodes()[i].begin;
         nodes_[i].end = tree.nodes()[i].end;
     }
-    // Each node from its own elements: O(n log n), and no error accumulates by translating
-    // moments up the tree.
-#pragma omp parallel for schedule(dynamic, 16)
-    for (std::size_t i = 0; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
+    // Leaves from their elements, then each level of inner nodes from its children's moments,
+    // translated to the node's center: O(n) instead of every node from its own elements,
+    // O(n log n) (which took 35 % of a winding run's fixed cost on 1.3·10⁵ triangles). The
+    // translation is exact algebra; only ρ needs every corner again (merge_node()).
+#pragma omp parallel for schedule(static)
+    for (std::size_t i = first_leaf_; i < nodes_.size(); ++i) compute_node(std::uint32_t(i));
+    for (std::size_t level_end = first_leaf_; level_end > 0; level_end = (level_end - 1) / 2) {
+        const std::size_t level_begin = (level_end - 1) / 2;  // the level above [level_end, …)
+#pragma omp parallel for schedule(dynamic, 64) if (level_end - level_begin > 1024)
+        for (std::size_t i = level_begin; i < level_end; ++i) merge_node(std::uint32_t(i));
+    }
     // The winding walk's coordinates: centered on the root, in units of its radius.
     std::copy(nodes_[0].c, nodes_[0].c + 3, w_origin_);
     w_scale_ = nodes_[0].rho > 0 ? 1 / nodes_[0].rho : 1.0;
-    wnodes_.resize(nodes_.size());
-    wtests_.resize(nodes_.size());
+    // The float32 records every walk reads; the double ones and the screened sums' `Hot`
+    // records are made when first needed (double_walk_data(), hot()): each a pass over the
+    // nodes and tens of MB that most runs never touch.
     wnodes_f_.resize(nodes_.size());
     wtests_f_.resize(nodes_.size());
+#pragma omp parallel for schedule(static)
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
-        const Node nd = normalized(nodes_[i], w_origin_, w_scale_);
-        wnodes_[i] = winding_node(nd);
-        wtests_[i] = {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, std::pow(nd.area * nd.rho * nd.rho * nd.rho / M_PI, 0.2)};
-        wnodes_f_[i] = to_float(wnodes_[i]);
-        const auto& t = wtests_[i];
+        const auto t = winding_test(i);
+        wnodes_f_[i] = to_float(winding_node(normalized(nodes_[i], w_origin_, w_scale_)));
         // ρ and q rounded up, so float32 never accepts a node that double would refuse for them.
         auto up = [](double v) { return float(v) < v ? std::nextafter(float(v), INFINITY) : float(v); };
         wtests_f_[i] = {{float(t.c[0]), float(t.c[1]), float(t.c[2])}, up(t.rho), up(t.q)};
     }
-    hot_.resize(nodes_.size());
-    for (std::size_t i = 0; i < nodes_.size(); ++i) {
-        const Node& nd = nodes_[i];
-        Hot& h = hot_[i];
-        std::copy(nd.c, nd.c + 3, h.c);
-        std::copy(nd.lo, nd.lo + 3, h.lo);
-        std::copy(nd.hi, nd.hi + 3, h.hi);
-        h.rho = nd.rho;
-        h.area = nd.area;
-        h.decay = 1;
-        h.begin = nd.begin;
-        h.end = nd.end;
-    }
     elem_rho_.resize(n);
+#pragma omp parallel for schedule(static)
     for (std::size_t j = 0; j < n; ++j) {
         const double* p = corners(j);
         const Vec3 g = (vec(p) + vec(p + 3) + vec(p + 6)) / 3;
@@ -313,7 +311,45 @@ SumTree::SumTree(const OrientedElements& e) {
     }
 }
 
+SumTree::WindingTestT<double> SumTree::winding_test(std::size_t i) const {
+    const Node nd = normalized(nodes_[i], w_origin_, w_scale_);
+    return {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, std::pow(nd.area * nd.rho * nd.rho * nd.rho / M_PI, 0.2)};
+}
+
+void SumTree::double_walk_data() const {
+    std::call_once(once_->twice, [this] {
+        wnodes_.resize(nodes_.size());
+        wtests_.resize(nodes_.size());
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < nodes_.size(); ++i) {
+            wnodes_[i] = winding_node(normalized(nodes_[i], w_origin_, w_scale_));
+            wtests_[i] = winding_test(i);
+        }
+    });
+}
+
+const std::vector<SumTree::Hot>& SumTree::hot() const {
+    std::call_once(once_->hot, [this] {
+        hot_.resize(nodes_.size());
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < nodes_.size(); ++i) {
+            const Node& nd = nodes_[i];
+            Hot& h = hot_[i];
+            std::copy(nd.c, nd.c + 3, h.c);
+            std::copy(nd.lo, nd.lo + 3, h.lo);
+            std::copy(nd.hi, nd.hi + 3, h.hi);
+            h.rho = nd.rho;
+            h.area = nd.area;
+            h.decay = 1;
+            h.begin = nd.begin;
+            h.end = nd.end;
+        }
+    });
+    return hot_;
+}
+
 void SumTree::prepare_screened(double lambda) {
+    hot();
     for (Hot& h : hot_) h.decay = std::exp(-lambda * h.rho);
     elem_decay_.resize(elem_rho_.size());
     for (std::size_t j = 0; j < elem_rho_.size(); ++j) elem_decay_[j] = std::exp(-lambda * elem_rho_[j]);
@@ -361,6 +397,57 @@ void SumTree::compute_node(std::uint32_t i) {
     }
     nd.rho = rho;
     nd.area = area;
+}
+
+void SumTree::merge_node(std::uint32_t i) {
+    Node& nd = nodes_[i];
+    const Node* kids[2] = {&nodes_[2 * i + 1], &nodes_[2 * i + 2]};
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY}, weighted[3] = {0, 0, 0};
+    double area = 0;
+    for (const Node* k : kids) {
+        if (k->begin == k->end) continue;
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = std::min(lo[a], k->lo[a]);
+            hi[a] = std::max(hi[a], k->hi[a]);
+            weighted[a] += k->area * k->c[a];
+        }
+        area += k->area;
+    }
+    // Center: the area-weighted centroid, as compute_node() makes it; the box center if no area.
+    for (int a = 0; a < 3; ++a) {
+        nd.lo[a] = lo[a];
+        nd.hi[a] = hi[a];
+        nd.c[a] = area > 0 ? weighted[a] / area : 0.5 * (lo[a] + hi[a]);
+        nd.m0[a] = 0;
+    }
+    nd.area = area;
+    std::fill(std::begin(nd.m1), std::end(nd.m1), 0.0);
+    std::fill(std::begin(nd.m2), std::end(nd.m2), 0.0);
+    // s = y − c = (y − c_k) + δ with δ = c_k − c, so M1_a += M1k_a + M0k_a δ and
+    // M2_a += M2k_a + M1k_a ⊗ δ + δ ⊗ M1k_a + M0k_a δδᵀ (the covariances ride along in M2k).
+    static constexpr int pair[6][2] = {{0, 0}, {1, 1}, {2, 2}, {0, 1}, {0, 2}, {1, 2}};
+    for (const Node* k : kids) {
+        if (k->begin == k->end) continue;
+        const double d[3] = {k->c[0] - nd.c[0], k->c[1] - nd.c[1], k->c[2] - nd.c[2]};
+        for (int a = 0; a < 3; ++a) {
+            nd.m0[a] += k->m0[a];
+            for (int b = 0; b < 3; ++b) nd.m1[3 * a + b] += k->m1[3 * a + b] + k->m0[a] * d[b];
+            for (int b = 0; b < 6; ++b) {
+                const int x = pair[b][0], y = pair[b][1];
+                nd.m2[6 * a + b] += k->m2[6 * a + b] + k->m1[3 * a + x] * d[y] + k->m1[3 * a + y] * d[x] + k->m0[a] * d[x] * d[y];
+            }
+        }
+    }
+    // ρ: the farthest corner below, compared squared (one square root).
+    double far2 = 0;
+    for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
+        const double* p = corners(j);
+        for (int k = 0; k < 3; ++k) {
+            const double x = p[3 * k] - nd.c[0], y = p[3 * k + 1] - nd.c[1], z = p[3 * k + 2] - nd.c[2];
+            far2 = std::max(far2, x * x + y * y + z * z);
+        }
+    }
+    nd.rho = std::sqrt(far2);
 }
 
 // The walk compiled twice: for every x86-64, and for CPUs with AVX2 and FMA (chosen once at
@@ -422,6 +509,7 @@ void SumTree::walk(bool single, const std::uint32_t* starts, std::size_t count, 
     if (n > kLanes) throw Error("packet", "more than " + std::to_string(kLanes) + " queries");
     single = single && single_enough(beta, tolerance);
     for (int l = 0; l < n && single; ++l) single = single_reach(x[l], y[l], z[l]);
+    if (!single) double_walk_data();
     const std::uint32_t root = 0;
     if (single) WindingDispatch::run<float>(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
     else WindingDispatch::run<double>(*this, &root, 1, x, y, z, n, beta, tolerance, w, terms);  // from the root: see walk()'s callers
@@ -505,6 +593,7 @@ double SumTree::winding_exact(const Vec3& x) const {
 }
 
 double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nearest) const {
+    const std::vector<Hot>& hot_ = hot();  // shadows the member: built now if it was not
     // Slightly above the bound so rounding never prunes the element that attains it.
     double best2 = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
     std::uint32_t best = std::uint32_t(-1);
@@ -555,6 +644,7 @@ double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nea
 Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound,
                        std::uint32_t* nearest) const {
     r_min = nearest_distance(x, r_bound, nearest);
+    const std::vector<Hot>& hot_ = hot();  // shadows the member: built by nearest_distance
     const double R = r_min + k.cutoff / k.lambda;
     const double budget = k.tolerance * 2 * M_PI / k.lambda;
     const bool cached = decay_lambda_ == k.lambda;

@@ -26,6 +26,8 @@
 #include <cfloat>
 #include <cmath>
 #include <cstdint>
+#include <memory>
+#include <mutex>
 #include <vector>
 
 namespace gsd::detail {
@@ -146,14 +148,23 @@ public:
                              double r_bound = INFINITY, std::uint32_t* nearest = nullptr) const;
 
 private:
-    void compute_node(std::uint32_t i);
+    void compute_node(std::uint32_t i);  ///< from its elements (the leaves)
+    void merge_node(std::uint32_t i);    ///< from its children (inner nodes)
     /// Element j's exact term: its solid angle / 4π, or a point's dipole.
     double element_winding(const Eigen::Vector3d& x, std::size_t j) const;
 
     std::vector<Node> nodes_;
-    std::vector<Hot> hot_;
-    std::vector<WindingNodeT<double>> wnodes_;
-    std::vector<WindingTestT<double>> wtests_;
+    mutable std::vector<Hot> hot_;  // hot(): made on first use
+    struct Once {
+        std::once_flag hot, twice;
+    };
+    std::unique_ptr<Once> once_ = std::make_unique<Once>();  // a pointer: SumTree stays movable
+    const std::vector<Hot>& hot() const;
+    /// Makes wnodes_ and wtests_ (the double walk's records) if they are not there yet.
+    void double_walk_data() const;
+    WindingTestT<double> winding_test(std::size_t i) const;
+    mutable std::vector<WindingNodeT<double>> wnodes_;  // double_walk_data()
+    mutable std::vector<WindingTestT<double>> wtests_;
     std::vector<WindingNodeT<float>> wnodes_f_;
     std::vector<WindingTestT<float>> wtests_f_;
     double w_origin_[3] = {0, 0, 0}, w_scale_ = 1;  // the walk's coordinates: (x − origin)·scale

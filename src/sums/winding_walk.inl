@@ -70,7 +70,7 @@ void SumTree::GSD_WALK_FN(const std::uint32_t* starts, std::size_t start_count, 
             const std::uint32_t rest = e.lanes & ~accepted;
             if (!rest) continue;
             if (e.node >= first_leaf_) {  // a leaf's elements exactly, every lane at once
-                const Hot& h = hot_[e.node];
+                const Node& h = nodes_[e.node];
                 alignas(64) double exact[L];
                 for (std::uint32_t j = h.begin; j < h.end; ++j) {
                     const double* p = corners(j);
