@@ -109,8 +109,8 @@ public:
     /// so do all queries when the criterion asks for more accuracy than float32 gives
     /// (single_enough()).
     static constexpr int kLanes = 8;
-    /// `single` false walks the far field in double too (the reference for its precision).
     static constexpr double kSingleReach = 1e4;
+    /// `single` false walks the far field in double too (the reference for its precision).
     void winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
                  std::size_t& terms, bool single = true) const;
     /// The nodes where the walk of any query in the box [lo, hi] first does something other
