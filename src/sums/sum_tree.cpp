@@ -153,6 +153,11 @@ SumTree::Node normalized(const SumTree::Node& n, const double* origin, double sc
     return m;
 }
 
+/// A node's acceptance record (its center, ρ and q), from the node in the walk's coordinates.
+SumTree::WindingTestT<double> winding_test(const SumTree::Node& nd) {
+    return {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, std::pow(nd.area * nd.rho * nd.rho * nd.rho / M_PI, 0.2)};
+}
+
 template <class Out, class In, std::size_t N>
 void narrow(Out (&out)[N], const In (&in)[N]) {
     for (std::size_t i = 0; i < N; ++i) out[i] = Out(in[i]);
@@ -296,8 +301,9 @@ SumTree::SumTree(const OrientedElements& e) {
     wtests_f_.resize(nodes_.size());
 #pragma omp parallel for schedule(static)
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
-        const auto t = winding_test(i);
-        wnodes_f_[i] = to_float(winding_node(normalized(nodes_[i], w_origin_, w_scale_)));
+        const Node nd = normalized(nodes_[i], w_origin_, w_scale_);
+        const auto t = winding_test(nd);
+        wnodes_f_[i] = to_float(winding_node(nd));
         // ρ and q rounded up, so float32 never accepts a node that double would refuse for them.
         auto up = [](double v) { return float(v) < v ? std::nextafter(float(v), INFINITY) : float(v); };
         wtests_f_[i] = {{float(t.c[0]), float(t.c[1]), float(t.c[2])}, up(t.rho), up(t.q)};
@@ -311,19 +317,15 @@ SumTree::SumTree(const OrientedElements& e) {
     }
 }
 
-SumTree::WindingTestT<double> SumTree::winding_test(std::size_t i) const {
-    const Node nd = normalized(nodes_[i], w_origin_, w_scale_);
-    return {{nd.c[0], nd.c[1], nd.c[2]}, nd.rho, std::pow(nd.area * nd.rho * nd.rho * nd.rho / M_PI, 0.2)};
-}
-
 void SumTree::double_walk_data() const {
     std::call_once(once_->twice, [this] {
         wnodes_.resize(nodes_.size());
         wtests_.resize(nodes_.size());
 #pragma omp parallel for schedule(static)
         for (std::size_t i = 0; i < nodes_.size(); ++i) {
-            wnodes_[i] = winding_node(normalized(nodes_[i], w_origin_, w_scale_));
-            wtests_[i] = winding_test(i);
+            const Node nd = normalized(nodes_[i], w_origin_, w_scale_);
+            wnodes_[i] = winding_node(nd);
+            wtests_[i] = winding_test(nd);
         }
     });
 }
@@ -512,7 +514,8 @@ void SumTree::walk(bool single, const std::uint32_t* starts, std::size_t count, 
     if (!single) double_walk_data();
     const std::uint32_t root = 0;
     if (single) WindingDispatch::run<float>(*this, starts, count, x, y, z, n, beta, tolerance, w, terms);
-    else WindingDispatch::run<double>(*this, &root, 1, x, y, z, n, beta, tolerance, w, terms);  // from the root: see walk()'s callers
+    // Double walks start from the root: frontiers are made for float walks only.
+    else WindingDispatch::run<double>(*this, &root, 1, x, y, z, n, beta, tolerance, w, terms);
 }
 
 void SumTree::winding(const double* x, const double* y, const double* z, int n, double beta, double tolerance, double* w,
@@ -528,11 +531,9 @@ void SumTree::winding_from(const WindingFrontier& frontier, const double* x, con
     walk(frontier.single, frontier.nodes.data(), frontier.nodes.size(), x, y, z, n, beta, tolerance, w, terms);
 }
 
-template <class Real>
 void SumTree::frontier_in(const double* lo, const double* hi, double beta, double tolerance, std::vector<std::uint32_t>& nodes) const {
-    const WindingTestT<Real>* tests;
-    if constexpr (sizeof(Real) == sizeof(float)) tests = wtests_f_.data();
-    else tests = wtests_.data();
+    using Real = float;  // the float32 walk's records and arithmetic: only float walks start from a frontier
+    const WindingTestT<Real>* tests = wtests_f_.data();
     // The box in the walk's coordinates, rounded as the lanes round their queries: every
     // query's coordinate stays within the box's (rounding is monotone).
     Real blo[3], bhi[3];
@@ -570,7 +571,7 @@ void SumTree::winding_frontier(const double* lo, const double* hi, double beta, 
     frontier.single = single_enough(beta, tolerance) && single_reach(lo[0], lo[1], lo[2]) && single_reach(hi[0], hi[1], hi[2]);
     // Double walks (queries far from the model, which open few nodes, or criteria finer than
     // float32) start from the root.
-    if (frontier.single) frontier_in<float>(lo, hi, beta, tolerance, frontier.nodes);
+    if (frontier.single) frontier_in(lo, hi, beta, tolerance, frontier.nodes);
     else frontier.nodes.push_back(0);
 }
 
@@ -593,7 +594,7 @@ double SumTree::winding_exact(const Vec3& x) const {
 }
 
 double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nearest) const {
-    const std::vector<Hot>& hot_ = hot();  // shadows the member: built now if it was not
+    const std::vector<Hot>& records = hot();
     // Slightly above the bound so rounding never prunes the element that attains it.
     double best2 = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
     std::uint32_t best = std::uint32_t(-1);
@@ -614,7 +615,7 @@ double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nea
     auto box2 = [&](std::uint32_t i) {
         double s = 0;
         for (int a = 0; a < 3; ++a) {
-            const double e = std::max({hot_[i].lo[a] - x[a], x[a] - hot_[i].hi[a], 0.0});
+            const double e = std::max({records[i].lo[a] - x[a], x[a] - records[i].hi[a], 0.0});
             s += e * e;
         }
         return s;
@@ -623,7 +624,7 @@ double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nea
         const std::uint32_t i = stack[--top];
         if (box2(i) >= best2) continue;
         if (i >= first_leaf_) {
-            for (std::uint32_t j = hot_[i].begin; j < hot_[i].end; ++j) {
+            for (std::uint32_t j = records[i].begin; j < records[i].end; ++j) {
                 const double d2 = element2(j);
                 if (d2 < best2) {
                     best2 = d2;
@@ -644,7 +645,7 @@ double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nea
 Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound,
                        std::uint32_t* nearest) const {
     r_min = nearest_distance(x, r_bound, nearest);
-    const std::vector<Hot>& hot_ = hot();  // shadows the member: built by nearest_distance
+    const std::vector<Hot>& records = hot();
     const double R = r_min + k.cutoff / k.lambda;
     const double budget = k.tolerance * 2 * M_PI / k.lambda;
     const bool cached = decay_lambda_ == k.lambda;
@@ -662,7 +663,7 @@ Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::siz
     const double zero[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
     while (top > 0) {
         const std::uint32_t i = stack[--top];
-        const Hot& nd = hot_[i];
+        const Hot& nd = records[i];
         double box2 = 0;
         for (int a = 0; a < 3; ++a) {
             const double e = std::max({nd.lo[a] - x[a], x[a] - nd.hi[a], 0.0});

@@ -162,7 +162,6 @@ private:
     const std::vector<Hot>& hot() const;
     /// Makes wnodes_ and wtests_ (the double walk's records) if they are not there yet.
     void double_walk_data() const;
-    WindingTestT<double> winding_test(std::size_t i) const;
     mutable std::vector<WindingNodeT<double>> wnodes_;  // double_walk_data()
     mutable std::vector<WindingTestT<double>> wtests_;
     std::vector<WindingNodeT<float>> wnodes_f_;
@@ -180,7 +179,6 @@ private:
     template <class Real>
     void winding_lanes_avx2(const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z,
                             int n, double beta, double tolerance, double* w, std::size_t& terms) const;
-    template <class Real>
     void frontier_in(const double* lo, const double* hi, double beta, double tolerance, std::vector<std::uint32_t>& nodes) const;
     void walk(bool single, const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
               double beta, double tolerance, double* w, std::size_t& terms) const;
