@@ -360,6 +360,42 @@ TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine q
     CHECK(worst < 0.02);
 }
 
+TEST_CASE("screened sums in packets: every query gets what it gets alone, bit for bit, whatever its packet") {
+    // Packets mix queries near and far (different r_min, so different cutoffs and decisions),
+    // with bounds and a start element as diffuse() passes them, and sizes 1 to 4.
+    const PolygonMesh m = broken("torus", 16, 7);
+    const detail::SumTree tree(OrientedElements::from_mesh(m));
+    const double h = mean_edge_length(m);
+    detail::SumTree::Screened k;
+    k.lambda = 1 / h;
+    k.r_floor = 1e-6 * h;
+    const Points q = random_queries(test::sized(240, 60), 1.2, 17);
+    constexpr int P = detail::SumTree::kScreenedLanes;
+    std::size_t compared = 0;
+    for (Eigen::Index first = 0; first < q.rows();) {
+        const int n = 1 + int(first % P);
+        if (first + n > q.rows()) break;
+        double p[3 * P], bound[P], r_min[P], X[3 * P];
+        for (int l = 0; l < n; ++l)
+            for (int a = 0; a < 3; ++a) p[3 * l + a] = q(first + l, a);
+        for (int l = 0; l < n; ++l) bound[l] = tree.nearest_distance(Vec3(p[3 * l], p[3 * l + 1], p[3 * l + 2])) + 0.01 * double(l);
+        std::uint32_t nearest = std::uint32_t(first * 7919 % (tree.size() + 3));
+        std::size_t terms = 0;
+        tree.screened(p, n, k, r_min, X, terms, bound, &nearest);
+        std::size_t alone_terms = 0;
+        for (int l = 0; l < n; ++l) {
+            double r_alone;
+            const Vec3 alone = tree.screened(Vec3(p[3 * l], p[3 * l + 1], p[3 * l + 2]), k, r_alone, alone_terms);
+            REQUIRE(r_min[l] == r_alone);
+            for (int a = 0; a < 3; ++a) REQUIRE(X[3 * l + a] == alone[a]);
+            ++compared;
+        }
+        CHECK(terms == alone_terms);
+        first += n;
+    }
+    CHECK(compared > 100);
+}
+
 TEST_CASE("fast winding numbers: the float32 far field keeps its precision wherever the model is; far queries walk in double") {
     const PolygonMesh m = broken("torus", 24, 4);
     const Points q = random_queries(400, 1.0, 11);

@@ -24,20 +24,33 @@ public:
         const std::size_t block = 32768;
         for (std::size_t first = 0; first < n; first += block) {
             const std::size_t last = std::min(n, first + block);
-            // Runs of consecutive points (usually grid neighbors) per task: the previous point's
-            // r_min plus the step bounds this one's, which prunes the nearest-element search.
+            // Runs of consecutive points (usually grid neighbors) per task: a known r_min plus
+            // the step bounds a neighbor's, which prunes the nearest-element search.
             const std::size_t run = 64, runs = (last - first + run - 1) / run;
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : terms)
             for (std::size_t r = 0; r < runs; ++r) {
-                double bound = INFINITY;
-                std::uint32_t nearest = std::uint32_t(-1);  // the previous point's nearest element: usually this one's too
-                for (std::size_t i = first + r * run; i < std::min(last, first + (r + 1) * run); ++i) {
-                    const Eigen::Vector3d xi = x.row(Eigen::Index(i)).transpose();
-                    const Eigen::Vector3d X = tree_.screened(xi, k_, r_min[i], terms, bound, &nearest);
-                    if (i + 1 < last) bound = r_min[i] + (x.row(Eigen::Index(i + 1)).transpose() - xi).norm();
-                    const double len = X.norm();
-                    if (len > 0)
-                        for (int a = 0; a < 3; ++a) y[3 * i + std::size_t(a)] = float(X[a] / len);
+                // Packets of consecutive points walk the tree together; each point's r_min is
+                // bounded by the previous packet's last r_min plus the step to it.
+                constexpr int P = detail::SumTree::kScreenedLanes;
+                double prev[3] = {0, 0, 0}, prev_r = INFINITY;
+                std::uint32_t nearest = std::uint32_t(-1);  // the previous packet's nearest element: usually these ones' too
+                const std::size_t end = std::min(last, first + (r + 1) * run);
+                for (std::size_t i = first + r * run; i < end; i += P) {
+                    const int n = int(std::min<std::size_t>(P, end - i));
+                    double p[3 * P], bound[P], X[3 * P];
+                    for (int l = 0; l < n; ++l) {
+                        for (int a = 0; a < 3; ++a) p[3 * l + a] = x(Eigen::Index(i) + l, a);
+                        bound[l] = prev_r + std::sqrt((p[3 * l] - prev[0]) * (p[3 * l] - prev[0]) + (p[3 * l + 1] - prev[1]) * (p[3 * l + 1] - prev[1]) +
+                                                      (p[3 * l + 2] - prev[2]) * (p[3 * l + 2] - prev[2]));
+                    }
+                    tree_.screened(p, n, k_, &r_min[i], X, terms, bound, &nearest);
+                    for (int a = 0; a < 3; ++a) prev[a] = p[3 * (n - 1) + a];
+                    prev_r = r_min[i + std::size_t(n) - 1];
+                    for (int l = 0; l < n; ++l) {
+                        const double len = std::sqrt(X[3 * l] * X[3 * l] + X[3 * l + 1] * X[3 * l + 1] + X[3 * l + 2] * X[3 * l + 2]);
+                        if (len > 0)
+                            for (int a = 0; a < 3; ++a) y[3 * (i + std::size_t(l)) + std::size_t(a)] = float(X[3 * l + a] / len);
+                    }
                 }
             }
             if (progress) progress("diffuse", double(last) / double(n));

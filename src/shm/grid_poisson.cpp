@@ -32,24 +32,53 @@ void remove_mean(std::vector<double>& x) {
     for (double& v : x) v -= mean;
 }
 
+// The stencil of one row (i, j, ·) of a level: the four neighbor rows across x and y with
+// their couplings per unit z size (a missing neighbor is the row itself with coupling 0, so the
+// inner loops need no branches for it), and the z couplings per unit link. Hoisted out of the
+// inner loop: the sweeps below are most of the solve's time.
+struct RowStencil {
+    std::size_t row, xm, xp, ym, yp;  ///< storage index of k = 0 in each row
+    double cxm, cxp, cym, cyp;        ///< × size_z[k]
+    double cz;                        ///< × link_z[k] (and link_z[k − 1] below)
+
+    RowStencil(const Level& lv, int i, int j) {
+        const auto& X = lv.axis[0];
+        const auto& Y = lv.axis[1];
+        const int nx = X.n, ny = Y.n;
+        const double sx = X.size[std::size_t(i)], sy = Y.size[std::size_t(j)];
+        row = lv.index(i, j, 0);
+        xm = i > 0 ? lv.index(i - 1, j, 0) : row;
+        xp = i + 1 < nx ? lv.index(i + 1, j, 0) : row;
+        ym = j > 0 ? lv.index(i, j - 1, 0) : row;
+        yp = j + 1 < ny ? lv.index(i, j + 1, 0) : row;
+        cxm = i > 0 ? X.link[std::size_t(i - 1)] * sy : 0.0;
+        cxp = X.link[std::size_t(i)] * sy;  // 0 on the last cell
+        cym = j > 0 ? Y.link[std::size_t(j - 1)] * sx : 0.0;
+        cyp = Y.link[std::size_t(j)] * sx;
+        cz = sx * sy;
+    }
+};
+
 // The 7-point operator of one level: (A x)_p = Σ_neighbors c (x_p − x_q).
 void apply_level(const Hierarchy& H, int l, const double* x, double* y) {
     const Level& lv = H.levels[std::size_t(l)];
     const int nx = lv.axis[0].n, ny = lv.axis[1].n, nz = lv.axis[2].n;
+    const double* sz = lv.axis[2].size.data();
+    const double* lz = lv.axis[2].link.data();
 #pragma omp parallel for collapse(2) schedule(static)
     for (int i = 0; i < nx; ++i)
-        for (int j = 0; j < ny; ++j)
+        for (int j = 0; j < ny; ++j) {
+            const RowStencil st(lv, i, j);
+            const double *xr = x + st.row, *xm = x + st.xm, *xp = x + st.xp, *ym = x + st.ym, *yp = x + st.yp;
+            double* yr = y + st.row;
             for (int k = 0; k < nz; ++k) {
-                const std::size_t p = lv.index(i, j, k);
-                double s = 0;
-                if (i > 0) s += H.coupling(l, 0, i - 1, j, k) * (x[p] - x[lv.index(i - 1, j, k)]);
-                if (i + 1 < nx) s += H.coupling(l, 0, i, j, k) * (x[p] - x[lv.index(i + 1, j, k)]);
-                if (j > 0) s += H.coupling(l, 1, i, j - 1, k) * (x[p] - x[lv.index(i, j - 1, k)]);
-                if (j + 1 < ny) s += H.coupling(l, 1, i, j, k) * (x[p] - x[lv.index(i, j + 1, k)]);
-                if (k > 0) s += H.coupling(l, 2, i, j, k - 1) * (x[p] - x[lv.index(i, j, k - 1)]);
-                if (k + 1 < nz) s += H.coupling(l, 2, i, j, k) * (x[p] - x[lv.index(i, j, k + 1)]);
-                y[p] = s;
+                const double v = xr[k];
+                double s = sz[k] * (st.cxm * (v - xm[k]) + st.cxp * (v - xp[k]) + st.cym * (v - ym[k]) + st.cyp * (v - yp[k]));
+                if (k > 0) s += st.cz * lz[k - 1] * (v - xr[k - 1]);
+                if (k + 1 < nz) s += st.cz * lz[k] * (v - xr[k + 1]);
+                yr[k] = s;
             }
+        }
 }
 
 double diagonal(const Hierarchy& H, int l, int i, int j, int k) {
@@ -90,22 +119,33 @@ private:
     void smooth(int l, int color) {
         const Level& lv = H.levels[std::size_t(l)];
         const int nx = lv.axis[0].n, ny = lv.axis[1].n, nz = lv.axis[2].n;
+        const double* sz = lv.axis[2].size.data();
+        const double* lz = lv.axis[2].link.data();
         const double* r = r_[std::size_t(l)].data();
         double* e = e_[std::size_t(l)].data();
 #pragma omp parallel for collapse(2) schedule(static)
         for (int i = 0; i < nx; ++i)
-            for (int j = 0; j < ny; ++j)
+            for (int j = 0; j < ny; ++j) {
+                const RowStencil st(lv, i, j);
+                const double *rr = r + st.row, *xm = e + st.xm, *xp = e + st.xp, *ym = e + st.ym, *yp = e + st.yp;
+                double* er = e + st.row;
+                const double side = st.cxm + st.cxp + st.cym + st.cyp;
                 for (int k = (i + j + color) & 1; k < nz; k += 2) {
-                    const std::size_t p = lv.index(i, j, k);
-                    double s = r[p], d = 0, c;
-                    if (i > 0) { c = H.coupling(l, 0, i - 1, j, k); s += c * e[lv.index(i - 1, j, k)]; d += c; }
-                    if (i + 1 < nx) { c = H.coupling(l, 0, i, j, k); s += c * e[lv.index(i + 1, j, k)]; d += c; }
-                    if (j > 0) { c = H.coupling(l, 1, i, j - 1, k); s += c * e[lv.index(i, j - 1, k)]; d += c; }
-                    if (j + 1 < ny) { c = H.coupling(l, 1, i, j, k); s += c * e[lv.index(i, j + 1, k)]; d += c; }
-                    if (k > 0) { c = H.coupling(l, 2, i, j, k - 1); s += c * e[lv.index(i, j, k - 1)]; d += c; }
-                    if (k + 1 < nz) { c = H.coupling(l, 2, i, j, k); s += c * e[lv.index(i, j, k + 1)]; d += c; }
-                    if (d > 0) e[p] = s / d;
+                    double s = rr[k] + sz[k] * (st.cxm * xm[k] + st.cxp * xp[k] + st.cym * ym[k] + st.cyp * yp[k]);
+                    double d = sz[k] * side;
+                    if (k > 0) {
+                        const double c = st.cz * lz[k - 1];
+                        s += c * er[k - 1];
+                        d += c;
+                    }
+                    if (k + 1 < nz) {
+                        const double c = st.cz * lz[k];
+                        s += c * er[k + 1];
+                        d += c;
+                    }
+                    if (d > 0) er[k] = s / d;
                 }
+            }
     }
 
     // coarse r_{l+1} = Pᵀ (r_l − A e_l)

@@ -88,6 +88,12 @@ Hierarchy::Hierarchy(const GridSpec& g) {
         }
         levels.push_back(std::move(next));
     }
+    for (Level& lv : levels)
+        for (std::size_t a = 0; a < 3; ++a) {
+            AxisLevel& ax = lv.axis[a];
+            ax.link.assign(std::size_t(ax.n), 0.0);
+            for (std::size_t i = 0; i + 1 < std::size_t(ax.n); ++i) ax.link[i] = inv_h2[a] / (0.5 * (ax.size[i] + ax.size[i + 1]));
+        }
 
     // Dense operator of the coarsest level and its pseudo-inverse (the nullspace is the constants).
     const int l = int(levels.size()) - 1;

@@ -18,6 +18,10 @@ struct AxisLevel {
     int n = 0;
     std::vector<double> size;       ///< finest cells per cell (1 at level 0)
     std::vector<double> center;     ///< cell center in finest-cell units
+    /// link[i] = 1/(Δ² · distance between the centers of cells i and i+1 in finest cells); 0 for
+    /// the last cell. The coupling across that face is link[i] times the face's area (the sizes
+    /// of the other two axes), so the sweeps multiply instead of dividing.
+    std::vector<double> link;
     // Prolongation to the next finer level along this axis: fine cell i takes
     // w0[i]·coarse[c0[i]] + w1[i]·coarse[c1[i]].
     std::vector<int> c0, c1;
@@ -66,10 +70,8 @@ inline double Hierarchy::coupling(int l, int a, int i, int j, int k) const {
     const Level& lv = levels[std::size_t(l)];
     const int ijk[3] = {i, j, k};
     const int b = (a + 1) % 3, c = (a + 2) % 3;
-    const AxisLevel& A = lv.axis[std::size_t(a)];
     const double face = lv.axis[std::size_t(b)].size[std::size_t(ijk[b])] * lv.axis[std::size_t(c)].size[std::size_t(ijk[c])];
-    const double dist = 0.5 * (A.size[std::size_t(ijk[a])] + A.size[std::size_t(ijk[a] + 1)]);
-    return face / dist * inv_h2[std::size_t(a)];
+    return face * lv.axis[std::size_t(a)].link[std::size_t(ijk[a])];
 }
 
 }  // namespace gsd::shm_detail

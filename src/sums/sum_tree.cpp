@@ -196,6 +196,18 @@ void screened_expansion(const double* m0, const double* m1, const double* m2, co
     }
 }
 
+/// The same expansion for a piece of one triangle: its moments are its vector area v times
+/// (1, 0, covariance), so the bracket is one scalar for all three components.
+void screened_piece_expansion(const double* v, const double* cov, const Vec3& d, double r, const SumTree::Screened& k,
+                              double E, Vec3& X) {
+    const double ir = 1 / r;
+    const Vec3 u = d * ir;
+    const Radial f = screened_radial(ir, k.lambda, E);
+    const double A = f.f2 - f.f1 * ir, B = f.f1 * ir;
+    const double w = f.f + 0.5 * (A * quad(cov, u) + B * trace(cov));
+    for (int a = 0; a < 3; ++a) X[a] += v[a] * w;
+}
+
 }  // namespace
 
 namespace sums {
@@ -594,138 +606,235 @@ double SumTree::winding_exact(const Vec3& x) const {
 }
 
 double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nearest) const {
+    double r_min;
+    nearest_lanes(x.data(), 1, &bound, nearest, &r_min);
+    return r_min;
+}
+
+void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const {
+    constexpr int L = kScreenedLanes;
     const std::vector<Hot>& records = hot();
-    // Slightly above the bound so rounding never prunes the element that attains it.
-    double best2 = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
-    std::uint32_t best = std::uint32_t(-1);
-    auto element2 = [&](std::uint32_t j) {
-        const double* p = corners(j);
-        return sums::point_triangle_distance2(x, vec(p), vec(p + 3), vec(p + 6));
-    };
-    if (nearest && *nearest < size()) {  // a candidate's own distance: the search only looks for better
-        const double d2 = element2(*nearest);
-        if (d2 < best2) {
-            best2 = d2;
-            best = *nearest;
-        }
+    alignas(32) double q[3][L], best2[L];
+    std::uint32_t best[L];
+    for (int l = 0; l < L; ++l) {
+        const int s = l < n ? l : 0;  // idle lanes repeat lane 0 and are masked off
+        for (int a = 0; a < 3; ++a) q[a][l] = p[3 * s + a];
+        const double bound = r_bound ? r_bound[s] : INFINITY;
+        // Slightly above the bound so rounding never prunes the element that attains it.
+        best2[l] = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
+        best[l] = std::uint32_t(-1);
     }
-    std::uint32_t stack[kStack];
-    int top = 0;
-    stack[top++] = 0;
-    auto box2 = [&](std::uint32_t i) {
-        double s = 0;
-        for (int a = 0; a < 3; ++a) {
-            const double e = std::max({records[i].lo[a] - x[a], x[a] - records[i].hi[a], 0.0});
-            s += e * e;
-        }
-        return s;
+    auto element2 = [&](std::uint32_t j, int l) {
+        const double* c = corners(j);
+        return sums::point_triangle_distance2(Vec3(q[0][l], q[1][l], q[2][l]), vec(c), vec(c + 3), vec(c + 6));
     };
-    while (top > 0) {
-        const std::uint32_t i = stack[--top];
-        if (box2(i) >= best2) continue;
-        if (i >= first_leaf_) {
-            for (std::uint32_t j = records[i].begin; j < records[i].end; ++j) {
-                const double d2 = element2(j);
-                if (d2 < best2) {
-                    best2 = d2;
-                    best = j;
-                }
+    const std::uint32_t all = (1u << n) - 1;
+    if (nearest && *nearest < size())  // a candidate's own distance: the search only looks for better
+        for (int l = 0; l < n; ++l) {
+            const double d2 = element2(*nearest, l);
+            if (d2 < best2[l]) {
+                best2[l] = d2;
+                best[l] = *nearest;
             }
-        } else {
-            const std::uint32_t l = 2 * i + 1, r = 2 * i + 2;
-            const bool left_first = box2(l) <= box2(r);
-            stack[top++] = left_first ? r : l;
-            stack[top++] = left_first ? l : r;
         }
+    struct Entry { std::uint32_t node, lanes; };
+    Entry stack[kStack];
+    int top = 0;
+    stack[top++] = {0, all};
+    while (top > 0) {
+        const Entry e = stack[--top];
+        const Hot& h = records[e.node];
+        alignas(32) double box2[L];
+#pragma omp simd
+        for (int l = 0; l < L; ++l) {
+            double s = 0;
+            for (int a = 0; a < 3; ++a) {
+                const double d = std::max(std::max(h.lo[a] - q[a][l], q[a][l] - h.hi[a]), 0.0);
+                s += d * d;
+            }
+            box2[l] = s;
+        }
+        std::uint32_t live = 0;
+        for (int l = 0; l < L; ++l) live |= std::uint32_t(box2[l] < best2[l]) << l;
+        live &= e.lanes;
+        if (!live) continue;
+        if (e.node >= first_leaf_) {
+            for (std::uint32_t j = h.begin; j < h.end; ++j)
+                for (std::uint32_t m = live; m; m &= m - 1) {
+                    const int l = __builtin_ctz(m);
+                    const double d2 = element2(j, l);
+                    if (d2 < best2[l]) {
+                        best2[l] = d2;
+                        best[l] = j;
+                    }
+                }
+            continue;
+        }
+        // The child nearer to the first live lane on top: it most likely holds the nearest
+        // element, whose distance then prunes the other.
+        const std::uint32_t a = 2 * e.node + 1, b = 2 * e.node + 2;
+        const int l0 = __builtin_ctz(live);
+        auto box2_at = [&](std::uint32_t i) {
+            double s = 0;
+            for (int c = 0; c < 3; ++c) {
+                const double d = std::max({records[i].lo[c] - q[c][l0], q[c][l0] - records[i].hi[c], 0.0});
+                s += d * d;
+            }
+            return s;
+        };
+        const bool a_first = box2_at(a) <= box2_at(b);
+        stack[top++] = {a_first ? b : a, live};
+        stack[top++] = {a_first ? a : b, live};
     }
-    if (nearest) *nearest = best;
-    return std::sqrt(best2);
+    for (int l = 0; l < n; ++l) r_min[l] = std::sqrt(best2[l]);
+    if (nearest) *nearest = best[n - 1];
 }
 
 Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound,
                        std::uint32_t* nearest) const {
-    r_min = nearest_distance(x, r_bound, nearest);
+    Vec3 X;
+    screened(x.data(), 1, k, &r_min, X.data(), terms, &r_bound, nearest);
+    return X;
+}
+
+void SumTree::screened(const double* p, int n, const Screened& k, double* r_min, double* X, std::size_t& terms,
+                       const double* r_bound, std::uint32_t* nearest) const {
+    constexpr int L = kScreenedLanes;
+    if (n <= 0) return;
+    if (n > L) throw Error("packet", "more than " + std::to_string(L) + " queries");
+    nearest_lanes(p, n, r_bound, nearest, r_min);
     const std::vector<Hot>& records = hot();
-    const double R = r_min + k.cutoff / k.lambda;
     const double budget = k.tolerance * 2 * M_PI / k.lambda;
     const bool cached = decay_lambda_ == k.lambda;
-    Vec3 X = Vec3::Zero();
-    std::uint32_t stack[kStack];
+    alignas(32) double q[3][L], rmin[L], R2[L], sum[3][L];
+    for (int l = 0; l < L; ++l) {
+        const int s = l < n ? l : 0;
+        for (int a = 0; a < 3; ++a) {
+            q[a][l] = p[3 * s + a];
+            sum[a][l] = 0;
+        }
+        rmin[l] = r_min[s];
+        const double R = rmin[l] + k.cutoff / k.lambda;
+        R2[l] = R * R;
+    }
+    struct Entry { std::uint32_t node, lanes; };
+    Entry stack[kStack];
     int top = 0;
-    stack[top++] = 0;
-    // One sub-triangle of an element being refined: barycentric origin (s, t), scale h and
+    stack[top++] = {0, (1u << n) - 1};
+    while (top > 0) {
+        const Entry e = stack[--top];
+        const Hot& nd = records[e.node];
+        alignas(32) double box2[L], dx[L], dy[L], dz[L], dn[L];
+        const double four_rho2 = 4 * nd.rho * nd.rho;
+#pragma omp simd
+        for (int l = 0; l < L; ++l) {
+            double s = 0;
+            for (int a = 0; a < 3; ++a) {
+                const double d = std::max(std::max(nd.lo[a] - q[a][l], q[a][l] - nd.hi[a]), 0.0);
+                s += d * d;
+            }
+            box2[l] = s;
+            dx[l] = q[0][l] - nd.c[0];
+            dy[l] = q[1][l] - nd.c[1];
+            dz[l] = q[2][l] - nd.c[2];
+            const double d2 = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
+            dn[l] = d2 > four_rho2 ? std::sqrt(d2) : 0.0;  // 0: too close, refused
+        }
+        std::uint32_t live = 0;  // the lanes within reach: every element farther weighs < e^(−cutoff) of the nearest
+        for (int l = 0; l < L; ++l) live |= std::uint32_t(!(box2[l] > R2[l])) << l;
+        live &= e.lanes;
+        if (!live) continue;
+        const double decay = cached ? nd.decay : std::exp(-k.lambda * nd.rho);
+        std::uint32_t accepted = 0;
+        alignas(32) double E[L] = {0, 0, 0, 0};
+        for (std::uint32_t m = live; m; m &= m - 1) {
+            const int l = __builtin_ctz(m);
+            accepted |= std::uint32_t(sums::accept_screened(nd.rho, dn[l], nd.area, k.lambda, rmin[l], budget, decay, E[l])) << l;
+        }
+        if (accepted) {
+            const Node& mo = nodes_[e.node];
+            alignas(32) double t[3][L];
+#pragma omp simd
+            for (int l = 0; l < L; ++l) {
+                const double r = accepted >> l & 1 ? dn[l] : 1.0;  // refused lanes: any finite value, discarded
+                const Vec3 d(dx[l], dy[l], dz[l]);
+                Vec3 add = Vec3::Zero();
+                screened_expansion(mo.m0, mo.m1, mo.m2, d, r, k, E[l], add);
+                for (int a = 0; a < 3; ++a) t[a][l] = add[a];
+            }
+            for (int a = 0; a < 3; ++a)
+#pragma omp simd
+                for (int l = 0; l < L; ++l) sum[a][l] += (accepted >> l & 1) ? t[a][l] : 0.0;
+            terms += std::size_t(__builtin_popcount(accepted));
+        }
+        const std::uint32_t rest = live & ~accepted;
+        if (!rest) continue;
+        if (e.node < first_leaf_) {
+            stack[top++] = {2 * e.node + 1, rest};
+            stack[top++] = {2 * e.node + 2, rest};
+            continue;
+        }
+        for (std::uint32_t j = nd.begin; j < nd.end; ++j)
+            for (std::uint32_t m = rest; m; m &= m - 1) {
+                const int l = __builtin_ctz(m);
+                double xl[3] = {q[0][l], q[1][l], q[2][l]}, Xl[3] = {sum[0][l], sum[1][l], sum[2][l]};
+                screened_element(j, xl, k, rmin[l], rmin[l] + k.cutoff / k.lambda, budget, Xl, terms);
+                for (int a = 0; a < 3; ++a) sum[a][l] = Xl[a];
+            }
+    }
+    for (int l = 0; l < n; ++l)
+        for (int a = 0; a < 3; ++a) X[3 * l + a] = sum[a][l];
+}
+
+void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened& k, double r_min, double R, double budget,
+                               double* Xp, std::size_t& terms) const {
+    // One sub-triangle of the element being refined: barycentric origin (s, t), scale h and
     // orientation σ; its corners are o, o + σh e1, o + σh e2 in the (s, t) parameters of the
     // element (a + s (b − a) + t (c − a)). Children: the three corner triangles at h/2 and the
     // middle one, flipped — all similar to the element, so a piece's radius is h·ρ and its
     // e^(−λρ) the square root of its parent's.
     struct Piece { double s, t, h, sigma, decay; int level; };
     Piece pieces[3 * 20 + 8];
-    const double zero[9] = {0, 0, 0, 0, 0, 0, 0, 0, 0};
-    while (top > 0) {
-        const std::uint32_t i = stack[--top];
-        const Hot& nd = records[i];
-        double box2 = 0;
-        for (int a = 0; a < 3; ++a) {
-            const double e = std::max({nd.lo[a] - x[a], x[a] - nd.hi[a], 0.0});
-            box2 += e * e;
-        }
-        if (box2 > R * R) continue;  // every element weighs < e^(−cutoff) of the nearest
-        const Vec3 d = x - vec(nd.c);
-        const double d2 = d.squaredNorm();
-        const double dn = d2 > 4 * nd.rho * nd.rho ? std::sqrt(d2) : 0.0;  // 0: too close, refused
+    const Vec3 x = vec(xp);
+    Vec3 X = vec(Xp);
+    const double* p = corners(j);
+    const double* v = vector(j);
+    const Vec3 a = vec(p), ab = vec(p + 3) - a, ac = vec(p + 6) - a;
+    const double* cov = covariance(j);
+    const double area = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    const double rho0 = elem_rho_[j];
+    int np = 0;
+    pieces[np++] = {0, 0, 1, 1, decay_lambda_ == k.lambda ? elem_decay_[j] : std::exp(-k.lambda * rho0), 0};
+    while (np > 0) {
+        const Piece q = pieces[--np];
+        const Vec3 g = a + (q.s + q.sigma * q.h / 3) * ab + (q.t + q.sigma * q.h / 3) * ac;
+        const double rho = rho0 * q.h;
+        const Vec3 dg = x - g;
+        const double dist = dg.norm();
+        if (dist - rho > R) continue;
+        const double share = q.h * q.h;  // of the element's area
+        const double m0[3] = {v[0] * share, v[1] * share, v[2] * share};
         double E;
-        if (sums::accept_screened(nd.rho, dn, nd.area, k.lambda, r_min, budget, cached ? nd.decay : std::exp(-k.lambda * nd.rho), E)) {
-            const Node& m = nodes_[i];
-            screened_expansion(m.m0, m.m1, m.m2, d, dn, k, E, X);
-            ++terms;
+        if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget, q.decay, E)) {
+            double piece_cov[6];  // the piece's covariance: the element's, scaled like its area
+            for (int b = 0; b < 6; ++b) piece_cov[b] = cov[b] * share;
+            screened_piece_expansion(m0, piece_cov, dg, dist, k, E, X);
+        } else if (rho <= k.r_floor || q.level >= 20) {
+            // Small enough that 1/r no longer resolves it (or at the depth limit): its
+            // centroid, at no closer than r_floor.
+            const double w = std::exp(-k.lambda * (dist - r_min)) / std::max(dist, k.r_floor);
+            for (int c = 0; c < 3; ++c) X[c] += m0[c] * w;
+        } else {
+            const double h = q.h / 2, sh = q.sigma * h, decay = std::sqrt(q.decay);
+            pieces[np++] = {q.s, q.t, h, q.sigma, decay, q.level + 1};
+            pieces[np++] = {q.s + sh, q.t, h, q.sigma, decay, q.level + 1};
+            pieces[np++] = {q.s, q.t + sh, h, q.sigma, decay, q.level + 1};
+            pieces[np++] = {q.s + sh, q.t + sh, h, -q.sigma, decay, q.level + 1};
             continue;
         }
-        if (i < first_leaf_) {
-            stack[top++] = 2 * i + 1;
-            stack[top++] = 2 * i + 2;
-            continue;
-        }
-        for (std::uint32_t j = nd.begin; j < nd.end; ++j) {
-            const double* p = corners(j);
-            const double* v = vector(j);
-            const Vec3 a = vec(p), ab = vec(p + 3) - a, ac = vec(p + 6) - a;
-            const double* cov = covariance(j);
-            const double area = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            const double rho0 = elem_rho_[j];
-            int np = 0;
-            pieces[np++] = {0, 0, 1, 1, cached ? elem_decay_[j] : std::exp(-k.lambda * rho0), 0};
-            while (np > 0) {
-                const Piece q = pieces[--np];
-                const Vec3 g = a + (q.s + q.sigma * q.h / 3) * ab + (q.t + q.sigma * q.h / 3) * ac;
-                const double rho = rho0 * q.h;
-                const Vec3 dg = x - g;
-                const double dist = dg.norm();
-                if (dist - rho > R) continue;
-                const double share = q.h * q.h;  // of the element's area
-                const double m0[3] = {v[0] * share, v[1] * share, v[2] * share};
-                if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget, q.decay, E)) {
-                    double m2[18];
-                    for (int c = 0; c < 3; ++c)
-                        for (int b = 0; b < 6; ++b) m2[6 * c + b] = m0[c] * cov[b] * share;
-                    screened_expansion(m0, zero, m2, dg, dist, k, E, X);
-                } else if (rho <= k.r_floor || q.level >= 20) {
-                    // Small enough that 1/r no longer resolves it (or at the depth limit):
-                    // its centroid, at no closer than r_floor.
-                    const double w = std::exp(-k.lambda * (dist - r_min)) / std::max(dist, k.r_floor);
-                    for (int c = 0; c < 3; ++c) X[c] += m0[c] * w;
-                } else {
-                    const double h = q.h / 2, sh = q.sigma * h, decay = std::sqrt(q.decay);
-                    pieces[np++] = {q.s, q.t, h, q.sigma, decay, q.level + 1};
-                    pieces[np++] = {q.s + sh, q.t, h, q.sigma, decay, q.level + 1};
-                    pieces[np++] = {q.s, q.t + sh, h, q.sigma, decay, q.level + 1};
-                    pieces[np++] = {q.s + sh, q.t + sh, h, -q.sigma, decay, q.level + 1};
-                    continue;
-                }
-                ++terms;
-            }
-        }
+        ++terms;
     }
-    return X;
+    for (int c = 0; c < 3; ++c) Xp[c] = X[c];
 }
 
 }  // namespace gsd::detail

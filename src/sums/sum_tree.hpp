@@ -146,8 +146,21 @@ public:
     /// nearest_distance).
     Eigen::Vector3d screened(const Eigen::Vector3d& x, const Screened& k, double& r_min, std::size_t& terms,
                              double r_bound = INFINITY, std::uint32_t* nearest = nullptr) const;
+    static constexpr int kScreenedLanes = 4;
+    /// screened() for a packet of n ≤ kScreenedLanes nearby queries (p: 3n coordinates; X: 3n
+    /// out; r_min: n out; r_bound: n upper bounds of r_min, or null; nearest: one start element
+    /// for all, out: the last query's nearest). The nearest-element search and the tree walk
+    /// are shared — the lanes that need a node read it once — while every query makes its own
+    /// decisions and adds its own terms in the order screened() would: the results are the same.
+    void screened(const double* p, int n, const Screened& k, double* r_min, double* X, std::size_t& terms,
+                  const double* r_bound = nullptr, std::uint32_t* nearest = nullptr) const;
 
 private:
+    /// nearest_distance() for the packet of screened(): r_min[l] for each lane of `lanes`.
+    void nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const;
+    /// Element j's part of screened() at x: the triangle refined until its pieces pass.
+    void screened_element(std::uint32_t j, const double* x, const Screened& k, double r_min, double R, double budget,
+                          double* X, std::size_t& terms) const;
     void compute_node(std::uint32_t i);  ///< from its elements (the leaves)
     void merge_node(std::uint32_t i);    ///< from its children (inner nodes)
     /// Element j's exact term: its solid angle / 4π, or a point's dipole.
