@@ -158,16 +158,24 @@ void write_npy(const std::string& path, const std::vector<std::size_t>& shape, c
 }
 
 Points read_queries(const std::string& path) {
-    const NpyArray a = read_npy(path);
-    if (a.shape.size() != 2 || a.shape[1] != 3)
-        throw Error(path, "query list must have shape (M, 3), found " + detail::npy_shape_text(a.shape));
-    if (a.shape[0] == 0) throw Error(path, "query list is empty (shape (0, 3))");
-    for (std::size_t i = 0; i < a.data.size(); ++i)
-        if (!std::isfinite(a.data[i]))
+    // Straight from the file's bytes into the queries: a 10⁶-query list is 24 MB of doubles,
+    // and an intermediate array would cost a second such allocation and copy.
+    Points q;
+    std::vector<std::size_t> shape;
+    detail::parse_npy_into(path, detail::read_whole_file(path), shape, [&](std::size_t count) -> double* {
+        if (shape.size() != 2 || shape[1] != 3)
+            throw Error(path, "query list must have shape (M, 3), found " + detail::npy_shape_text(shape));
+        if (shape[0] == 0) throw Error(path, "query list is empty (shape (0, 3))");
+        q.resize(Eigen::Index(count / 3), 3);
+        return q.data();
+    });
+    const double* v = q.data();
+    for (std::size_t i = 0; i < std::size_t(q.size()); ++i)
+        if (!std::isfinite(v[i]))
             throw Error(path, "non-finite query coordinate (query " + std::to_string(i / 3) + ")");
-        else if (std::abs(a.data[i]) > kMaxCoordinate)
+        else if (std::abs(v[i]) > kMaxCoordinate)
             throw Error(path, "query coordinate beyond ±1e30 (query " + std::to_string(i / 3) + ")");
-    return Eigen::Map<const Points>(a.data.data(), Eigen::Index(a.shape[0]), 3);
+    return q;
 }
 
 NpyArray read_grid(const std::string& path) {

@@ -9,6 +9,7 @@
 #include <bit>
 #include <cstdint>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <string>
 #include <string_view>
@@ -144,6 +145,10 @@ PolygonMesh read_stl_mesh(const std::string& path, std::string_view bytes);
 std::string stl_mesh_bytes(const PolygonMesh& mesh);
 
 NpyArray parse_npy(const std::string& path, std::string_view bytes);
+/// parse_npy into storage the caller provides: `storage(count)` returns room for count doubles
+/// (called once, after the header is checked); `shape` gets the array's shape.
+void parse_npy_into(const std::string& path, std::string_view bytes, std::vector<std::size_t>& shape,
+                    const std::function<double*(std::size_t count)>& storage);
 std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape,
                       const float* values, std::size_t count);
 std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& shape,

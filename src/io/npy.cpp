@@ -165,7 +165,8 @@ std::string shape_text(const std::vector<std::size_t>& shape) {
 
 }  // namespace
 
-NpyArray parse_npy(const std::string& path, std::string_view bytes) {
+void parse_npy_into(const std::string& path, std::string_view bytes, std::vector<std::size_t>& shape,
+                    const std::function<double*(std::size_t count)>& storage) {
     const NpyHeader h = read_header(path, bytes);
     if (h.fortran_order)
         fail(path, "Fortran-order (column-major) arrays are not supported; save with "
@@ -178,11 +179,26 @@ NpyArray parse_npy(const std::string& path, std::string_view bytes) {
     if (need > have)
         fail(path, ".npy shape " + shape_text(h.shape) + " needs " + std::to_string(need) +
                        " bytes of data but the file has " + std::to_string(have) + " (truncated or corrupt)");
-    NpyArray a;
-    a.shape = h.shape;
-    a.data.resize(std::size_t(count));
+    shape = h.shape;
+    double* out = storage(std::size_t(count));
     const char* p = bytes.data() + h.data_offset;
-    for (std::size_t i = 0; i < a.data.size(); ++i) a.data[i] = value_at(p + i * t.size, t);
+    if (t.kind == 'f' && t.size == 4 && t.order == std::endian::native) {  // the common case, in one tight loop
+        for (std::size_t i = 0; i < count; ++i) {
+            float f;
+            std::memcpy(&f, p + 4 * i, 4);
+            out[i] = f;
+        }
+        return;
+    }
+    for (std::size_t i = 0; i < count; ++i) out[i] = value_at(p + i * t.size, t);
+}
+
+NpyArray parse_npy(const std::string& path, std::string_view bytes) {
+    NpyArray a;
+    parse_npy_into(path, bytes, a.shape, [&](std::size_t count) {
+        a.data.resize(count);
+        return a.data.data();
+    });
     return a;
 }
 

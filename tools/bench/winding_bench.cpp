@@ -1,16 +1,18 @@
 // gsd-winding-bench: `gsd winding` against the exact sum and, given its program, libigl's
 // fast_winding_number — whole runs (load, build, evaluate, write), side by side in one run.
 //
-//   gsd-winding-bench [--resolution R] [--queries M] [--check K] [--repeat N] [--threads T]
-//                     [--igl PROGRAM] [--gpu] [--gsd PROGRAM] [--work DIR]
+//   gsd-winding-bench [--resolution R | --mesh FILE] [--queries M] [--check K] [--repeat N]
+//                     [--threads T] [--igl PROGRAM] [--gpu] [--gsd PROGRAM] [--work DIR]
+//                     [--also "GSD ARGS"]...
 //
 // The mesh: the procedural double torus at resolution R (default 110: 91,514 faces) with 10 % of
 // its area in 3 holes and 5 % of its faces flipped (`gsd mesh double-torus -r R`, then
-// `gsd mesh --from … --holes 3 --hole-area 0.1 --flip 0.05`). Queries: M (default 10⁶) uniform
+// `gsd mesh --from … --holes 3 --hole-area 0.1 --flip 0.05`), or any mesh file (--mesh). Queries: M (default 10⁶) uniform
 // in its bounding box, written as float32 .npy, which both programs read. Each program runs N
 // times (default 3), in turn, with T threads (default 2). Errors against the exact sum at the
 // first K queries (default 20000): the largest and the mean over those farther than one mean
 // edge length from the surface (where `gsd winding` promises 1e-3), and the largest over all.
+// --also adds a row: `gsd winding` with those arguments too (e.g. "--tolerance 2e-3"), on the CPU.
 #include <gsd/io.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/sums.hpp>
@@ -35,7 +37,8 @@ struct Options {
     int resolution = 110;
     std::size_t queries = 1000000, check = 20000;
     int repeat = 3, threads = 2;
-    std::string igl, gsd, work = "/tmp/gsd-winding-bench";
+    std::string mesh, igl, gsd, work = "/tmp/gsd-winding-bench";
+    std::vector<std::string> also;
     bool gpu = false;
 };
 
@@ -83,6 +86,7 @@ int main(int argc, char** argv) {
             return std::string(argv[++i]);
         };
         if (a == "--resolution") o.resolution = std::stoi(next());
+        else if (a == "--mesh") o.mesh = next();
         else if (a == "--queries") o.queries = std::stoul(next());
         else if (a == "--check") o.check = std::stoul(next());
         else if (a == "--repeat") o.repeat = std::stoi(next());
@@ -91,10 +95,12 @@ int main(int argc, char** argv) {
         else if (a == "--gsd") o.gsd = next();
         else if (a == "--work") o.work = next();
         else if (a == "--gpu") o.gpu = true;
+        else if (a == "--also") o.also.push_back(next());
         else {
             std::fprintf(stderr,
-                         "usage: gsd-winding-bench [--resolution R] [--queries M] [--check K] [--repeat N] [--threads T]\n"
-                         "                         [--igl PROGRAM] [--gpu] [--gsd PROGRAM] [--work DIR]\n");
+                         "usage: gsd-winding-bench [--resolution R | --mesh FILE] [--queries M] [--check K] [--repeat N]\n"
+                         "                         [--threads T] [--igl PROGRAM] [--gpu] [--gsd PROGRAM] [--work DIR]\n"
+                         "                         [--also \"GSD ARGS\"]...\n");
             return 2;
         }
     }
@@ -110,7 +116,13 @@ int main(int argc, char** argv) {
     damage.holes = 3;
     damage.hole_area = 0.1;
     damage.flip_fraction = 0.05;
-    const PolygonMesh mesh = shapes::corrupt(shapes::double_torus_mesh(o.resolution), damage, 1);
+    PolygonMesh mesh;
+    try {
+        mesh = o.mesh.empty() ? shapes::corrupt(shapes::double_torus_mesh(o.resolution), damage, 1) : io::read_mesh(o.mesh);
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "gsd-winding-bench: %s\n", e.what());
+        return 1;
+    }
     io::write_mesh(mesh_path, mesh);
 
     const Box box = bounding_box(mesh.vertices);
@@ -147,6 +159,10 @@ int main(int argc, char** argv) {
     runs.push_back({"gsd, defaults (CPU)", gsd_cmd + " --device cpu -o " + o.work + "/gsd.npy", o.work + "/gsd.npy", {}});
     runs.push_back({"gsd, beta 2 alone (CPU)", gsd_cmd + " --device cpu --beta 2 --tolerance 0 -o " + o.work + "/gsd_b2.npy",
                     o.work + "/gsd_b2.npy", {}});
+    for (std::size_t a = 0; a < o.also.size(); ++a) {
+        const std::string out = o.work + "/gsd_also" + std::to_string(a) + ".npy";
+        runs.push_back({"gsd " + o.also[a], gsd_cmd + " --device cpu " + o.also[a] + " -o " + out, out, {}});
+    }
     if (o.gpu) runs.push_back({"gsd, defaults (GPU)", gsd_cmd + " --device gpu -o " + o.work + "/gsd_gpu.npy", o.work + "/gsd_gpu.npy", {}});
     if (!o.igl.empty())
         runs.push_back({"libigl, beta 2", o.igl + " mesh " + mesh_path + " " + query_path + " " + o.work + "/igl.npy --threads " + threads,
@@ -154,8 +170,11 @@ int main(int argc, char** argv) {
     for (int r = 0; r < o.repeat; ++r)
         for (Run& run : runs) run.times.push_back(seconds(run.command));
 
-    std::printf("Broken double torus: %zu faces (10 %% of the area in 3 holes, 5 %% flipped); %zu queries uniform in its box;\n",
-                mesh.face_count(), o.queries);
+    if (o.mesh.empty())
+        std::printf("Broken double torus: %zu faces (10 %% of the area in 3 holes, 5 %% flipped); %zu queries uniform in its box;\n",
+                    mesh.face_count(), o.queries);
+    else
+        std::printf("%s: %zu faces; %zu queries uniform in its box;\n", o.mesh.c_str(), mesh.face_count(), o.queries);
     std::printf("%d threads; whole runs, %d each in turn. Errors against the exact sum at %zu queries (%zu farther than\n",
                 o.threads, o.repeat, o.check, n_far);
     std::printf("one mean edge length, %.4f, from the surface).\n\n", edge);
