@@ -108,6 +108,17 @@ GSD_ALWAYS_INLINE std::uint32_t lanes_greater(const Real* d, Real r) {
 }
 
 /// The symmetric reduction of a node's moments, scaled for winding_expansion.
+/// Squared distance from lane l of a packet's queries (q[axis][lane]) to a node's box; 0 inside.
+template <int L>
+GSD_ALWAYS_INLINE double box_distance2(const SumTree::Hot& h, const double (&q)[3][L], int l) {
+    double s = 0;
+    for (int a = 0; a < 3; ++a) {
+        const double d = std::max(std::max(h.lo[a] - q[a][l], q[a][l] - h.hi[a]), 0.0);
+        s += d * d;
+    }
+    return s;
+}
+
 SumTree::WindingNodeT<double> winding_node(const SumTree::Node& n) {
     constexpr double k = 1 / kFourPi;
     SumTree::WindingNodeT<double> w;
@@ -646,14 +657,7 @@ void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::
         const Hot& h = records[e.node];
         alignas(32) double box2[L];
 #pragma omp simd
-        for (int l = 0; l < L; ++l) {
-            double s = 0;
-            for (int a = 0; a < 3; ++a) {
-                const double d = std::max(std::max(h.lo[a] - q[a][l], q[a][l] - h.hi[a]), 0.0);
-                s += d * d;
-            }
-            box2[l] = s;
-        }
+        for (int l = 0; l < L; ++l) box2[l] = box_distance2(h, q, l);
         std::uint32_t live = 0;
         for (int l = 0; l < L; ++l) live |= std::uint32_t(box2[l] < best2[l]) << l;
         live &= e.lanes;
@@ -674,15 +678,7 @@ void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::
         // element, whose distance then prunes the other.
         const std::uint32_t a = 2 * e.node + 1, b = 2 * e.node + 2;
         const int l0 = __builtin_ctz(live);
-        auto box2_at = [&](std::uint32_t i) {
-            double s = 0;
-            for (int c = 0; c < 3; ++c) {
-                const double d = std::max({records[i].lo[c] - q[c][l0], q[c][l0] - records[i].hi[c], 0.0});
-                s += d * d;
-            }
-            return s;
-        };
-        const bool a_first = box2_at(a) <= box2_at(b);
+        const bool a_first = box_distance2(records[a], q, l0) <= box_distance2(records[b], q, l0);
         stack[top++] = {a_first ? b : a, live};
         stack[top++] = {a_first ? a : b, live};
     }
@@ -728,12 +724,7 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
         const double four_rho2 = 4 * nd.rho * nd.rho;
 #pragma omp simd
         for (int l = 0; l < L; ++l) {
-            double s = 0;
-            for (int a = 0; a < 3; ++a) {
-                const double d = std::max(std::max(nd.lo[a] - q[a][l], q[a][l] - nd.hi[a]), 0.0);
-                s += d * d;
-            }
-            box2[l] = s;
+            box2[l] = box_distance2(nd, q, l);
             dx[l] = q[0][l] - nd.c[0];
             dy[l] = q[1][l] - nd.c[1];
             dz[l] = q[2][l] - nd.c[2];
