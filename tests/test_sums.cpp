@@ -393,7 +393,7 @@ TEST_CASE("screened sums in packets: every query gets what it gets alone, bit fo
         CHECK(terms == alone_terms);
         first += n;
     }
-    CHECK(compared > 100);
+    CHECK(compared + P > std::size_t(q.rows()));  // every query but a short tail
 }
 
 TEST_CASE("fast winding numbers: the float32 far field keeps its precision wherever the model is; far queries walk in double") {
