@@ -136,8 +136,12 @@ struct VdbOptions {
     /// Stored as the grid's "gsd_method" metadata ("pat", "shm", "winding", …).
     std::string method;
 };
-/// Whether this gsd was built with OpenVDB (libopenvdb-dev); without it write_vdb throws.
+/// Whether this gsd can write .vdb: it was built with OpenVDB (libopenvdb-dev) and finds its
+/// plugin, libgsd_vdb.so (beside libgsd, or named by $GSD_VDB_PLUGIN); without it write_vdb throws.
 GSD_EXPORT bool vdb_available();
+/// Throws the Error write_vdb would give for `path` when vdb_available() is false (a check
+/// before long work); does nothing otherwise.
+GSD_EXPORT void require_vdb(const std::string& path);
 /// Writes a scalar grid (values in C order, one per node: GridSpec's layout) as an OpenVDB
 /// FloatGrid whose index-to-world transform puts voxel (i, j, k) at the node's position
 /// (box.lo + (i, j, k)·step). Atomic, like every writer. Throws Error on a size mismatch,

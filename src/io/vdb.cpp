@@ -59,6 +59,13 @@ void append(void* context, const char* bytes, size_t size) { static_cast<std::st
 
 bool vdb_available() { return plugin() != nullptr; }
 
+void require_vdb(const std::string& path) {
+    if (!vdb_available())
+        throw Error(path, "this gsd cannot write .vdb: its OpenVDB plugin " GSD_VDB_PLUGIN_NAME
+                          " was not found (gsd was built without libopenvdb-dev, or the plugin is not installed beside "
+                          "libgsd; $GSD_VDB_PLUGIN may name it); write .npy instead");
+}
+
 void write_vdb(const std::string& path, const GridSpec& g, const std::vector<float>& values, const VdbOptions& o) {
     g.validate();
     if (values.size() != g.node_count())
@@ -73,11 +80,8 @@ void write_vdb(const std::string& path, const GridSpec& g, const std::vector<flo
         throw Error(path, "a level set needs cubic voxels, and this grid's spacing is " + std::to_string(step[0]) + ", " +
                               std::to_string(step[1]) + ", " + std::to_string(step[2]) +
                               " (equal extents per node count, e.g. the default cubic bounds, give cubes)");
+    require_vdb(path);
     const GsdVdbEncode encode = plugin();
-    if (!encode)
-        throw Error(path, "this gsd cannot write .vdb: its OpenVDB plugin " GSD_VDB_PLUGIN_NAME
-                          " was not found (gsd was built without libopenvdb-dev, or the plugin is not installed beside "
-                          "libgsd; $GSD_VDB_PLUGIN may name it); write .npy instead");
     const std::string creator = std::string("gsd ").append(version());
     GsdVdbGrid grid{g.nx, g.ny, g.nz, {g.box.lo[0], g.box.lo[1], g.box.lo[2]}, {step[0], step[1], step[2]}, values.data(),
                     o.name.c_str(), o.level_set ? 1 : 0, o.half_width, o.method.c_str(), creator.c_str()};

@@ -32,7 +32,8 @@ public:
                 // Packets of consecutive points walk the tree together; each point's r_min is
                 // bounded by the previous packet's last r_min plus the step to it.
                 constexpr int P = detail::SumTree::kScreenedLanes;
-                double prev[3] = {0, 0, 0}, prev_r = INFINITY;
+                Eigen::Vector3d prev = Eigen::Vector3d::Zero();
+                double prev_r = INFINITY;
                 std::uint32_t nearest = std::uint32_t(-1);  // the previous packet's nearest element: usually these ones' too
                 const std::size_t end = std::min(last, first + (r + 1) * run);
                 for (std::size_t i = first + r * run; i < end; i += P) {
@@ -40,11 +41,10 @@ public:
                     double p[3 * P], bound[P], X[3 * P];
                     for (int l = 0; l < n; ++l) {
                         for (int a = 0; a < 3; ++a) p[3 * l + a] = x(Eigen::Index(i) + l, a);
-                        bound[l] = prev_r + std::sqrt((p[3 * l] - prev[0]) * (p[3 * l] - prev[0]) + (p[3 * l + 1] - prev[1]) * (p[3 * l + 1] - prev[1]) +
-                                                      (p[3 * l + 2] - prev[2]) * (p[3 * l + 2] - prev[2]));
+                        bound[l] = prev_r + (Eigen::Vector3d(p[3 * l], p[3 * l + 1], p[3 * l + 2]) - prev).norm();
                     }
                     tree_.screened(p, n, k_, &r_min[i], X, terms, bound, &nearest);
-                    for (int a = 0; a < 3; ++a) prev[a] = p[3 * (n - 1) + a];
+                    prev = Eigen::Vector3d(p[3 * (n - 1)], p[3 * (n - 1) + 1], p[3 * (n - 1) + 2]);
                     prev_r = r_min[i + std::size_t(n) - 1];
                     for (int l = 0; l < n; ++l) {
                         const double len = std::sqrt(X[3 * l] * X[3 * l] + X[3 * l + 1] * X[3 * l + 1] + X[3 * l + 2] * X[3 * l + 2]);

@@ -702,7 +702,7 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
     const std::vector<Hot>& records = hot();
     const double budget = k.tolerance * 2 * M_PI / k.lambda;
     const bool cached = decay_lambda_ == k.lambda;
-    alignas(32) double q[3][L], rmin[L], R2[L], sum[3][L];
+    alignas(32) double q[3][L], rmin[L], R[L], sum[3][L];  // R: the reach, r_min + cutoff/λ
     for (int l = 0; l < L; ++l) {
         const int s = l < n ? l : 0;
         for (int a = 0; a < 3; ++a) {
@@ -710,8 +710,7 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
             sum[a][l] = 0;
         }
         rmin[l] = r_min[s];
-        const double R = rmin[l] + k.cutoff / k.lambda;
-        R2[l] = R * R;
+        R[l] = rmin[l] + k.cutoff / k.lambda;
     }
     struct Entry { std::uint32_t node, lanes; };
     Entry stack[kStack];
@@ -732,7 +731,7 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
             dn[l] = d2 > four_rho2 ? std::sqrt(d2) : 0.0;  // 0: too close, refused
         }
         std::uint32_t live = 0;  // the lanes within reach: every element farther weighs < e^(−cutoff) of the nearest
-        for (int l = 0; l < L; ++l) live |= std::uint32_t(!(box2[l] > R2[l])) << l;
+        for (int l = 0; l < L; ++l) live |= std::uint32_t(!(box2[l] > R[l] * R[l])) << l;
         live &= e.lanes;
         if (!live) continue;
         const double decay = cached ? nd.decay : std::exp(-k.lambda * nd.rho);
@@ -769,7 +768,7 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
             for (std::uint32_t m = rest; m; m &= m - 1) {
                 const int l = __builtin_ctz(m);
                 double xl[3] = {q[0][l], q[1][l], q[2][l]}, Xl[3] = {sum[0][l], sum[1][l], sum[2][l]};
-                screened_element(j, xl, k, rmin[l], rmin[l] + k.cutoff / k.lambda, budget, Xl, terms);
+                screened_element(j, xl, k, rmin[l], R[l], budget, Xl, terms);
                 for (int a = 0; a < 3; ++a) sum[a][l] = Xl[a];
             }
     }

@@ -212,9 +212,7 @@ bool writes_regular_file(const std::string& path) {
 void check_grid_output(const std::string& path, bool is_grid) {
     if (io::extension(path) != ".vdb") return;
     if (!is_grid) throw CLI::ValidationError("--output", ".vdb holds grids (--grid); write --queries results to a .npy");
-    if (!io::vdb_available())
-        throw Error(path, "this gsd cannot write .vdb: its OpenVDB plugin libgsd_vdb.so was not found (built without "
-                          "libopenvdb-dev, or not installed beside libgsd; $GSD_VDB_PLUGIN may name it); write a .npy");
+    io::require_vdb(path);  // before the work
 }
 
 void write_grid(const std::string& path, const GridSpec& g, const std::vector<float>& values, int components,
