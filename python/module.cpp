@@ -407,6 +407,6 @@ PYBIND11_MODULE(_gsd, m) {
         py::gil_scoped_acquire gil;
         const py::ssize_t f = py::ssize_t(labels.size()), t = py::ssize_t(r.w.size());
         return py::make_tuple(to_numpy(std::move(labels), {f}), to_numpy(std::move(w), {t, 3}));
-    }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("lp") = "full",
+    }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("lp") = "reduced",
        "(labels (F,) int32 per input face, w (T,3) per triangle corner): Surface Winding Numbers of curves in a file.");
 }

@@ -78,7 +78,7 @@ TEST_CASE("swn: int32 labels per face (+1 inside the loop), w per corner, loops 
 TEST_CASE("swn: the options run; --method shm labels by the sign of the surface SHM") {
     ScratchDir dir("cli-swn-options");
     const Files f = torus_with_loops(dir);
-    const std::vector<std::string> options = {"--lp reduced",     "--lp none",    "--lp-solver clp",
+    const std::vector<std::string> options = {"--lp full",        "--lp none",    "--lp-solver clp",
                                               "--curve-weight 0.01", "--boundary-aware", "--method shm",
                                               std::string("--method shm --render ").append(dir.file("s.png"))};
     for (const std::string& extra : options) {

@@ -155,6 +155,39 @@ TEST_CASE("SWN: a loop around the tube of a torus bounds nothing; naive rounding
     }
 }
 
+TEST_CASE("SWN: a staircase of edges around the tube is priced as the loop it stands for") {
+    // The residual prices a jump along a curve by curve_weight times how straight the curve runs
+    // there. Priced by its path, a zigzag loop along mesh edges would cost more than a smooth
+    // loop around the tube off the curves at a curve weight this high, and the input would be
+    // called bounding (with a phantom region beside it).
+    const PolygonMesh m = shapes::torus_mesh(72, 24);
+    const SurfaceMesh mesh(m, "torus");
+    SurfaceWindingNumbers swn(mesh);
+    // A plane through the center, tilted out of the z axis: it meets the tube in a loop that runs
+    // diagonally across the grid's columns, a zigzag along edges.
+    const double theta = 0.37;
+    const Eigen::Vector3d d(std::cos(theta), std::sin(theta), 0);
+    const Eigen::Vector3d n = Eigen::Vector3d(-std::sin(theta), std::cos(theta), 0.8).normalized();
+    std::vector<int> below(m.face_count());
+    for (std::size_t f = 0; f < below.size(); ++f)
+        below[f] = n.dot(vertex(m, face(m, f)[0]) + vertex(m, face(m, f)[1]) + vertex(m, face(m, f)[2])) < 0;
+    SurfaceSources loop;
+    for (SurfaceCurve& c : region_boundary(m, below).curves)
+        if (d.dot(vertex(m, c.nodes[0].index) + vertex(m, c.nodes[1].index)) > 0) loop.curves.push_back(std::move(c));
+    double path = 0;
+    for (const SurfaceCurve& c : loop.curves) path += (vertex(m, c.nodes[1].index) - vertex(m, c.nodes[0].index)).norm();
+    CHECK(path > 1.3 * 2 * kPi * 0.2);  // the tube's circumference (r = 0.2)
+    for (SwnResidual residual : {SwnResidual::Full, SwnResidual::Reduced}) {
+        SwnOptions o;
+        o.residual = residual;
+        o.curve_weight = 0.5;
+        const SwnResult r = swn.solve(loop, o);
+        CHECK(mislabeled_area(mesh, r.labels, constant_labels(mesh.face_count()), false) == 0.0);
+        CHECK(r.bounding.empty());
+        CHECK(r.completed.empty());
+    }
+}
+
 TEST_CASE("SWN: a torus with a bounding loop and a loop around the tube, whole and broken") {
     const PolygonMesh m = shapes::torus_mesh(72, 24);
     const SurfaceMesh mesh(m, "torus");
@@ -190,12 +223,13 @@ TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduc
     for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d(0.425, 0, 0), 0.3)) src.curves.push_back(std::move(c));
     for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d(-0.425, 0, 0), kPi + 1.2)) src.curves.push_back(std::move(c));
     REQUIRE(src.curves.size() == 3);
-    SwnOptions reduced;
+    SwnOptions full_lp, reduced;
+    full_lp.residual = SwnResidual::Full;
     reduced.residual = SwnResidual::Reduced;
     for (double cut : {0.0, 0.3, 0.5}) {
         CAPTURE(cut);
         const SurfaceSources input = cut > 0 ? damage(src, {cut, 3, 0}, 11) : src;
-        const SwnResult full = swn.solve(input);
+        const SwnResult full = swn.solve(input, full_lp);
         const SwnResult red = swn.solve(input, reduced);
         CHECK(mislabeled_area(mesh, full.labels, truth, true) < (cut > 0 ? 0.05 : 0.005));
         // The reduced program completes gaps along shortest paths chosen beforehand: with half of
@@ -279,9 +313,10 @@ TEST_CASE("SWN: the residual program by CLP gives the labels of the network solv
     src.curves = level_set_curves(mesh, f, 0);
     src.curves.push_back(meridian(40, 14, 22));
     src = damage(src, {0.3, 2, 0}, 3);
-    SwnOptions clp;
+    SwnOptions network, clp;
+    network.residual = clp.residual = SwnResidual::Full;
     clp.solver = SwnSolver::Clp;
-    const SwnResult a = swn.solve(src), b = swn.solve(src, clp);
+    const SwnResult a = swn.solve(src, network), b = swn.solve(src, clp);
     CHECK(a.lp_objective == doctest::Approx(b.lp_objective).epsilon(1e-4));
     CHECK(mislabeled_area(mesh, a.labels, b.labels, true) < 0.01);
 }
@@ -417,10 +452,11 @@ TEST_CASE("SWN: the shared curves on surfaces run; the double torus' loops split
             CHECK_FALSE(r.simply_connected);
             CHECK_FALSE(r.bounding.empty());
             CHECK_FALSE(r.nonbounding.empty());
-            SwnOptions reduced;
-            reduced.residual = SwnResidual::Reduced;
-            const SwnResult red = swn.solve(curves, reduced);
-            CHECK(mislabeled_area(mesh, red.labels, r.labels, true) < 0.01);
+            // The default (reduced) program's labels against the full program's.
+            SwnOptions full_lp;
+            full_lp.residual = SwnResidual::Full;
+            const SwnResult full = swn.solve(curves, full_lp);
+            CHECK(mislabeled_area(mesh, full.labels, r.labels, true) < 0.01);
         }
     }
 }

@@ -44,12 +44,19 @@ enum class SwnSolver {
 GSD_EXPORT SwnSolver swn_solver_from_name(const std::string& name);  // "network" | "clp"
 
 struct SwnOptions {
-    SwnResidual residual = SwnResidual::Full;
+    /// Reduced by default: over the benchmark's broken curves its labels are closer to the truth
+    /// than the full program's (whose optimum can complete a broken loop through a narrow neck
+    /// of a region), and it runs in milliseconds. docs/swn.md has the figures.
+    SwnResidual residual = SwnResidual::Reduced;
     SwnSolver solver = SwnSolver::Network;
     /// Cost per unit length of a jump of the residual along an input curve, relative to a jump
-    /// anywhere else (ε of the linear program): small, so nonbounding curves are read off the
-    /// input where they run and completed elsewhere only across gaps.
-    double curve_weight = 1e-3;
+    /// anywhere else (ε of the linear program), times how straight the curve runs there (a
+    /// staircase along mesh edges costs what the curve it stands for would). Below 1, so
+    /// nonbounding curves are read off the input where they run and completed elsewhere only
+    /// across gaps; not near 0, so the length of the input a decomposition takes still counts
+    /// (the thesis' shortest nonbounding curves) and a short completion does not turn the long
+    /// boundary of a region into a loop that bounds nothing.
+    double curve_weight = 0.3;
     /// Thesis §6.2's goal, by a different means: on meshes with boundary, make labels near the
     /// boundary behave like free-space winding numbers instead of bending to meet it at right
     /// angles. gsd solves the final jump equation with an absorbing (Robin) condition on each

@@ -331,19 +331,72 @@ struct ResidualLp {
     std::size_t variables = 0, rows = 0;
 };
 
-/// Edge e's term of the residual program: cost per unit length and |J| (1; curve_weight on curve
-/// edges) and the bounds of J (on curve edges, between 0 and the multiplicity).
+/// Per curve edge: how straight the curve runs there — the length of the two chords from the point
+/// a window of curve length before it to its midpoint and on to the point a window after it, over
+/// the length along the curve between them. 1 on a straight curve; about 0.5–0.8 on a staircase
+/// along mesh edges standing for a smooth one, so
+/// that such a curve costs the residual what the curve it stands for would (and not, say, twice
+/// a shortcut across the faces beside it). Off the curves: 1.
+std::vector<double> curve_straightness(const Topology& t, const std::vector<double>& chain) {
+    const Triangulation& T = t.mesh;
+    auto on_curve = [&](std::size_t e) { return std::abs(chain[e]) > 1e-9 && T.edges[e][0] != T.edges[e][1]; };
+    auto from = [&](std::size_t e) { return chain[e] > 0 ? T.edges[e][0] : T.edges[e][1]; };
+    auto to = [&](std::size_t e) { return chain[e] > 0 ? T.edges[e][1] : T.edges[e][0]; };
+    // Curve edges leaving and entering each vertex, in the chain's direction.
+    std::vector<std::vector<std::uint32_t>> out(T.vertex_count), in(T.vertex_count);
+    for (std::size_t e = 0; e < T.edge_count(); ++e)
+        if (on_curve(e)) {
+            out[from(e)].push_back(std::uint32_t(e));
+            in[to(e)].push_back(std::uint32_t(e));
+        }
+    const double window = 3.0 * t.mean_edge_length;
+    constexpr int kMaxSteps = 64;  // tiny pieces of a cut mesh: enough of them, not all
+    // From vertex v, follow the curve forward (or backward) while it runs on unbranched, up to
+    // the window, not past edge e; adds the length walked, returns where it stopped.
+    auto walk = [&](std::uint32_t v, bool forward, std::size_t e, double& along) {
+        double l = 0;
+        for (int step = 0; step < kMaxSteps && l < window; ++step) {
+            if (out[v].size() != 1 || in[v].size() != 1) break;
+            const std::uint32_t next = forward ? out[v][0] : in[v][0];
+            if (next == e) break;  // a closed curve shorter than the window
+            l += T.edge_lengths[next];
+            v = forward ? to(next) : from(next);
+        }
+        along += l;
+        return v;
+    };
+    std::vector<double> s(T.edge_count(), 1.0);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (!on_curve(e)) continue;
+        double along = T.edge_lengths[e];
+        const std::uint32_t head = walk(to(e), true, e, along), tail = walk(from(e), false, e, along);
+        auto x = [&](std::uint32_t v) -> Eigen::Vector3d { return t.polygons.vertices.row(v).transpose(); };
+        const Eigen::Vector3d mid = 0.5 * (x(T.edges[e][0]) + x(T.edges[e][1]));
+        // Two chords, through the edge's midpoint: a smooth curve's bend over the window barely
+        // counts (a circle of 8 windows' length: 0.97), a staircase's zigzag does.
+        const double chords = (x(head) - mid).norm() + (mid - x(tail)).norm();
+        if (along > 0) s[e] = std::clamp(chords / along, 0.05, 1.0);
+    }
+    return s;
+}
+
+/// Edge e's term of the residual program: cost per unit length and |J| (1; on curve edges
+/// curve_weight times the curve's straightness there, so a staircase along mesh edges costs what
+/// the curve it stands for would) and the bounds of J (on curve edges, between 0 and the
+/// multiplicity).
 struct ResidualTerm {
     double weight, lo = -surface::TensionProblem::kInfinity, hi = surface::TensionProblem::kInfinity;
 };
-ResidualTerm residual_term(std::size_t e, const std::vector<double>& chain, const SwnOptions& o) {
+ResidualTerm residual_term(std::size_t e, const std::vector<double>& chain, const std::vector<double>& straightness,
+                           const SwnOptions& o) {
     const double m = chain[e];
     if (std::abs(m) <= 1e-9) return {1.0};
-    return {o.curve_weight, std::min(0.0, m), std::max(0.0, m)};
+    return {o.curve_weight * straightness[e], std::min(0.0, m), std::max(0.0, m)};
 }
 
 ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, const std::vector<std::uint32_t>& group,
-                             std::size_t groups, const std::vector<double>& chain, const SwnOptions& o) {
+                             std::size_t groups, const std::vector<double>& chain,
+                             const std::vector<double>& straightness, const SwnOptions& o) {
     const Triangulation& T = t.mesh;
     surface::TensionProblem p;
     p.nodes = groups;
@@ -357,7 +410,7 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
         edge.right = group[s.right];
         if (edge.left == edge.right) continue;
         edge.offset = v0[s.left_corner] - v0[s.right_corner];
-        const ResidualTerm term = residual_term(e, chain, o);
+        const ResidualTerm term = residual_term(e, chain, straightness, o);
         // Zero-length edges still cost a little: every cost must be positive.
         edge.cost = term.weight * std::max(T.edge_lengths[e] * unit, 1e-9);
         edge.lo = term.lo;
@@ -376,11 +429,12 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
 /// Σ length·|J| (curve_weight on curve edges) over every interior edge, in the units of the
 /// mesh, and how far the jumps on curve edges leave [0, multiplicity].
 std::pair<double, double> residual_cost(const Topology& t, const std::vector<double>& jumps,
-                                        const std::vector<double>& chain, const SwnOptions& o) {
+                                        const std::vector<double>& chain, const std::vector<double>& straightness,
+                                        const SwnOptions& o) {
     const Triangulation& T = t.mesh;
     double cost = 0, violation = 0;
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
-        const ResidualTerm term = residual_term(e, chain, o);
+        const ResidualTerm term = residual_term(e, chain, straightness, o);
         cost += term.weight * T.edge_lengths[e] * std::abs(jumps[e]);
         violation = std::max({violation, term.lo - jumps[e], jumps[e] - term.hi});
     }
@@ -924,7 +978,8 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
             for (std::size_t e = 0; e < T.edge_count(); ++e) cut[e] = cut[e] || paths[e] || std::abs(chain[e]) > 1e-9;
             group = cut_components(t, cut, gamma, v, groups);
         }
-        const ResidualLp lp = solve_residual_lp(t, v, group, groups, chain, o);
+        const std::vector<double> straightness = curve_straightness(t, chain);
+        const ResidualLp lp = solve_residual_lp(t, v, group, groups, chain, straightness, o);
         for (std::size_t f = 0; f < T.face_count(); ++f)
             for (int k = 0; k < 3; ++k) v[corner_id(f, k)] += lp.shift[group[f]];
         r.lp_variables = lp.variables;
@@ -934,7 +989,7 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
         const std::vector<double> jumps = edge_jumps(t, v);
         // The full program's cost at v, over every edge: the same measure whichever program
         // found v (the reduced one's own cost leaves out the edges inside its pieces).
-        std::tie(r.lp_objective, r.lp_violation) = residual_cost(t, jumps, chain, o);
+        std::tie(r.lp_objective, r.lp_violation) = residual_cost(t, jumps, chain, straightness, o);
         std::vector<double> nonbounding(T.edge_count(), 0.0), completed(T.edge_count(), 0.0);
         for (std::size_t e = 0; e < T.edge_count(); ++e) {
             if (std::abs(chain[e]) > 1e-9) {
@@ -990,6 +1045,7 @@ std::optional<std::vector<double>> edge_chain(const Topology& t, const surface::
     }
     return chain;
 }
+
 
 std::vector<int> majority_per_face(const SurfaceMesh& mesh, const std::vector<std::uint32_t>& triangle_face,
                                    const std::vector<double>& areas, const std::vector<int>& labels) {

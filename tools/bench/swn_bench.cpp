@@ -1,6 +1,7 @@
 // gsd-swn-bench — Surface Winding Numbers: accuracy on a synthetic benchmark and timing.
 //
-//   gsd-swn-bench accuracy [--cases N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]
+//   gsd-swn-bench accuracy [--cases N] [--only MESH] [--torus N] [--double-torus N] [--curve-weight W]
+//                          [--reference PROGRAM] [--work DIR] [--quiet]
 //       A benchmark in the style of thesis §6.3: on a sphere, a torus and a double torus, the
 //       regions below a level of a random low-frequency function are the ground truth; their
 //       boundaries (on mesh edges, or across faces), clean or with 30 % / 50 % cut away, plus
@@ -9,6 +10,9 @@
 //       reduced program, naive rounding of u, and the sign of the surface Signed Heat Method.
 //       With --reference (a program `REF MESH.obj CURVES.txt -o PREFIX` writing
 //       PREFIX.labels.npy, e.g. the SWN reference code), cases on mesh edges are solved by it too.
+//       --only MESH keeps the cases on one mesh (sphere, torus, double-torus); --torus N and
+//       --double-torus N change their resolutions (72 and 36: torus_mesh(N, N/3), double_torus_mesh(N)),
+//       to check that a change holds on meshes it was not measured on.
 //   gsd-swn-bench timing [--sizes 32,48,64,96,128] [--clp-max 48]
 //       Time per step and full vs reduced program vs mesh size: double tori with broken loops;
 //       the network solver vs CLP on the same program for sizes up to --clp-max.
@@ -202,9 +206,14 @@ std::vector<SurfaceCurve> handle_loop(const SurfaceMesh& mesh, const PolygonMesh
     return loops;
 }
 
+/// Resolutions of the benchmark's tori: torus_mesh(torus, torus / 3), double_torus_mesh(double_torus).
+struct MeshSizes {
+    int torus = 72, double_torus = 36;
+};
+
 /// The benchmark: every mesh × curves on/off edges × clean / 30 % / 50 % cut, `per` random
 /// functions each (nonbounding handle loops on the torus and double torus).
-std::vector<Case> make_cases(int per) {
+std::vector<Case> make_cases(int per, const MeshSizes& sizes = {}) {
     struct MeshKind {
         std::string name;
         PolygonMesh mesh;
@@ -212,8 +221,8 @@ std::vector<Case> make_cases(int per) {
     };
     std::vector<MeshKind> meshes;
     meshes.push_back({"sphere", shapes::icosphere(4), {}});
-    meshes.push_back({"torus", shapes::torus_mesh(72, 24), {Eigen::Vector3d::Zero()}});
-    meshes.push_back({"double-torus", shapes::double_torus_mesh(36), {{-0.425, 0, 0}, {0.425, 0, 0}}});
+    meshes.push_back({"torus", shapes::torus_mesh(sizes.torus, sizes.torus / 3), {Eigen::Vector3d::Zero()}});
+    meshes.push_back({"double-torus", shapes::double_torus_mesh(sizes.double_torus), {{-0.425, 0, 0}, {0.425, 0, 0}}});
     std::vector<Case> cases;
     for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
         const MeshKind& k = meshes[mi];
@@ -368,13 +377,17 @@ struct Stats {
 
 int accuracy(int argc, char** argv) {
     int per = 3;
-    std::string reference, work;
+    std::string reference, work, only;
+    MeshSizes sizes;
     bool quiet = false;
     SwnOptions defaults;
     for (int i = 2; i < argc; ++i) {
         if (!std::strcmp(argv[i], "--cases") && i + 1 < argc) per = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--curve-weight") && i + 1 < argc) defaults.curve_weight = std::atof(argv[++i]);
         else if (!std::strcmp(argv[i], "--reference") && i + 1 < argc) reference = argv[++i];
+        else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
+        else if (!std::strcmp(argv[i], "--torus") && i + 1 < argc) sizes.torus = std::atoi(argv[++i]);
+        else if (!std::strcmp(argv[i], "--double-torus") && i + 1 < argc) sizes.double_torus = std::atoi(argv[++i]);
         else if (!std::strcmp(argv[i], "--work") && i + 1 < argc) work = argv[++i];
         else if (!std::strcmp(argv[i], "--quiet")) quiet = true;
         else {
@@ -385,7 +398,18 @@ int accuracy(int argc, char** argv) {
     if (per < 1) per = 1;
     if (work.empty()) work = std::filesystem::temp_directory_path().string() + "/gsd-swn-bench";
     std::filesystem::create_directories(work);
-    const std::vector<Case> cases = make_cases(per);
+    if (sizes.torus < 12 || sizes.double_torus < 12) {
+        std::fprintf(stderr, "--torus and --double-torus need at least 12\n");
+        return 2;
+    }
+    std::vector<Case> cases = make_cases(per, sizes);
+    if (!only.empty()) {
+        std::erase_if(cases, [&](const Case& c) { return c.name.substr(0, c.name.find('/')) != only; });
+        if (cases.empty()) {
+            std::fprintf(stderr, "no cases on a mesh named %s (sphere, torus, double-torus)\n", only.c_str());
+            return 2;
+        }
+    }
     const std::vector<std::string> methods = {"swn-full", "swn-reduced", "naive-u", "shm-sign", "reference"};
     std::map<std::string, std::map<std::string, Stats>> by_group;  // group → method → mislabeled %
     Stats full_vs_reduced, objective_gap, t_full, t_reduced, t_ref;
@@ -397,6 +421,7 @@ int accuracy(int argc, char** argv) {
         const SurfaceMesh mesh(c.mesh, c.name);
         SurfaceWindingNumbers swn(mesh);
         SwnOptions full = defaults, reduced = defaults;
+        full.residual = SwnResidual::Full;
         reduced.residual = SwnResidual::Reduced;
         const SwnResult rf = swn.solve(c.curves, full);
         const SwnResult rr = swn.solve(c.curves, reduced);
@@ -513,6 +538,7 @@ int timing(int argc, char** argv) {
         src = damage(src, {0.3, 3, 0}, 5);
         SurfaceWindingNumbers swn(mesh);
         SwnOptions full, reduced, clp;
+        full.residual = clp.residual = SwnResidual::Full;
         reduced.residual = SwnResidual::Reduced;
         clp.solver = SwnSolver::Clp;
         const SwnResult rf = swn.solve(src, full);
@@ -565,7 +591,7 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "gsd-swn-bench: %s\n", e.what());
         return 1;
     }
-    std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]\n"
+    std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--only MESH] [--torus N] [--double-torus N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]\n"
                          "       gsd-swn-bench timing [--sizes 32,48,64] [--clp-max 48]\n"
                          "       gsd-swn-bench write CASE PREFIX\n");
     return 2;

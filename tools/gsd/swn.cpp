@@ -20,7 +20,7 @@ namespace {
 struct SwnArgs {
     std::string mesh, output, w, loops, render;
     std::vector<std::string> curves;
-    std::string lp = "full", solver = "network", method = "swn";
+    std::string lp = "reduced", solver = "network", method = "swn";
     SwnOptions options;
 };
 
@@ -190,8 +190,9 @@ void add_swn(CLI::App& app) {
         ->check(CLI::IsMember({"swn", "shm"}))
         ->capture_default_str();
     s->add_option("--lp", a->lp,
-                  "Residual step on surfaces that are not simply connected: full (linear program over every face), "
-                  "reduced (over the pieces of a cut, much faster), none (naive rounding of u)")
+                  "Residual step on surfaces that are not simply connected: reduced (linear program over the pieces of "
+                  "a cut: fast, and on broken curves usually the better labels), full (over every face: the thesis' "
+                  "minimal-L1 optimum), none (naive rounding of u)")
         ->check(CLI::IsMember({"full", "reduced", "none"}))
         ->capture_default_str();
     s->add_option("--lp-solver", a->solver,
