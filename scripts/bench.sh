@@ -206,7 +206,7 @@ if [ "$what" = all ] || [ "$what" = swn ]; then
     echo "== Whole runs on the shared double tori (seconds; the reference's full program only with GSD_BENCH_SWN_SLOW=1)"
     printf "%-34s %9s %9s %12s %12s\n" input "gsd full" "gsd red." "ref approx" "ref full"
     for m in DoubleTorusWithLoops DoubleTorusWithBrokenLoops; do
-      t0=$(date +%s.%N); "$gsd" -q swn "$d/$m.obj" -o "$work/f.npy"; t1=$(date +%s.%N)
+      t0=$(date +%s.%N); "$gsd" -q swn "$d/$m.obj" --lp full -o "$work/f.npy"; t1=$(date +%s.%N)
       "$gsd" -q swn "$d/$m.obj" --lp reduced -o "$work/r.npy"; t2=$(date +%s.%N)
       ra=-; rf=-
       if [ -n "$ref" ]; then

@@ -188,6 +188,44 @@ TEST_CASE("SWN: a staircase of edges around the tube is priced as the loop it st
     }
 }
 
+TEST_CASE("SWN: a loop around the thick side of a handle stays nonbounding with either program's curve weight") {
+    // A torus whose tube is 5× thicker on one side: a loop around the thin side is shorter than
+    // 0.3 × the drawn loop. The full program frees every face, so it needs a near-zero curve
+    // weight (at 0.3 it moves the loop to the thin side and labels half the torus); the reduced
+    // program's jumps off the curves run only along its cut, so its 0.3 is safe. Both defaults.
+    constexpr int n_major = 72, n_minor = 24;
+    for (int column : {0, 18, 36, 54}) {  // the thin side opposite the loop, wherever it lies
+        CAPTURE(column);
+        PolygonMesh m;
+        m.vertices.resize(n_major * n_minor, 3);
+        for (int i = 0; i < n_major; ++i) {
+            const double th = 2 * kPi * i / n_major, r = 0.25 + 0.17 * std::cos(th - 2 * kPi * column / n_major);
+            for (int j = 0; j < n_minor; ++j) {
+                const double ph = 2 * kPi * j / n_minor;
+                m.vertices.row(i * n_minor + j) << (0.6 + r * std::cos(ph)) * std::cos(th),
+                    (0.6 + r * std::cos(ph)) * std::sin(th), r * std::sin(ph);
+            }
+        }
+        for (int i = 0; i < n_major; ++i)
+            for (int j = 0; j < n_minor; ++j) {
+                const auto v = [&](int a, int b) { return std::uint32_t(((a + n_major) % n_major) * n_minor + (b % n_minor)); };
+                m.add_face({v(i, j), v(i + 1, j), v(i + 1, j + 1)});
+                m.add_face({v(i, j), v(i + 1, j + 1), v(i, j + 1)});
+            }
+        const SurfaceMesh mesh(m, "uneven torus");
+        SurfaceWindingNumbers swn(mesh);
+        SurfaceSources loop;
+        loop.curves.push_back(meridian(n_major, n_minor, column));
+        for (SwnResidual residual : {SwnResidual::Reduced, SwnResidual::Full}) {
+            SwnOptions o;
+            o.residual = residual;
+            const SwnResult r = swn.solve(loop, o);
+            CHECK(mislabeled_area(mesh, r.labels, constant_labels(mesh.face_count()), false) == 0.0);
+            CHECK(r.bounding.empty());
+        }
+    }
+}
+
 TEST_CASE("SWN: a torus with a bounding loop and a loop around the tube, whole and broken") {
     const PolygonMesh m = shapes::torus_mesh(72, 24);
     const SurfaceMesh mesh(m, "torus");
@@ -223,9 +261,11 @@ TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduc
     for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d(0.425, 0, 0), 0.3)) src.curves.push_back(std::move(c));
     for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d(-0.425, 0, 0), kPi + 1.2)) src.curves.push_back(std::move(c));
     REQUIRE(src.curves.size() == 3);
+    // One curve weight for both, so their costs compare (the programs' own defaults differ).
     SwnOptions full_lp, reduced;
     full_lp.residual = SwnResidual::Full;
     reduced.residual = SwnResidual::Reduced;
+    full_lp.curve_weight = reduced.curve_weight = kSwnFullCurveWeight;
     for (double cut : {0.0, 0.3, 0.5}) {
         CAPTURE(cut);
         const SurfaceSources input = cut > 0 ? damage(src, {cut, 3, 0}, 11) : src;
@@ -403,9 +443,15 @@ TEST_CASE("SWN: bad input is a clear error") {
     SurfaceSources bad_index;
     bad_index.curves.push_back({{SurfacePoint::at_vertex(0), SurfacePoint::at_vertex(100000)}, true});
     CHECK_THROWS_AS(swn.solve(bad_index), Error);
-    SwnOptions o;
-    o.curve_weight = 0;
-    CHECK_THROWS_AS(swn.solve(unsigned_curve, o), Error);
+    SurfaceSources one_edge;
+    one_edge.curves.push_back({{SurfacePoint::at_vertex(0), SurfacePoint::at_vertex(1)}, true});
+    for (double weight : {-0.1, 1.5, std::nan("")}) {
+        SwnOptions o;
+        o.curve_weight = weight;
+        CHECK_THROWS_WITH_AS(swn.solve(one_edge, o), doctest::Contains("(0, 1]"), Error);
+    }
+    SwnOptions automatic;  // 0: the program's own weight
+    CHECK_NOTHROW(swn.solve(one_edge, automatic));
     CHECK_THROWS_AS(swn_residual_from_name("partial"), Error);
     CHECK_THROWS_AS(swn_solver_from_name("gurobi"), Error);
 

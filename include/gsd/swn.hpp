@@ -43,6 +43,18 @@ enum class SwnSolver {
 };
 GSD_EXPORT SwnSolver swn_solver_from_name(const std::string& name);  // "network" | "clp"
 
+/// The reduced program's curve weight: well below 1, so nonbounding curves are read off the input
+/// where they run and completed elsewhere only across gaps; not near 0, so the length of input a
+/// decomposition takes still counts (the thesis' shortest nonbounding curves) and a short
+/// completion across the neck of a region does not turn its long broken boundary into a loop
+/// that bounds nothing. Safe because the reduced program's jumps off the curves can only run
+/// along its cut, not along any short loop of the surface.
+constexpr double kSwnReducedCurveWeight = 0.3;
+/// The full program's: the reference's ε. Every face is free there, so a loop around a thin part
+/// of a handle would beat a curve drawn around a thick part at any weight above the ratio of
+/// their lengths (the shared annulus: 13 % of its area mislabeled at 0.3).
+constexpr double kSwnFullCurveWeight = 1e-3;
+
 struct SwnOptions {
     /// Reduced by default: over the benchmark's broken curves its labels are closer to the truth
     /// than the full program's (whose optimum can complete a broken loop through a narrow neck
@@ -51,12 +63,9 @@ struct SwnOptions {
     SwnSolver solver = SwnSolver::Network;
     /// Cost per unit length of a jump of the residual along an input curve, relative to a jump
     /// anywhere else (ε of the linear program), times how straight the curve runs there (a
-    /// staircase along mesh edges costs what the curve it stands for would). Below 1, so
-    /// nonbounding curves are read off the input where they run and completed elsewhere only
-    /// across gaps; not near 0, so the length of the input a decomposition takes still counts
-    /// (the thesis' shortest nonbounding curves) and a short completion does not turn the long
-    /// boundary of a region into a loop that bounds nothing.
-    double curve_weight = 0.3;
+    /// staircase along mesh edges costs what the curve it stands for would). In (0, 1]; 0 picks
+    /// the program's own: kSwnReducedCurveWeight or kSwnFullCurveWeight (above).
+    double curve_weight = 0;
     /// Thesis §6.2's goal, by a different means: on meshes with boundary, make labels near the
     /// boundary behave like free-space winding numbers instead of bending to meet it at right
     /// angles. gsd solves the final jump equation with an absorbing (Robin) condition on each

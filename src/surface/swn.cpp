@@ -1094,8 +1094,11 @@ const SurfaceMesh& SurfaceWindingNumbers::mesh() const { return impl_->mesh; }
 SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOptions& options,
                                        const ProgressFn& progress) {
     const auto start = Clock::now();
-    if (!(options.curve_weight > 0 && options.curve_weight <= 1))
-        throw Error("SwnOptions::curve_weight", "must be in (0, 1]");
+    if (!(options.curve_weight >= 0 && options.curve_weight <= 1))
+        throw Error("SwnOptions::curve_weight", "must be in (0, 1], or 0 for the program's default");
+    SwnOptions o = options;
+    if (o.curve_weight == 0)
+        o.curve_weight = o.residual == SwnResidual::Full ? kSwnFullCurveWeight : kSwnReducedCurveWeight;
     if (curves.curves.empty()) throw Error("curves", "no curves: winding numbers need oriented curves");
     if (!curves.points.empty()) throw Error("curves", "isolated points have no winding number: give curves only");
     for (const SurfaceCurve& c : curves.curves)
@@ -1108,7 +1111,7 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
     SwnResult result;
     if (const auto on_edges = edge_chain(t, S)) {
         if (!impl_->ops) impl_->ops.emplace(t);
-        CoreResult r = run_core(*impl_->ops, *on_edges, options, progress);
+        CoreResult r = run_core(*impl_->ops, *on_edges, o, progress);
         result.labels = majority_per_face(mesh, t.triangle_face, t.face_areas, r.labels);
         result.naive_labels = majority_per_face(mesh, t.triangle_face, t.face_areas, r.naive_labels);
         result.w.resize(t.mesh.face_count());
@@ -1141,7 +1144,7 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
                 chain[e] += st.mesh.edges[e][0] == path[i] ? 1.0 : -1.0;
             }
         Operators ops(st);
-        CoreResult r = run_core(ops, chain, options, progress);
+        CoreResult r = run_core(ops, chain, o, progress);
         // Labels per input face by area majority; w at input corners from a sub-triangle there.
         std::vector<std::uint32_t> input_face(st.mesh.face_count());
         for (std::size_t f = 0; f < input_face.size(); ++f) input_face[f] = t.triangle_face[cut.triangle_of[f]];

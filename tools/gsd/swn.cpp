@@ -200,8 +200,9 @@ void add_swn(CLI::App& app) {
         ->check(CLI::IsMember({"network", "clp"}))
         ->capture_default_str();
     s->add_option("--curve-weight", a->options.curve_weight,
-                  "Cost of a residual jump along an input curve relative to elsewhere (ε of the linear program)")
-        ->check(CLI::Range(1e-9, 1.0))
+                  "Cost of a residual jump along an input curve relative to elsewhere (ε of the linear program); "
+                  "0: the program's default (reduced 0.3, full 0.001)")
+        ->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
     s->add_flag("--boundary-aware", a->options.boundary_aware,
                 "On meshes with boundary: labels near the boundary like free-space winding numbers (thesis §6.2)");
