@@ -334,9 +334,9 @@ struct ResidualLp {
 /// Per curve edge: how straight the curve runs there — the length of the two chords from the point
 /// a window of curve length before it to its midpoint and on to the point a window after it, over
 /// the length along the curve between them. 1 on a straight curve; about 0.5–0.8 on a staircase
-/// along mesh edges standing for a smooth one, so
-/// that such a curve costs the residual what the curve it stands for would (and not, say, twice
-/// a shortcut across the faces beside it). Off the curves: 1.
+/// along mesh edges standing for a smooth one, so that such a curve costs the residual what the
+/// curve it stands for would (and not, say, twice a shortcut across the faces beside it). Off
+/// the curves: 1.
 std::vector<double> curve_straightness(const Topology& t, const std::vector<double>& chain) {
     const Triangulation& T = t.mesh;
     auto on_curve = [&](std::size_t e) { return std::abs(chain[e]) > 1e-9 && T.edges[e][0] != T.edges[e][1]; };
@@ -365,12 +365,12 @@ std::vector<double> curve_straightness(const Topology& t, const std::vector<doub
         along += l;
         return v;
     };
+    auto x = [&](std::uint32_t v) -> Eigen::Vector3d { return t.polygons.vertices.row(v).transpose(); };
     std::vector<double> s(T.edge_count(), 1.0);
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         if (!on_curve(e)) continue;
         double along = T.edge_lengths[e];
         const std::uint32_t head = walk(to(e), true, e, along), tail = walk(from(e), false, e, along);
-        auto x = [&](std::uint32_t v) -> Eigen::Vector3d { return t.polygons.vertices.row(v).transpose(); };
         const Eigen::Vector3d mid = 0.5 * (x(T.edges[e][0]) + x(T.edges[e][1]));
         // Two chords, through the edge's midpoint: a smooth curve's bend over the window barely
         // counts (a circle of 8 windows' length: 0.97), a staircase's zigzag does.
@@ -1045,7 +1045,6 @@ std::optional<std::vector<double>> edge_chain(const Topology& t, const surface::
     }
     return chain;
 }
-
 
 std::vector<int> majority_per_face(const SurfaceMesh& mesh, const std::vector<std::uint32_t>& triangle_face,
                                    const std::vector<double>& areas, const std::vector<int>& labels) {
