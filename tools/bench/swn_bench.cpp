@@ -16,8 +16,9 @@
 //   gsd-swn-bench timing [--sizes 32,48,64,96,128] [--clp-max 48]
 //       Time per step and full vs reduced program vs mesh size: double tori with broken loops;
 //       the network solver vs CLP on the same program for sizes up to --clp-max.
-//   gsd-swn-bench write CASE PREFIX
-//       Writes one accuracy case (by number) as PREFIX.obj and PREFIX.txt for side-by-side runs.
+//   gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]
+//       Writes one accuracy case (by name, at the sizes given to accuracy) as PREFIX.obj,
+//       PREFIX.txt and PREFIX.truth.npy for side-by-side runs.
 #include <gsd/io.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/surface.hpp>
@@ -561,13 +562,18 @@ int timing(int argc, char** argv) {
 }
 
 int write_case(int argc, char** argv) {
-    if (argc < 4) {
-        std::fprintf(stderr, "usage: gsd-swn-bench write CASE PREFIX   (CASE: a name from the accuracy table)\n");
+    MeshSizes sizes;
+    for (int i = 4; i + 1 < argc; i += 2) {
+        if (!std::strcmp(argv[i], "--torus")) sizes.torus = std::atoi(argv[i + 1]);
+        else if (!std::strcmp(argv[i], "--double-torus")) sizes.double_torus = std::atoi(argv[i + 1]);
+    }
+    if (argc < 4 || argc % 2 != 0 || sizes.torus < 12 || sizes.double_torus < 12) {
+        std::fprintf(stderr, "usage: gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]   (CASE: a name from the accuracy table; sizes as given to accuracy, at least 12)\n");
         return 2;
     }
     const std::string name = argv[2];
     const int index = std::atoi(name.substr(name.find('/') + 1).c_str());
-    for (const Case& c : make_cases(index + 1)) {
+    for (const Case& c : make_cases(index + 1, sizes)) {
         if (c.name != name) continue;
         io::write_mesh(std::string(argv[3]) + ".obj", c.mesh);
         write_surface_curves(std::string(argv[3]) + ".txt", c.curves);
@@ -593,6 +599,6 @@ int main(int argc, char** argv) {
     }
     std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--only MESH] [--torus N] [--double-torus N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]\n"
                          "       gsd-swn-bench timing [--sizes 32,48,64] [--clp-max 48]\n"
-                         "       gsd-swn-bench write CASE PREFIX\n");
+                         "       gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]\n");
     return 2;
 }
