@@ -1,7 +1,7 @@
 // gsd-broken-bench: inside/outside on broken closed meshes — the grid SHM's sign against the
 // generalized winding number thresholded at ½ (the classic answer).
 //
-//   gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--fit-zero-set W] [--only-given] [MESH.obj ...]
+//   gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--only-given] [--dump DIR] [MESH.obj ...]
 //
 // Each mesh (procedural shapes, plus any given) is scaled into [−0.9, 0.9]³ and damaged three
 // ways: (a) 20 % of the area in 3 holes + 10 % of faces flipped; (b) the same plus duplicated
@@ -9,7 +9,13 @@
 // of the diagonal, which makes the surface cross itself. Truth: the winding number of the intact
 // mesh. Scored at the nodes of an N³ grid on [−1, 1]³ farther than two cells from the intact
 // surface. Prints one row per mesh and damage: the share of inside and outside nodes signed
-// right by SHM and by the GWN, and the SHM run time.
+// right by SHM and by the GWN, and the SHM run time. --t-coef, --cutoff and --fit-zero-set set
+// the ShmOptions of the same names.
+//
+// --dump DIR writes, per mesh and damage, the broken mesh (.obj), and on the grid (.npy of shape
+// (nx, ny, nz), as `gsd shm grid` writes φ): φ, the truth (the intact mesh's winding number) and
+// the broken mesh's winding number, the last two NaN within two cells of the surface — to see
+// where and why a sign goes wrong.
 #include <gsd/io.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
@@ -19,6 +25,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <limits>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -54,7 +62,8 @@ struct Score {
     std::size_t in = 0, out = 0;
 };
 
-Score score(const PolygonMesh& intact, const PolygonMesh& broken, const GridSpec& g, const std::vector<float>& phi) {
+Score score(const PolygonMesh& intact, const PolygonMesh& broken, const GridSpec& g, const std::vector<float>& phi,
+            std::vector<float>* truth_grid = nullptr, std::vector<float>* gwn_grid = nullptr) {
     const double cell = g.box.extent().maxCoeff() / (g.nx - 1);
     const OrientedElements truth_src = OrientedElements::from_mesh(intact);
     const detail::SumTree truth_tree(truth_src);
@@ -68,6 +77,14 @@ Score score(const PolygonMesh& intact, const PolygonMesh& broken, const GridSpec
     o.device = "cpu";
     const std::vector<double> truth = fast_winding_numbers(truth_src, q, o).w;
     const std::vector<double> gwn = fast_winding_numbers(OrientedElements::from_mesh(broken), q, o).w;
+    if (truth_grid) {
+        truth_grid->assign(std::size_t(nodes.rows()), std::numeric_limits<float>::quiet_NaN());
+        for (std::size_t i = 0; i < far.size(); ++i) (*truth_grid)[std::size_t(far[i])] = float(truth[i]);
+    }
+    if (gwn_grid) {
+        gwn_grid->assign(std::size_t(nodes.rows()), std::numeric_limits<float>::quiet_NaN());
+        for (std::size_t i = 0; i < far.size(); ++i) (*gwn_grid)[std::size_t(far[i])] = float(gwn[i]);
+    }
     Score s;
     for (std::size_t i = 0; i < far.size(); ++i) {
         const double p = phi[std::size_t(far[i])];
@@ -97,15 +114,18 @@ int main(int argc, char** argv) {
     shm.device = "cpu";
     std::vector<std::pair<std::string, PolygonMesh>> meshes;
     bool only_given = false;
+    std::string dump;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "--grid" && i + 1 < argc) n = std::stoi(argv[++i]);
         else if (a == "--seed" && i + 1 < argc) seed = std::stoull(argv[++i]);
         else if (a == "--t-coef" && i + 1 < argc) shm.t_coef = std::stod(argv[++i]);
+        else if (a == "--cutoff" && i + 1 < argc) shm.cutoff = std::stod(argv[++i]);
         else if (a == "--fit-zero-set" && i + 1 < argc) shm.fit_zero_set = std::stod(argv[++i]);
         else if (a == "--only-given") only_given = true;
+        else if (a == "--dump" && i + 1 < argc) dump = argv[++i];
         else if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--fit-zero-set W] [--only-given] [MESH.obj ...]\n");
+            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--only-given] [--dump DIR] [MESH.obj ...]\n");
             return 2;
         } else {
             const auto slash = a.find_last_of('/');
@@ -135,7 +155,18 @@ int main(int argc, char** argv) {
             const auto t0 = std::chrono::steady_clock::now();
             const ShmResult r = SignedHeatGrid(shm_source(broken), g, o).solve();
             const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-            const Score s = score(intact, broken, g, r.phi);
+            std::vector<float> truth, gwn;
+            const Score s = score(intact, broken, g, r.phi, dump.empty() ? nullptr : &truth, dump.empty() ? nullptr : &gwn);
+            if (!dump.empty()) {
+                std::filesystem::create_directories(dump);
+                std::string stem = dump + "/" + name.substr(0, name.rfind('.')) + "_" + what;
+                std::replace(stem.begin(), stem.end(), '+', 'p');
+                io::write_mesh(stem + ".obj", broken);
+                const std::vector<std::size_t> shape{std::size_t(g.nx), std::size_t(g.ny), std::size_t(g.nz)};
+                io::write_npy(stem + ".phi.npy", shape, r.phi);
+                io::write_npy(stem + ".truth.npy", shape, truth);
+                io::write_npy(stem + ".gwn.npy", shape, gwn);
+            }
             std::printf("%-22s %-14s %7.2f%% %7.2f%% | %7.2f%% %7.2f%% | %8zu %8.2f\n", name.c_str(), what, 100 * s.shm_in, 100 * s.shm_out,
                         100 * s.gwn_in, 100 * s.gwn_out, s.in, dt);
             std::fflush(stdout);
