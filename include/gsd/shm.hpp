@@ -76,7 +76,7 @@ struct ShmOptions {
     int max_iterations = 0;
     bool f_cycle = false;       ///< F-cycles instead of V-cycles
     /// φ is first shifted so that its area-weighted mean over the source is zero. w > 0 then fits
-    /// φ = 0 on the source softly: a smooth correction, on a grid of half the resolution, that
+    /// φ = 0 on the source softly: a smooth correction, on a grid of a quarter of the resolution, that
     /// minimizes its Poisson energy plus (w/h) Σ_j A_j φ(y_j)² (trilinear φ at each source sample).
     /// It bends the zero set back onto the source where holes and flips pulled it away (docs/shm.md:
     /// inside/outside on broken meshes); 0: the shift alone.
