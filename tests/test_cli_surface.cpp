@@ -112,6 +112,18 @@ TEST_CASE("shm surface: bad input is a clear error naming the file and line, and
     CHECK(r.output.find("bad.txt: line 3: vertex index 100000 is out of range") != std::string::npos);
     CHECK_FALSE(test::file_exists(out));
 
+    // Isolines so dense they would fill the disk, and options that are not finite numbers.
+    r = run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + out + " --isolines " + dir.file("i.obj") +
+                " --isoline-spacing 1e-9");
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("--isoline-spacing: 1e-09 gives") != std::string::npos);
+    CHECK_FALSE(test::file_exists(out));
+    CHECK_FALSE(test::file_exists(dir.file("i.obj")));
+    r = run_cli("shm surface " + f.mesh + " --curves " + f.curves + " -o " + out + " --t-coef inf");
+    CHECK(r.exit_code == 2);
+    CHECK(r.output.find("'inf' is not a finite number") != std::string::npos);
+    CHECK_FALSE(test::file_exists(out));
+
     test::write_bytes(dir.file("nan.txt"), "v 1\ne 2 nan\nl 1 2\n");
     r = run_cli("shm surface " + f.mesh + " --curves " + dir.file("nan.txt") + " -o " + out);
     CHECK(r.exit_code == 1);

@@ -126,8 +126,14 @@ TEST_CASE("swn: bad input is a clear error and leaves no output") {
     fails("swn " + f.mesh + " --curves " + f.curves + " -o " + out + " --loops " + dir.file("x.ply"), ".obj", 2);
     fails("swn " + f.mesh + " --curves " + f.curves + " -o " + out + " --lp simplex", "--lp", 2);
     fails("swn " + f.mesh + " --curves " + f.curves + " -o " + out + " --method shm --w " + dir.file("w.npy"), "--method shm", 2);
+    fails("swn " + f.mesh + " --curves " + f.curves + " -o " + out + " --curve-weight nan", "not a finite number", 2);
+    fails("swn " + f.mesh + " --curves " + f.curves + " -o " + out + " --w " + out, "named by two outputs", 1);
     test::write_bytes(dir.file("bad.txt"), "#offset 0\nv 0\nv 999999\nl 0 1\n");
     fails("swn " + f.mesh + " --curves " + dir.file("bad.txt") + " -o " + out, "bad.txt", 1);
+    // Out-of-range indices are reported as the file wrote them: from 1 unless it says #offset 0.
+    test::write_bytes(dir.file("one.txt"), "v 1\nv 999999\nl 1 2\n");
+    fails("swn " + f.mesh + " --curves " + dir.file("one.txt") + " -o " + out,
+          "line 2: vertex index 999999 is out of range (the mesh has 768 vertices, numbered from 1 here)", 1);
     test::write_bytes(dir.file("empty.txt"), "#offset 0\nv 0\n");
     fails("swn " + f.mesh + " --curves " + dir.file("empty.txt") + " -o " + out, "no curves", 1);
     fails("swn " + dir.file("missing.obj") + " --curves " + f.curves + " -o " + out, "missing.obj", 1);

@@ -416,6 +416,31 @@ TEST_CASE("SWN: inside/outside from the sign of the surface Signed Heat Method")
     CHECK_THROWS_AS(shm_labels(mesh, std::vector<double>(3, 0.0)), Error);
 }
 
+TEST_CASE("SWN and the sign of SHM: a component no curve touches is outside") {
+    // Two spheres; the loop is on the first. Labels are normalized per component, so the
+    // second is 0 (not whatever the first's rounding shift makes of w = 0 there).
+    const PolygonMesh one = shapes::icosphere(3);
+    PolygonMesh two = one;
+    const auto n = std::uint32_t(one.vertices.rows());
+    two.vertices.conservativeResize(2 * n, 3);
+    for (std::uint32_t v = 0; v < n; ++v) two.vertices.row(n + v) = one.vertices.row(v) + Eigen::RowVector3d(3, 0, 0);
+    for (std::size_t f = 0; f < one.face_count(); ++f) {
+        std::vector<std::uint32_t> face(one.indices.begin() + one.offsets[f], one.indices.begin() + one.offsets[f + 1]);
+        for (std::uint32_t& v : face) v += n;
+        two.add_face(face.data(), face.size());
+    }
+    const SurfaceMesh mesh(two, "two spheres");
+    const std::vector<double> f = per_vertex(two, [](const Eigen::Vector3d& x) { return x.x() > 1.5 ? 1.0 : x.z() - 0.3; });
+    SurfaceSources loop;
+    loop.curves = level_set_curves(mesh, f, 0);
+    const std::vector<int> truth = truth_below(two, f);  // 0 on the second sphere (f = 1)
+    const SwnResult r = SurfaceWindingNumbers(mesh).solve(loop);
+    CHECK(mislabeled_area(mesh, r.labels, truth, false) < 0.01);
+    for (std::size_t face = one.face_count(); face < two.face_count(); ++face) CHECK(r.labels[face] == 0);
+    SignedHeatSurface shm(mesh);
+    CHECK(mislabeled_area(mesh, shm_labels(mesh, shm.solve(loop).phi), truth, false) < 0.02);
+}
+
 TEST_CASE("mislabeled_area: shares of the area, with or without a global shift") {
     const SurfaceMesh mesh(shapes::grid_mesh(4), "grid");
     std::vector<int> a(mesh.face_count(), 0), b(mesh.face_count(), 2);

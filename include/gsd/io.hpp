@@ -62,6 +62,7 @@ struct CurveFile {
         std::uint64_t index = 0;  ///< 0-based vertex / edge / triangle index
         double a = 0, b = 0;      ///< 'e': t; 'f': u, v
         std::size_t line = 0;     ///< line number in the file, for errors found later
+        std::uint8_t base = 1;    ///< the file's numbering there: it wrote index + base
     };
     struct Line {
         std::vector<std::uint32_t> points;  ///< indices into `points`

@@ -115,7 +115,9 @@ private:
 };
 
 /// Inside/outside from the sign of a surface signed distance (thesis §7.1): label 1 for faces
-/// whose mean φ over their corners is negative, 0 otherwise; per input face, area majority.
+/// whose mean φ over their corners is negative, 0 otherwise; per input face, area majority. A
+/// component where |φ| stays below 1e-6 of its largest value elsewhere was reached by no curve
+/// (φ there is rounding noise) and is 0.
 GSD_EXPORT std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi);
 
 /// Share of the area where labels differ, after the best global integer shift of `labels` when

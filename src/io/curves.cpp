@@ -34,6 +34,7 @@ struct RecordReader {
     const std::string& path;
     std::size_t line = 0;
     CurveFile out;
+    std::uint8_t base = 1;  // how the file numbers what it reads now (`#offset`; .obj files: 1)
 
     [[noreturn]] void error(const std::string& what) const { fail(path, at_line(line, what)); }
 
@@ -41,6 +42,7 @@ struct RecordReader {
         // Only a file of many gigabytes gets here; record numbers must still fit Line::points.
         if (out.points.size() >= std::size_t(kIndexLimit)) error("too many points (at most 4294967295)");
         p.line = line;
+        p.base = base;
         out.points.push_back(p);
         return std::uint32_t(out.points.size() - 1);
     }
@@ -101,6 +103,7 @@ private:
         if (!tokens.next(value) || tokens.count_left() != 0 || (value != "0" && value != "1"))
             error("'#offset' must be followed by 0 or 1 alone");
         base_ = value == "0" ? 0 : 1;
+        base = std::uint8_t(base_);
     }
 
     void expect_values(const Tokens& tokens, std::size_t n, const char* key, const char* needs) const {

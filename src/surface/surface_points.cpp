@@ -19,20 +19,22 @@ std::string at_line(std::size_t line, const std::string& what) {
 
 /// A raw record → a point on the mesh, or an error naming the record's line.
 SurfacePoint to_point(const io::CurveFile::Point& p, const SurfaceMesh& mesh, const std::string& path) {
-    auto out_of_range = [&](const char* what, std::size_t count) {
-        return Error(path, at_line(p.line, std::string(what) + " index " + std::to_string(p.index) +
+    // Numbers as the file wrote them: from 1 unless it said `#offset 0`.
+    auto out_of_range = [&](const char* what, const char* plural, std::size_t count) {
+        return Error(path, at_line(p.line, std::string(what) + " index " + std::to_string(p.index + p.base) +
                                                " is out of range (the mesh has " + std::to_string(count) + " " +
-                                               what + (count == 1 ? "" : "s") + ", numbered from 0 here)"));
+                                               (count == 1 ? what : plural) + ", numbered from " +
+                                               std::to_string(p.base) + " here)"));
     };
     switch (p.kind) {
         case 'v':
-            if (p.index >= mesh.vertex_count()) throw out_of_range("vertex", mesh.vertex_count());
+            if (p.index >= mesh.vertex_count()) throw out_of_range("vertex", "vertices", mesh.vertex_count());
             return SurfacePoint::at_vertex(std::uint32_t(p.index));
         case 'e':
-            if (p.index >= mesh.file_edge_count()) throw out_of_range("edge", mesh.file_edge_count());
+            if (p.index >= mesh.file_edge_count()) throw out_of_range("edge", "edges", mesh.file_edge_count());
             return SurfacePoint::on_edge(std::uint32_t(p.index), p.a);
         case 'f':
-            if (p.index >= mesh.triangle_count()) throw out_of_range("triangle", mesh.triangle_count());
+            if (p.index >= mesh.triangle_count()) throw out_of_range("triangle", "triangles", mesh.triangle_count());
             return SurfacePoint::in_triangle(std::uint32_t(p.index), p.a, p.b);
         default: throw Error(path, at_line(p.line, "unknown point kind"));
     }

@@ -758,24 +758,39 @@ double contour_shift(const Topology& t, const std::vector<double>& f, const std:
     return std::round(mean) - mean;
 }
 
-/// Integer labels from face values, shifted so that the region outside every curve is 0: on a
-/// mesh with boundary, the label most of the boundary has; on a closed surface the smallest
-/// label (a counter-clockwise loop is +1 on its left, so the rest is the least).
+/// Integer labels from face values, shifted so that the region outside every curve is 0 in each
+/// connected component (winding numbers are defined up to a constant per component, and one
+/// that no curve touches is all outside): on a component with boundary, the label most of its
+/// boundary has; on a closed one the smallest label (a counter-clockwise loop is +1 on its
+/// left, so the rest is the least). Degenerate triangles follow the whole mesh's zero.
 std::vector<int> normalized_labels(const Topology& t, const std::vector<double>& face_value, double shift) {
     const Triangulation& T = t.mesh;
     std::vector<int> label(T.face_count());
     for (std::size_t f = 0; f < T.face_count(); ++f) label[f] = int(std::lround(face_value[f] + shift));
-    std::map<int, double> boundary;
+    constexpr std::uint32_t kWhole = UINT32_MAX;  // the key of the whole mesh
+    auto component = [&](std::size_t f) { return t.degenerate(f) ? kWhole : t.face_component[f]; };
+    std::map<std::uint32_t, std::map<int, double>> boundary;  // component → label → boundary length
+    std::map<std::uint32_t, int> least;
     for (std::size_t e = 0; e < T.edge_count(); ++e)
-        if (t.edge_halfedges.count(e) == 1) boundary[label[corner_face(t.edge_halfedges.begin(e)[0])]] += T.edge_lengths[e];
-    int zero = 0;
-    if (!boundary.empty()) {
-        zero = std::max_element(boundary.begin(), boundary.end(),
-                                [](const auto& a, const auto& b) { return a.second < b.second; })->first;
-    } else if (!label.empty()) {
-        zero = *std::min_element(label.begin(), label.end());
+        if (t.edge_halfedges.count(e) == 1) {
+            const std::uint32_t f = corner_face(t.edge_halfedges.begin(e)[0]);
+            boundary[component(f)][label[f]] += T.edge_lengths[e];
+            boundary[kWhole][label[f]] += T.edge_lengths[e];
+        }
+    for (std::size_t f = 0; f < T.face_count(); ++f)
+        for (const std::uint32_t c : {component(f), kWhole}) {
+            const auto it = least.find(c);
+            if (it == least.end() || label[f] < it->second) least[c] = label[f];
+        }
+    std::map<std::uint32_t, int> zero;
+    for (const auto& [c, l] : least) {
+        const auto b = boundary.find(c);
+        zero[c] = b == boundary.end() ? l
+                                      : std::max_element(b->second.begin(), b->second.end(), [](const auto& x, const auto& y) {
+                                            return x.second < y.second;
+                                        })->first;
     }
-    for (int& l : label) l -= zero;
+    for (std::size_t f = 0; f < T.face_count(); ++f) label[f] -= zero[component(f)];
     return label;
 }
 
@@ -1192,8 +1207,18 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
 std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi) {
     if (phi.size() != mesh.vertex_count()) throw Error("shm_labels", "expected one value per vertex");
     const Topology& t = mesh.topology();
+    std::map<std::uint32_t, double> largest;  // per component, max |φ|
+    double overall = 0;
+    for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
+        for (std::uint32_t v : t.mesh.faces[f])
+            if (std::isfinite(phi[v])) {
+                double& m = largest[t.degenerate(f) ? UINT32_MAX : t.face_component[f]];
+                m = std::max(m, std::abs(phi[v]));
+                overall = std::max(overall, std::abs(phi[v]));
+            }
     std::vector<int> tri(t.mesh.face_count());
     for (std::size_t f = 0; f < tri.size(); ++f) {
+        if (largest[t.degenerate(f) ? UINT32_MAX : t.face_component[f]] <= 1e-6 * overall) continue;  // unreached
         double s = 0;
         for (std::uint32_t v : t.mesh.faces[f]) s += phi[v];
         tri[f] = s < 0 ? 1 : 0;

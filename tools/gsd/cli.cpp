@@ -6,6 +6,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
@@ -35,6 +37,17 @@ CLI::Validator output_file(std::vector<std::string> extensions) {
         names);
 }
 
+CLI::Validator finite_number() {
+    return CLI::Validator(
+        [](std::string& text) -> std::string {
+            char* end = nullptr;
+            const double x = std::strtod(text.c_str(), &end);
+            if (end != text.c_str() && !std::isfinite(x)) return "'" + text + "' is not a finite number";
+            return {};
+        },
+        "FINITE");
+}
+
 void remove_output(const std::string& path) {
     std::error_code ec;
     if (std::filesystem::is_regular_file(path, ec)) std::filesystem::remove(path, ec);
@@ -44,6 +57,19 @@ void remove_output(const std::string& path) {
 }
 
 void write_all(const std::vector<std::pair<std::string, std::function<void()>>>& outputs) {
+    // Two outputs into one file would leave only the second (devices like /dev/null excepted).
+    std::vector<std::filesystem::path> seen;
+    for (const auto& [path, write] : outputs) {
+        if (path.empty()) continue;
+        struct stat st {};
+        if (::stat(path.c_str(), &st) == 0 && (S_ISCHR(st.st_mode) || S_ISFIFO(st.st_mode))) continue;
+        std::error_code ec;
+        const std::filesystem::path canonical = std::filesystem::weakly_canonical(path, ec);
+        const std::filesystem::path key = ec ? std::filesystem::path(path) : canonical;
+        if (std::find(seen.begin(), seen.end(), key) != seen.end())
+            throw Error(path, "named by two outputs: give each output its own file");
+        seen.push_back(key);
+    }
     std::vector<std::string> done;
     try {
         for (const auto& [path, write] : outputs) {
@@ -179,6 +205,23 @@ GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     g.validate();
     check_grid_memory(g);
     return g;
+}
+
+DevicePrefetch::DevicePrefetch(const Device& device) {
+    if (device.context()) return;
+    std::string choice = device.choice();
+    if (choice.empty()) {
+        const char* env = std::getenv("GSD_DEVICE");
+        choice = env ? env : "";
+    }
+    std::transform(choice.begin(), choice.end(), choice.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+    if (choice == "cpu") return;
+    // The device list is made once per process; later calls (the command's own) wait for it.
+    found_ = std::async(std::launch::async, [] { gpu::list_devices(); });
+}
+
+DevicePrefetch::~DevicePrefetch() {
+    if (found_.valid()) found_.wait();
 }
 
 namespace {

@@ -2,11 +2,13 @@
 #pragma once
 
 #include <gsd/core.hpp>
+#include <gsd/gpu.hpp>
 
 #include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <functional>
+#include <future>
 #include <optional>
 #include <string>
 #include <utility>
@@ -84,6 +86,9 @@ void write_values(const std::string& path, const Domain& d, const GridSpec& g, s
 /// case-insensitive), so a run never computes for minutes and then writes the wrong format or
 /// nothing. An existing character device or FIFO (`-o /dev/null`) is accepted as it is.
 CLI::Validator output_file(std::vector<std::string> extensions);
+/// Refuses NaN and ±inf before any range check sees them (a range test lets NaN through, and
+/// would print the largest double in full for inf). Goes first: ->check(finite_number())->check(…).
+CLI::Validator finite_number();
 
 /// Undoes an output already written when a later one fails (all outputs or none). Only a
 /// regular file is removed: `-o /dev/null` or a FIFO was written into, not created. A .npy
@@ -107,6 +112,21 @@ double seconds_since(std::chrono::steady_clock::time_point t0);
 std::string fmt(const char* format, double value);
 /// Peak resident memory of this process (Linux), for --verbose reports.
 std::string peak_memory();
+
+/// Finds the Vulkan devices on another thread while a command reads its input: loading the
+/// loader and its drivers takes tens of milliseconds (Mesa's software driver ~30 ms), which a
+/// whole run on the CPU would otherwise pay on top. Waits for it when it goes out of scope.
+/// Nothing to find when the device asked for (or $GSD_DEVICE) is "cpu".
+class DevicePrefetch {
+public:
+    explicit DevicePrefetch(const Device& device);
+    ~DevicePrefetch();
+    DevicePrefetch(const DevicePrefetch&) = delete;
+    DevicePrefetch& operator=(const DevicePrefetch&) = delete;
+
+private:
+    std::future<void> found_;
+};
 
 /// `gsd shm surface` (tools/gsd/surface.cpp), added under the `shm` command.
 void add_shm_surface(CLI::App& shm);

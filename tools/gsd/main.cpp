@@ -93,9 +93,9 @@ struct BlendArgs {
         app.add_flag("--exact", exact, "Sum over every point (eq. 5.6 as written) instead of the accelerated sum");
         app.add_option("--device", device, "auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE or auto)");
         app.add_option("--r-eval", r_eval, "Radius of the accelerated sum (default: --r-eval-spacings × mean spacing)")
-            ->check(CLI::PositiveNumber);
+            ->check(finite_number())->check(CLI::PositiveNumber);
         app.add_option("--r-eval-spacings", r_eval_spacings, "Radius of the accelerated sum in mean spacings")
-            ->check(CLI::PositiveNumber)->capture_default_str();
+            ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     }
     BlendOptions options() const {
         BlendOptions o;
@@ -312,7 +312,7 @@ void add_slice(CLI::App& app) {
     s->add_option("--axis", *axis, "Slice perpendicular to x, y or z")->check(CLI::IsMember({"x", "y", "z"}))->capture_default_str();
     s->add_option("--at", opt->at, "World coordinate of the slice plane")->required();
     s->add_option("--width", opt->width, "Image width in pixels (default 512, or the grid size if larger)")->check(CLI::Range(0, 16384));
-    s->add_option("--range", opt->range, "Colors saturate at ±range (default: max |value| on the slice)")->check(CLI::NonNegativeNumber);
+    s->add_option("--range", opt->range, "Colors saturate at ±range (default: max |value| on the slice)")->check(finite_number())->check(CLI::NonNegativeNumber);
     s->add_option("--isolines", opt->isolines, "Isolines on each side of zero")->check(CLI::Range(0, 1000))->capture_default_str();
     auto level = std::make_shared<double>(0.0);
     s->add_option("--level", *level, "Center the colors and the contour on this value instead of 0 (0.5 for winding numbers)")
@@ -344,12 +344,12 @@ void add_sample(CLI::App& app) {
         ->required()->check(CLI::IsMember({"sphere", "torus", "capsule", "rounded-box"}));
     s->add_option("-n,--points", *n, "Number of points")->check(CLI::Range(std::size_t(2), std::size_t(100000000)))->capture_default_str();
     s->add_option("--seed", *seed, "Random seed")->capture_default_str();
-    s->add_option("--noise", c->position_noise, "Gaussian noise on positions (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0));
-    s->add_option("--normal-noise", c->normal_noise, "Gaussian noise on normals")->check(CLI::Range(0.0, 10.0));
-    s->add_option("--flip", c->flip_fraction, "Fraction of normals flipped")->check(CLI::Range(0.0, 1.0));
-    s->add_option("--outliers", c->outlier_fraction, "Fraction of points replaced by outliers")->check(CLI::Range(0.0, 1.0));
+    s->add_option("--noise", c->position_noise, "Gaussian noise on positions (× bounding-box diagonal)")->check(finite_number())->check(CLI::Range(0.0, 1.0));
+    s->add_option("--normal-noise", c->normal_noise, "Gaussian noise on normals")->check(finite_number())->check(CLI::Range(0.0, 10.0));
+    s->add_option("--flip", c->flip_fraction, "Fraction of normals flipped")->check(finite_number())->check(CLI::Range(0.0, 1.0));
+    s->add_option("--outliers", c->outlier_fraction, "Fraction of points replaced by outliers")->check(finite_number())->check(CLI::Range(0.0, 1.0));
     s->add_option("--holes", c->holes, "Number of holes cut out")->check(CLI::Range(0, 1000));
-    s->add_option("--hole-radius", c->hole_radius, "Hole radius (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0))->capture_default_str();
+    s->add_option("--hole-radius", c->hole_radius, "Hole radius (× bounding-box diagonal)")->check(finite_number())->check(CLI::Range(0.0, 1.0))->capture_default_str();
     s->add_option("-o,--output", *output, "Output point cloud (.ply .xyz .pc .obj .npy)")
         ->required()
         ->check(output_file({".ply", ".xyz", ".xyzn", ".txt", ".pc", ".obj", ".npy"}));
@@ -377,19 +377,20 @@ void add_shm(CLI::App& app) {
     grid->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)")->expected(6);
     grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy, or .vdb (φ as an OpenVDB level set)")->required()->check(output_file({".npy", ".vdb"}));
     grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
-        ->check(CLI::PositiveNumber)->capture_default_str();
+        ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--sum-tolerance", opt->sum_tolerance, "Step 1 accuracy: error bound of each expansion, as a fraction of a sheet's field (smaller: slower, closer to the exact integral)")
         ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
     grid->add_option("--solver", *solver, "Poisson solver: mg (multigrid), cg, direct (CHOLMOD, small grids)")
         ->check(CLI::IsMember({"mg", "cg", "direct"}))->capture_default_str();
     grid->add_flag("--f-cycle", opt->f_cycle, "Multigrid F-cycles instead of V-cycles");
-    grid->add_option("--tolerance", opt->tolerance, "Relative residual to stop at")->check(CLI::PositiveNumber)->capture_default_str();
+    grid->add_option("--tolerance", opt->tolerance, "Relative residual to stop at")->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--fit-zero-set", opt->fit_zero_set, "Fit φ = 0 on the source softly with this weight (0: shift by the mean)")
-        ->check(CLI::NonNegativeNumber)->capture_default_str();
+        ->check(finite_number())->check(CLI::NonNegativeNumber)->capture_default_str();
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     grid->callback([=] {
         check_grid_output(*output, true);
+        const DevicePrefetch prefetch(opt->device);
         // Sources: each input by its kind (a mesh's triangles, a cloud's points).
         ShmSource src;
         std::vector<std::pair<std::string, bool>> kinds;
@@ -497,9 +498,9 @@ void add_mesh(CLI::App& app) {
     s->excludes(f);
     m->add_option("-r,--resolution", *resolution, "Contouring grid nodes per axis")->check(CLI::Range(8, 1024))->capture_default_str();
     m->add_option("--holes", c->holes, "Number of holes")->check(CLI::Range(0, 1000));
-    m->add_option("--hole-area", c->hole_area, "Fraction of the area the holes remove")->check(CLI::Range(0.0, 0.95))->capture_default_str();
-    m->add_option("--flip", c->flip_fraction, "Fraction of faces flipped")->check(CLI::Range(0.0, 1.0));
-    m->add_option("--noise", c->vertex_noise, "Gaussian noise on vertices (× bounding-box diagonal)")->check(CLI::Range(0.0, 1.0));
+    m->add_option("--hole-area", c->hole_area, "Fraction of the area the holes remove")->check(finite_number())->check(CLI::Range(0.0, 0.95))->capture_default_str();
+    m->add_option("--flip", c->flip_fraction, "Fraction of faces flipped")->check(finite_number())->check(CLI::Range(0.0, 1.0));
+    m->add_option("--noise", c->vertex_noise, "Gaussian noise on vertices (× bounding-box diagonal)")->check(finite_number())->check(CLI::Range(0.0, 1.0));
     m->add_option("--seed", *seed, "Random seed")->capture_default_str();
     m->add_option("-o,--output", *output, "Output mesh (.obj .ply .off .stl)")->required()->check(output_file({".obj", ".ply", ".off", ".stl"}));
     m->callback([=] {
@@ -524,12 +525,13 @@ void add_winding(CLI::App& app) {
     domain->add_to(*wn, true);
     wn->add_flag("--exact", opt->exact, "Sum every element exactly (O(queries × elements)): the reference");
     wn->add_option("--beta", opt->beta, "Opening criterion: a cluster is summed by its expansion only farther than β × its radius")
-        ->check(CLI::Range(1.01, 100.0))->capture_default_str();
+        ->check(finite_number())->check(CLI::Range(1.01, 100.0))->capture_default_str();
     wn->add_option("--tolerance", opt->tolerance, "... and only if its truncation error bound is below this (0: β alone, as libigl)")
-        ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+        ->check(finite_number())->check(CLI::Range(0.0, 1.0))->capture_default_str();
     wn->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     wn->callback([=] {
         if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
+        const DevicePrefetch prefetch(opt->device);
         OrientedElements elements;
         if (io::file_has_faces(*input)) {
             elements = OrientedElements::from_mesh(io::read_mesh(*input));
@@ -585,16 +587,16 @@ void add_render(CLI::App& app) {
     r->add_option("--camera", *camera, "Or the camera's position x y z, looking at the center (no automatic framing)")
         ->expected(3)->excludes("--view-from");
     r->add_option("--up", *up, "Up direction of the picture (default 0 1 0)")->expected(3);
-    r->add_option("--fov", opt->fov_degrees, "Vertical field of view in degrees")->check(CLI::Range(1.0, 170.0))->capture_default_str();
+    r->add_option("--fov", opt->fov_degrees, "Vertical field of view in degrees")->check(finite_number())->check(CLI::Range(1.0, 170.0))->capture_default_str();
     r->add_option("--supersample", opt->supersample, "Rays per pixel along each axis (antialiasing)")->check(CLI::Range(1, 4))->capture_default_str();
     r->add_option("--max-steps", opt->max_steps, "March steps per ray")->check(CLI::Range(1, 100000))->capture_default_str();
-    r->add_option("--step-scale", opt->step_scale, "Each step advances this × |φ|")->check(CLI::Range(0.01, 1.0))->capture_default_str();
+    r->add_option("--step-scale", opt->step_scale, "Each step advances this × |φ|")->check(finite_number())->check(CLI::Range(0.01, 1.0))->capture_default_str();
     r->add_option("--bounds", *bounds,
                   "Box the rays march in, x0 y0 z0 x1 y1 z1 (default: a grid's own bounds from GRID.npy.json; for PAT the "
                   "cloud's bounding cube + 10%)")->expected(6);
     r->add_option("--color", *color, "Color the surface by a second grid (.npy with its sidecar), diverging colors");
     r->add_option("--color-range", opt->color_range, "--color saturates at ±range (default: max |value| on the surface)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(finite_number())->check(CLI::NonNegativeNumber);
     fit->add_to(*r, false);
     blend->add_to(*r);
     outliers->add_to(*r, true);
@@ -717,6 +719,8 @@ int main(int argc, char** argv) {
     add_swn(app);
     add_render(app);
     add_info(app);
+    // The library's one-line notices (device fallback, …) go where the CLI's own do: -q silences them.
+    set_log_sink([](std::string_view message) { note(std::string(message)); });
     try {
         globals().argv.assign(argv, argv + argc);
         globals().app = &app;

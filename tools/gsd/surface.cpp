@@ -150,6 +150,11 @@ void run(const SurfaceArgs& a) {
             top = std::max(top, std::abs(x));
         }
     const double spacing = a.isoline_spacing > 0 ? a.isoline_spacing : nice_spacing(lo, hi, 20);
+    constexpr double kMaxIsolines = 1000;  // a picture's worth; each level is a pass over the mesh
+    if (!a.isolines.empty() && (hi - lo) / spacing > kMaxIsolines)
+        throw Error("--isoline-spacing", fmt("%g", spacing) + " gives " + fmt("%.3g", (hi - lo) / spacing) +
+                                             " levels over φ's range [" + fmt("%g", lo) + ", " + fmt("%g", hi) +
+                                             "]; at most 1000: give a larger spacing");
     std::string isolines;
     if (!a.isolines.empty()) isolines = isolines_obj(mesh, r.phi, spacing);
     Image picture;
@@ -200,7 +205,7 @@ void add_curve(CLI::App& app) {
     c->add_option("--break", harm->cut,
                   "Cut up to this fraction of every curve away, in --gaps stretches at random places (they may "
                   "overlap; 0: whole curves)")
-        ->check(CLI::Range(0.0, 0.95))
+        ->check(finite_number())->check(CLI::Range(0.0, 0.95))
         ->capture_default_str();
     c->add_option("--gaps", harm->gaps, "Number of stretches --break cuts from each curve")
         ->check(CLI::Range(1, 1000))
@@ -267,25 +272,25 @@ void add_shm_surface(CLI::App& shm) {
     s->add_option("--soft-weight", a->options.soft_weight,
                   "With zero/components: weight of the level-set penalty (0: exact, eq. 4.11; exact constraints collapse "
         "φ to 0 next to curves whose nodes are not a level set, see docs/shm-surface.md)")
-        ->check(CLI::NonNegativeNumber)
+        ->check(finite_number())->check(CLI::NonNegativeNumber)
         ->capture_default_str();
     s->add_flag("--preserve-normals", a->options.preserve_normals,
                 "Keep the diffused field normal to the curves at the curves (one more constrained solve)");
     s->add_option("--t-coef", a->setup.t_coef, "Diffusion time t = t_coef · h², h = half the mean edge length")
-        ->check(CLI::PositiveNumber)
+        ->check(finite_number())->check(CLI::PositiveNumber)
         ->capture_default_str();
     auto* idt = s->add_flag("--intrinsic-delaunay", a->setup.intrinsic_delaunay,
                             "Solve on an intrinsic Delaunay triangulation (edge flips; the mesh is not changed)");
     s->add_flag("--refine", a->setup.refine, "With --intrinsic-delaunay: also insert vertices until no angle is below --min-angle")
         ->needs(idt);
     s->add_option("--min-angle", a->setup.refine_min_angle, "Smallest angle --refine aims for, degrees")
-        ->check(CLI::Range(1.0, 33.0))
+        ->check(finite_number())->check(CLI::Range(1.0, 33.0))
         ->capture_default_str();
     s->add_option("-o,--output", a->output, "Output .npy: φ per vertex, float32 (V,), in the mesh's vertex order")->required()->check(output_file({".npy"}));
     s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex)")->check(output_file({".ply"}));
     s->add_option("--isolines", a->isolines, "Also write isolines of φ as .obj polylines (one group per level)")->check(output_file({".obj"}));
-    s->add_option("--isoline-spacing", a->isoline_spacing, "Spacing of isolines (default: a round number, ~20 levels)")
-        ->check(CLI::PositiveNumber);
+    s->add_option("--isoline-spacing", a->isoline_spacing, "Spacing of isolines (default: a round number, ~20 levels; at most 1000 levels)")
+        ->check(finite_number())->check(CLI::PositiveNumber);
     s->add_option("--render", a->render, "Also render a picture (.png): the mesh shaded and colored by φ, isolines, the curves")->check(output_file({".png"}));
     s->callback([a] { run(*a); });
 }

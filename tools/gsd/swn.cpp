@@ -107,7 +107,11 @@ void run(const SwnArgs& a) {
     naming_file(a.mesh, "mesh", [&] {
         if (shm) {
             SignedHeatSurface solver(mesh);
-            labels = shm_labels(mesh, solver.solve(curves, {}, progress.fn()).phi);
+            const SurfaceShmResult shm_result = solver.solve(curves, {}, progress.fn());
+            labels = shm_labels(mesh, shm_result.phi);
+            if (shm_result.unreached_vertices)
+                note("warning: " + std::to_string(shm_result.unreached_vertices) +
+                     " vertices lie in mesh components that no curve reaches: labeled 0 (outside)");
         } else {
             SwnOptions o = a.options;
             o.residual = swn_residual_from_name(a.lp);
@@ -202,7 +206,7 @@ void add_swn(CLI::App& app) {
     s->add_option("--curve-weight", a->options.curve_weight,
                   "Cost of a residual jump along an input curve relative to elsewhere (ε of the linear program); "
                   "0: the program's default (reduced 0.3, full 0.001)")
-        ->check(CLI::Range(0.0, 1.0))
+        ->check(finite_number())->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
     s->add_flag("--boundary-aware", a->options.boundary_aware,
                 "On meshes with boundary: labels near the boundary like free-space winding numbers (thesis §6.2)");
