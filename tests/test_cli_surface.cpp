@@ -124,6 +124,20 @@ TEST_CASE("shm surface: bad input is a clear error naming the file and line, and
     CHECK(r.output.find("'inf' is not a finite number") != std::string::npos);
     CHECK_FALSE(test::file_exists(out));
 
+    // A strip a billionth as high as it is long: the operator cannot be factored, and the error
+    // names the mesh and why.
+    std::string strip;
+    for (int i = 0; i < 30; ++i) strip += "v " + std::to_string(i) + " 0 0\nv " + std::to_string(i) + " 1e-9 0\n";
+    for (int i = 0; i < 29; ++i)
+        strip += "f " + std::to_string(2 * i + 1) + " " + std::to_string(2 * i + 3) + " " + std::to_string(2 * i + 4) + "\nf " +
+                 std::to_string(2 * i + 1) + " " + std::to_string(2 * i + 4) + " " + std::to_string(2 * i + 2) + "\n";
+    strip += "l 1 60\n";
+    test::write_bytes(dir.file("strip.obj"), strip);
+    r = run_cli("shm surface " + dir.file("strip.obj") + " -o " + out);
+    CHECK(r.exit_code == 1);
+    CHECK_MESSAGE(r.output.find("strip.obj: its surface operator") != std::string::npos, r.output);
+    CHECK_FALSE(test::file_exists(out));
+
     test::write_bytes(dir.file("nan.txt"), "v 1\ne 2 nan\nl 1 2\n");
     r = run_cli("shm surface " + f.mesh + " --curves " + dir.file("nan.txt") + " -o " + out);
     CHECK(r.exit_code == 1);

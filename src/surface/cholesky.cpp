@@ -76,7 +76,11 @@ struct Cholesky<Scalar>::Impl {
         cholmod_l_free_sparse(&s, &common);
         if (!factor)
             throw Error("CHOLMOD could not analyse a " + std::to_string(n) + "² operator: " + status_text(common));
-        if (!ok) throw Error("CHOLMOD could not factor a " + std::to_string(n) + "² operator: " + status_text(common));
+        // Not positive definite: cotan weights of near-degenerate triangles overwhelm the rest
+        // (a sliver strip, say). The mesh is the cause, so the error names it.
+        if (!ok)
+            throw Error("mesh", "its surface operator (" + std::to_string(n) + " unknowns) could not be factored: " +
+                                    status_text(common) + "; its triangles are too thin or degenerate for the cotan Laplacian");
     }
 };
 
