@@ -377,7 +377,7 @@ void add_shm(CLI::App& app) {
     grid->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)")->expected(6);
     grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy, or .vdb (φ as an OpenVDB level set)")->required()->check(output_file({".npy", ".vdb"}));
     grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
-        ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
+        ->check(finite_number())->check(CLI::Range(1e-6, 1e6))->capture_default_str();
     grid->add_option("--sum-tolerance", opt->sum_tolerance, "Step 1 accuracy: error bound of each expansion, as a fraction of a sheet's field (smaller: slower, closer to the exact integral)")
         ->check(CLI::Range(1e-9, 1.0))->capture_default_str();
     grid->add_option("--solver", *solver, "Poisson solver: mg (multigrid), cg, direct (CHOLMOD, small grids)")
@@ -692,6 +692,10 @@ std::string flag_for(const std::string& where) {
         {"FieldRenderOptions::color_range", "--color-range"},
         {"FieldRenderOptions::color_values", "--color"},
         {"box", "--bounds"},
+        {"SurfaceShmSetup::t_coef", "--t-coef"},
+        {"SurfaceShmSetup::refine_min_angle", "--min-angle"},
+        {"SurfaceShmOptions::soft_weight", "--soft-weight"},
+        {"SwnOptions::curve_weight", "--curve-weight"},
     };
     for (const auto& [field, flag] : flags)
         if (where == field) return flag;

@@ -277,7 +277,7 @@ void add_shm_surface(CLI::App& shm) {
     s->add_flag("--preserve-normals", a->options.preserve_normals,
                 "Keep the diffused field normal to the curves at the curves (one more constrained solve)");
     s->add_option("--t-coef", a->setup.t_coef, "Diffusion time t = t_coef · h², h = half the mean edge length")
-        ->check(finite_number())->check(CLI::PositiveNumber)
+        ->check(finite_number())->check(CLI::Range(1e-6, 1e6))
         ->capture_default_str();
     auto* idt = s->add_flag("--intrinsic-delaunay", a->setup.intrinsic_delaunay,
                             "Solve on an intrinsic Delaunay triangulation (edge flips; the mesh is not changed)");
