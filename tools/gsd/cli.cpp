@@ -13,6 +13,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <system_error>
 #include <unistd.h>
 
 namespace gsd::cli {
@@ -217,7 +218,11 @@ DevicePrefetch::DevicePrefetch(const Device& device) {
     std::transform(choice.begin(), choice.end(), choice.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     if (choice == "cpu") return;
     // The device list is made once per process; later calls (the command's own) wait for it.
-    found_ = std::async(std::launch::async, [] { gpu::list_devices(); });
+    // No thread to be had: the command finds the devices itself, as it would have anyway.
+    try {
+        found_ = std::async(std::launch::async, [] { gpu::list_devices(); });
+    } catch (const std::system_error&) {
+    }
 }
 
 DevicePrefetch::~DevicePrefetch() {
