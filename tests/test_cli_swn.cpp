@@ -137,6 +137,7 @@ TEST_CASE("swn: bad input is a clear error and leaves no output") {
     test::write_bytes(dir.file("empty.txt"), "#offset 0\nv 0\n");
     fails("swn " + f.mesh + " --curves " + dir.file("empty.txt") + " -o " + out, "no curves", 1);
     fails("swn " + dir.file("missing.obj") + " --curves " + f.curves + " -o " + out, "missing.obj", 1);
+    fails("swn " + f.curves + " -o " + out, "unsupported format '.txt'", 1);  // a curve file as the mesh
     // Three faces on one edge: SWN refuses with the reason, SHM's sign still works.
     test::write_bytes(dir.file("fan.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\nl 3 1\n");
     fails("swn " + dir.file("fan.obj") + " -o " + out, "manifold", 1);

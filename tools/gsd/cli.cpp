@@ -208,6 +208,11 @@ GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     return g;
 }
 
+bool is_curveless_mesh_format(const std::string& path) {
+    const std::string ext = io::extension(path);
+    return ext == ".ply" || ext == ".off" || ext == ".stl";
+}
+
 DevicePrefetch::DevicePrefetch(const Device& device) {
     if (device.context()) return;
     std::string choice = device.choice();

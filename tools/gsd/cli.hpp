@@ -128,6 +128,9 @@ private:
     std::future<void> found_;
 };
 
+/// A mesh file format that cannot hold curves (.ply .off .stl): curves must come from --curves.
+bool is_curveless_mesh_format(const std::string& path);
+
 /// `gsd shm surface` (tools/gsd/surface.cpp), added under the `shm` command.
 void add_shm_surface(CLI::App& shm);
 /// `gsd curve` (tools/gsd/surface.cpp): curves on meshes for demos and tests.

@@ -116,7 +116,7 @@ void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurfa
 
 
 void run(const SurfaceArgs& a) {
-    if (a.curves.empty() && a.points.empty() && io::extension(a.mesh) != ".obj")
+    if (a.curves.empty() && a.points.empty() && is_curveless_mesh_format(a.mesh))
         throw CLI::RequiredError("--curves or --points (or an .obj mesh with `l` lines)");
     if (!a.render.empty() && io::extension(a.render) != ".png") throw CLI::ValidationError("--render", "must be a .png file");
     if (!a.colored.empty() && io::extension(a.colored) != ".ply") throw CLI::ValidationError("--colored", "must be a .ply file");

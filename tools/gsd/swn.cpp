@@ -86,7 +86,9 @@ SurfaceSources load_curves(const SwnArgs& a, const SurfaceMesh& mesh) {
 }
 
 void run(const SwnArgs& a) {
-    if (a.curves.empty() && io::extension(a.mesh) != ".obj")
+    // A mesh format without curve records needs --curves; anything else (a missing file, a
+    // folder, a curve file given as the mesh) gets the reader's own error about MESH below.
+    if (a.curves.empty() && is_curveless_mesh_format(a.mesh))
         throw CLI::RequiredError("--curves (or an .obj mesh with `l` lines)");
     if (io::extension(a.output) != ".npy") throw CLI::ValidationError("--output", "must be a .npy file");
     if (!a.w.empty() && io::extension(a.w) != ".npy") throw CLI::ValidationError("--w", "must be a .npy file");
