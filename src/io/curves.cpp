@@ -34,7 +34,7 @@ struct RecordReader {
     const std::string& path;
     std::size_t line = 0;
     CurveFile out;
-    std::uint8_t base = 1;  // how the file numbers what it reads now (`#offset`; .obj files: 1)
+    std::uint8_t base = 1;  // how the file numbers what it reads now: 1 until an `#offset 0` (.obj: always 1)
 
     [[noreturn]] void error(const std::string& what) const { fail(path, at_line(line, what)); }
 
@@ -78,7 +78,6 @@ private:
         std::size_t line;
     };
 
-    long long base_ = 1;  // indices are 1-based until an `#offset 0`
     std::vector<ForwardReference> forward_;
 
     void record(std::string_view key, Tokens tokens) {
@@ -102,8 +101,7 @@ private:
         if (!tokens.next(word) || word != "offset") return;
         if (!tokens.next(value) || tokens.count_left() != 0 || (value != "0" && value != "1"))
             error("'#offset' must be followed by 0 or 1 alone");
-        base_ = value == "0" ? 0 : 1;
-        base = std::uint8_t(base_);
+        base = value == "0" ? 0 : 1;
     }
 
     void expect_values(const Tokens& tokens, std::size_t n, const char* key, const char* needs) const {
@@ -116,12 +114,12 @@ private:
     std::uint64_t index(std::string_view token, const char* what) const {
         long long i = 0;
         const bool parsed = detail::parse_int(token, i);
-        if (parsed && i >= base_ && i - base_ < kIndexLimit) return std::uint64_t(i - base_);
+        if (parsed && i >= base && i - base < kIndexLimit) return std::uint64_t(i - base);
         const std::string name = std::string(what) + " " + quoted(token);
         if (!parsed && !is_integer_text(token))
             error("expected an integer " + std::string(what) + ", found " + quoted(token));
         if (token.front() == '-' && (!parsed || i < 0)) error("negative " + name);
-        if (!parsed || i >= base_) error(name + " is too large (mesh indices are 32-bit)");
+        if (!parsed || i >= base) error(name + " is too large (mesh indices are 32-bit)");
         error(name + ", but indices are 1-based here (a '#offset 0' line before it makes them 0-based)");
     }
 
@@ -169,7 +167,7 @@ private:
         }
         if (polyline.points.size() < 2)
             error("'l' needs at least 2 point records, found " + std::to_string(polyline.points.size()));
-        if (largest >= out.points.size()) forward_.push_back({largest, base_, line});
+        if (largest >= out.points.size()) forward_.push_back({largest, base, line});
         out.lines.push_back(std::move(polyline));
     }
 

@@ -762,26 +762,29 @@ double contour_shift(const Topology& t, const std::vector<double>& f, const std:
 /// connected component (winding numbers are defined up to a constant per component, and one
 /// that no curve touches is all outside): on a component with boundary, the label most of its
 /// boundary has; on a closed one the smallest label (a counter-clockwise loop is +1 on its
-/// left, so the rest is the least). Degenerate triangles follow the whole mesh's zero.
+/// left, so the rest is the least). Degenerate triangles (component UINT32_MAX) follow the
+/// whole mesh's zero.
 std::vector<int> normalized_labels(const Topology& t, const std::vector<double>& face_value, double shift) {
     const Triangulation& T = t.mesh;
     std::vector<int> label(T.face_count());
     for (std::size_t f = 0; f < T.face_count(); ++f) label[f] = int(std::lround(face_value[f] + shift));
-    constexpr std::uint32_t kWhole = UINT32_MAX;  // the key of the whole mesh
-    auto component = [&](std::size_t f) { return t.degenerate(f) ? kWhole : t.face_component[f]; };
+    constexpr std::uint32_t kWhole = UINT32_MAX;  // the whole mesh, and the degenerate triangles
     std::map<std::uint32_t, std::map<int, double>> boundary;  // component → label → boundary length
     std::map<std::uint32_t, int> least;
     for (std::size_t e = 0; e < T.edge_count(); ++e)
         if (t.edge_halfedges.count(e) == 1) {
             const std::uint32_t f = corner_face(t.edge_halfedges.begin(e)[0]);
-            boundary[component(f)][label[f]] += T.edge_lengths[e];
             boundary[kWhole][label[f]] += T.edge_lengths[e];
+            if (t.face_component[f] != kWhole) boundary[t.face_component[f]][label[f]] += T.edge_lengths[e];
         }
-    for (std::size_t f = 0; f < T.face_count(); ++f)
-        for (const std::uint32_t c : {component(f), kWhole}) {
+    for (std::size_t f = 0; f < T.face_count(); ++f) {
+        auto lower = [&](std::uint32_t c) {
             const auto it = least.find(c);
             if (it == least.end() || label[f] < it->second) least[c] = label[f];
-        }
+        };
+        lower(kWhole);
+        if (t.face_component[f] != kWhole) lower(t.face_component[f]);
+    }
     std::map<std::uint32_t, int> zero;
     for (const auto& [c, l] : least) {
         const auto b = boundary.find(c);
@@ -790,7 +793,7 @@ std::vector<int> normalized_labels(const Topology& t, const std::vector<double>&
                                             return x.second < y.second;
                                         })->first;
     }
-    for (std::size_t f = 0; f < T.face_count(); ++f) label[f] -= zero[component(f)];
+    for (std::size_t f = 0; f < T.face_count(); ++f) label[f] -= zero[t.face_component[f]];
     return label;
 }
 
@@ -1212,13 +1215,13 @@ std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& 
     for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
         for (std::uint32_t v : t.mesh.faces[f])
             if (std::isfinite(phi[v])) {
-                double& m = largest[t.degenerate(f) ? UINT32_MAX : t.face_component[f]];
+                double& m = largest[t.face_component[f]];  // degenerate triangles: UINT32_MAX
                 m = std::max(m, std::abs(phi[v]));
                 overall = std::max(overall, std::abs(phi[v]));
             }
     std::vector<int> tri(t.mesh.face_count());
     for (std::size_t f = 0; f < tri.size(); ++f) {
-        if (largest[t.degenerate(f) ? UINT32_MAX : t.face_component[f]] <= 1e-6 * overall) continue;  // unreached
+        if (largest[t.face_component[f]] <= 1e-6 * overall) continue;  // unreached
         double s = 0;
         for (std::uint32_t v : t.mesh.faces[f]) s += phi[v];
         tri[f] = s < 0 ? 1 : 0;

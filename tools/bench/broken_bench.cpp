@@ -77,14 +77,14 @@ Score score(const PolygonMesh& intact, const PolygonMesh& broken, const GridSpec
     o.device = "cpu";
     const std::vector<double> truth = fast_winding_numbers(truth_src, q, o).w;
     const std::vector<double> gwn = fast_winding_numbers(OrientedElements::from_mesh(broken), q, o).w;
-    if (truth_grid) {
-        truth_grid->assign(std::size_t(nodes.rows()), std::numeric_limits<float>::quiet_NaN());
-        for (std::size_t i = 0; i < far.size(); ++i) (*truth_grid)[std::size_t(far[i])] = float(truth[i]);
-    }
-    if (gwn_grid) {
-        gwn_grid->assign(std::size_t(nodes.rows()), std::numeric_limits<float>::quiet_NaN());
-        for (std::size_t i = 0; i < far.size(); ++i) (*gwn_grid)[std::size_t(far[i])] = float(gwn[i]);
-    }
+    // Values at the scored nodes onto the whole grid, NaN elsewhere.
+    auto to_grid = [&](const std::vector<double>& values, std::vector<float>* grid) {
+        if (!grid) return;
+        grid->assign(std::size_t(nodes.rows()), std::numeric_limits<float>::quiet_NaN());
+        for (std::size_t i = 0; i < far.size(); ++i) (*grid)[std::size_t(far[i])] = float(values[i]);
+    };
+    to_grid(truth, truth_grid);
+    to_grid(gwn, gwn_grid);
     Score s;
     for (std::size_t i = 0; i < far.size(); ++i) {
         const double p = phi[std::size_t(far[i])];

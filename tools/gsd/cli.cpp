@@ -7,7 +7,6 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
@@ -214,18 +213,12 @@ bool is_curveless_mesh_format(const std::string& path) {
 }
 
 DevicePrefetch::DevicePrefetch(const Device& device) {
-    if (device.context()) return;
-    std::string choice = device.choice();
-    if (choice.empty()) {
-        const char* env = std::getenv("GSD_DEVICE");
-        choice = env ? env : "";
-    }
-    std::transform(choice.begin(), choice.end(), choice.begin(), [](unsigned char c) { return char(std::tolower(c)); });
-    if (choice == "cpu") return;
-    // The device list is made once per process; later calls (the command's own) wait for it.
-    // No thread to be had: the command finds the devices itself, as it would have anyway.
+    // gpu::select resolves the choice as the command will ("cpu" returns at once, $GSD_DEVICE
+    // counts) and makes the device list, and a GPU's context, once per process: the command's
+    // own call then finds them made, or waits for them. An error is left for that call to raise.
+    // No thread to be had: the command does it all itself, as it would have anyway.
     try {
-        found_ = std::async(std::launch::async, [] { gpu::list_devices(); });
+        found_ = std::async(std::launch::async, [device] { gpu::select(device); });
     } catch (const std::system_error&) {
     }
 }

@@ -116,7 +116,8 @@ std::string peak_memory();
 /// Finds the Vulkan devices on another thread while a command reads its input: loading the
 /// loader and its drivers takes tens of milliseconds (Mesa's software driver ~30 ms), which a
 /// whole run on the CPU would otherwise pay on top. Waits for it when it goes out of scope.
-/// Nothing to find when the device asked for (or $GSD_DEVICE) is "cpu".
+/// Nothing to find when the device asked for (or $GSD_DEVICE) is "cpu"; with a GPU, its context
+/// is made there too.
 class DevicePrefetch {
 public:
     explicit DevicePrefetch(const Device& device);

@@ -154,7 +154,7 @@ void run(const SurfaceArgs& a) {
     if (!a.isolines.empty() && (hi - lo) / spacing > kMaxIsolines)
         throw Error("--isoline-spacing", fmt("%g", spacing) + " gives " + fmt("%.3g", (hi - lo) / spacing) +
                                              " levels over φ's range [" + fmt("%g", lo) + ", " + fmt("%g", hi) +
-                                             "]; at most 1000: give a larger spacing");
+                                             "]; at most " + fmt("%g", kMaxIsolines) + ": give a larger spacing");
     std::string isolines;
     if (!a.isolines.empty()) isolines = isolines_obj(mesh, r.phi, spacing);
     Image picture;
