@@ -11,8 +11,11 @@
 #include <gsd/sums.hpp>
 
 #include "blend/blend.hpp"
+#include "gpu/device_nodes.hpp"
 #include "gpu/runtime.hpp"
 #include "support.hpp"
+
+#include <filesystem>
 
 #include <cmath>
 #include <random>
@@ -282,6 +285,35 @@ TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud)
         CHECK(worst < tol);
     }
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
+}
+
+TEST_CASE("auto looks for Vulkan devices only where a GPU device node exists") {
+    test::ScratchDir dev("dev");
+    auto touch = [&](const std::string& name) { test::write_bytes(dev.file(name), ""); };
+    CHECK_FALSE(gpu::has_gpu_device_node(dev.path().string()));
+    std::filesystem::create_directories(dev.file("dri"));
+    touch("null");
+    touch("dri/by-path");
+    CHECK_FALSE(gpu::has_gpu_device_node(dev.path().string()));
+    touch("dri/renderD128");
+    CHECK(gpu::has_gpu_device_node(dev.path().string()));
+    for (const char* node : {"dri/card0", "nvidiactl", "dxg", "mali0"}) {
+        test::ScratchDir other("dev");
+        std::filesystem::create_directories(other.file("dri"));
+        test::write_bytes(other.file(node), "");
+        CHECK_MESSAGE(gpu::has_gpu_device_node(other.path().string()), node);
+    }
+    // A folder that cannot be read says nothing: the devices are looked for.
+    CHECK(gpu::has_gpu_device_node(dev.file("missing")));
+    // Here: with no node, auto runs on the CPU and says why; with one, the choice is the
+    // inventory's (a real GPU, or the CPU with the device list in the note).
+    const gpu::Selection sel = gpu::select("auto");
+    if (!gpu::has_gpu_device_node()) {
+        CHECK(sel.context == nullptr);
+        CHECK(sel.note.find("no GPU device node") != std::string::npos);
+    } else if (!sel.context) {
+        CHECK(sel.note.find("no GPU device node") == std::string::npos);
+    }
 }
 
 TEST_CASE("device choice: cpu, names, and fallback without a device") {

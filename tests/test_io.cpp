@@ -631,6 +631,12 @@ TEST_CASE(".obj meshes: polygons, v/vt/vn corners, negative indices, ignored sta
     CHECK(contains(err(tri + "bogus 1 2 3\nf 1 2 3\n"), "unknown OBJ statement 'bogus'"));
     write_bytes(dir.file("c.obj"), tri + "vn 0 0 1\nvn 0 0 1\nvn 0 0 1\n");
     CHECK_FALSE(io::file_has_faces(dir.file("c.obj")));
+    // A UTF-8 byte-order mark (Windows editors) is skipped; elsewhere it is still an error.
+    write_bytes(dir.file("bom.obj"), "\xEF\xBB\xBF" + tri + "f 1 2 3\n");
+    const PolygonMesh bom = io::read_mesh(dir.file("bom.obj"));
+    CHECK(bom.vertices.rows() == 3);
+    CHECK(bom.indices == std::vector<std::uint32_t>{0, 1, 2});
+    CHECK(contains(err(tri + "\xEF\xBB\xBF" + "f 1 2 3\n"), "unknown OBJ statement"));
 }
 
 TEST_CASE(".off meshes: comments, counts on the header line, colors after indices") {

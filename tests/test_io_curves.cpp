@@ -69,6 +69,13 @@ TEST_CASE("indices are 1-based without #offset and 0-based after '#offset 0'") {
     CHECK(spaced.points[0].index == 0);
     CHECK(spaced.points[1].index == 0);
     CHECK(points_of(spaced.lines[0]) == std::vector<std::uint32_t>{0, 1});
+
+    // A UTF-8 byte-order mark before '#offset 0' does not hide the directive.
+    const io::CurveFile bom = read_text(dir, "\xEF\xBB\xBF#offset 0\nv 0\nv 7\nl 0 1\n");
+    REQUIRE(bom.points.size() == 2);
+    CHECK(bom.points[0].index == 0);
+    CHECK(bom.points[1].index == 7);
+    CHECK(bom.lines.size() == 1);
 }
 
 TEST_CASE("each point record kind keeps its values and line") {

@@ -55,7 +55,7 @@ struct WindingOptions {
     /// On the CPU the expansions run in float32 (~1e-6 from double) unless the criterion asks
     /// for more than that can give: tolerance below 1e-4, or β above 4 with tolerance 0.
     double beta = 1.5;
-    double tolerance = 3.5e-3;
+    double tolerance = 2.5e-3;
     /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
     /// the default (empty) is $GSD_DEVICE, else auto.
     Device device;

@@ -2,6 +2,11 @@
 // no_vulkan.cpp in a build without Vulkan).
 #include <gsd/gpu.hpp>
 
+#include "gpu/device_nodes.hpp"
+
+#include <filesystem>
+#include <system_error>
+
 namespace gsd {
 
 Device::Device(std::shared_ptr<gpu::Context> context) : context_(std::move(context)) {}
@@ -12,3 +17,19 @@ std::string Device::describe() const {
 }
 
 }  // namespace gsd
+
+namespace gsd::gpu {
+
+bool has_gpu_device_node(const std::string& dev) {
+    std::error_code ec;
+    if (!std::filesystem::is_directory(dev, ec)) return true;  // cannot tell: look for devices
+    for (const char* node : {"nvidiactl", "nvidia0", "dxg", "kgsl-3d0", "mali0", "galcore", "pvr_sync"})
+        if (std::filesystem::exists(dev + "/" + node, ec)) return true;
+    for (const auto& entry : std::filesystem::directory_iterator(dev + "/dri", ec)) {
+        const std::string name = entry.path().filename().string();
+        if (name.rfind("renderD", 0) == 0 || name.rfind("card", 0) == 0) return true;
+    }
+    return false;
+}
+
+}  // namespace gsd::gpu

@@ -1,6 +1,7 @@
 // Vulkan runtime: instance and device selection (through volk, so a machine without a loader
 // still runs), buffers, kernels from the embedded SPIR-V, and command recording.
 #include "gpu/runtime.hpp"
+#include "gpu/device_nodes.hpp"
 
 #include "gsd_shader_registry.h"
 
@@ -304,6 +305,12 @@ Selection select(const Device& device) {
     sel.device_name = "cpu";
     if (choice == "cpu") return sel;
 
+    // Loading the Vulkan drivers to find out costs 60-70 ms (and twice that in CPU time) where
+    // Mesa's are installed; on a machine with no GPU device node "auto" cannot find a GPU.
+    if (choice == "auto" && !has_gpu_device_node()) {
+        sel.note = "no GPU found (no GPU device node in /dev); using the CPU path (--device gpu runs on a software device)";
+        return sel;
+    }
     Runtime& rt = Runtime::get();
     const Inventory& inv = rt.inventory();
     const DeviceInfo* pick = nullptr;

@@ -38,10 +38,13 @@ std::string quoted(std::string_view token);
 // ---- text scanning ----------------------------------------------------------------------
 
 /// Walks the lines of a text file: strips "\r", and everything from '#' on (every text
-/// format here uses '#' for comments). Line numbers count from 1.
+/// format here uses '#' for comments). Line numbers count from 1. A UTF-8 byte-order mark
+/// at the start (some Windows editors write one) is skipped.
 class LineScanner {
 public:
-    explicit LineScanner(std::string_view text) : rest_(text) {}
+    explicit LineScanner(std::string_view text) : rest_(text) {
+        if (rest_.substr(0, 3) == "\xEF\xBB\xBF") rest_.remove_prefix(3);
+    }
     /// Next line (possibly blank after comment stripping); false at the end of the text.
     bool next(std::string_view& line);
     std::size_t line_number() const { return line_; }

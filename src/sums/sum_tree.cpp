@@ -299,6 +299,7 @@ SumTree::SumTree(const OrientedElements& e) {
     }
     triangles_ = triangles;
     nodes_.resize(tree.nodes().size());
+#pragma omp parallel for schedule(static)
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
         nodes_[i].begin = tree.nodes()[i].begin;
         nodes_[i].end = tree.nodes()[i].end;

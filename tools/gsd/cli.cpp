@@ -1,5 +1,8 @@
 #include "cli.hpp"
 
+#include "core/threads.hpp"
+#include "gpu/device_nodes.hpp"
+
 #include <sys/stat.h>
 
 #include <gsd/io.hpp>
@@ -7,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <cstdio>
@@ -81,6 +85,30 @@ void write_all(const std::vector<std::pair<std::string, std::function<void()>>>&
         for (const std::string& p : done) remove_output(p);
         throw;
     }
+}
+
+void place_threads(int argc, char** argv) {
+    bool verbose = false, quiet = false, listing = false;
+    std::string device;  // the last --device given, else $GSD_DEVICE, else auto
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "-v" || a == "--verbose") verbose = true;
+        if (a == "-q" || a == "--quiet") quiet = true;
+        if (a == "info") listing = true;  // lists the Vulkan devices
+        if (a == "--device" && i + 1 < argc) device = argv[i + 1];
+        if (a.rfind("--device=", 0) == 0) device = a.substr(9);
+    }
+    if (device.empty()) {
+        const char* env = std::getenv("GSD_DEVICE");
+        device = env && *env ? env : "auto";
+    }
+    for (char& c : device) c = char(std::tolower(static_cast<unsigned char>(c)));
+    // Vulkan drivers' threads would inherit the first thread's single CPU: bind only where none
+    // is loaded ("auto" loads them only where a GPU might be).
+    const bool cpu_path = device == "cpu" || (device == "auto" && !gpu::has_gpu_device_node());
+    if (listing || !cpu_path) return;
+    const std::string what = detail::bind_openmp_threads();
+    if (verbose && !quiet) std::fprintf(stderr, "gsd: %s\n", what.c_str());
 }
 
 void note(const std::string& message) {

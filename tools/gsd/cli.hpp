@@ -113,6 +113,12 @@ std::string fmt(const char* format, double value);
 /// Peak resident memory of this process (Linux), for --verbose reports.
 std::string peak_memory();
 
+/// Binds the OpenMP threads to one CPU each (core/threads.hpp) when the whole run stays on the
+/// CPU path: every device choice on the command line and in $GSD_DEVICE is "cpu" or "auto",
+/// and "auto" cannot find a GPU (no GPU device node); not for `gsd info`. Call first thing in
+/// main(); with -v, prints what it did.
+void place_threads(int argc, char** argv);
+
 /// Finds the Vulkan devices on another thread while a command reads its input: loading the
 /// loader and its drivers takes tens of milliseconds (Mesa's software driver ~30 ms), which a
 /// whole run on the CPU would otherwise pay on top. Waits for it when it goes out of scope.

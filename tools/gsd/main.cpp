@@ -705,6 +705,7 @@ std::string flag_for(const std::string& where) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    place_threads(argc, argv);
     CLI::App app{"gsd — generalized signed distance and winding numbers from imperfect geometry"};
     app.set_version_flag("--version", std::string(version()));
     app.require_subcommand(1);

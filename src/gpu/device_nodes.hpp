@@ -1,0 +1,16 @@
+// device_nodes.hpp — whether this machine could have a hardware GPU at all. Private to the
+// library and its programs.
+#pragma once
+
+#include <string>
+
+namespace gsd::gpu {
+
+/// Whether the folder `dev` (/dev) holds a node that some GPU's driver works through: DRM
+/// (dri/renderD*, dri/card*), NVIDIA's (nvidiactl, nvidia0), WSL's (dxg), or an embedded
+/// GPU's (kgsl-3d0, mali0, galcore, pvr_sync). A hardware Vulkan device needs one, so without
+/// any, select("auto") does not load the Vulkan drivers at all. True where `dev` is not a
+/// readable folder (nothing can be told).
+bool has_gpu_device_node(const std::string& dev = "/dev");
+
+}  // namespace gsd::gpu
