@@ -54,6 +54,13 @@ TEST_CASE("usage errors exit 2, help exits 0") {
     CHECK(run_cli("frobnicate").exit_code == 2);
     CHECK(run_cli("pat eval in.ply --grid 8").exit_code == 2);           // no -o
     CHECK(run_cli("pat eval in.ply --grid 1 -o x.npy").exit_code == 2);  // grid too small
+    // Beyond 1290³ a grid has more than 2^31 nodes: refused with the usage errors, every command.
+    for (const char* cmd : {"pat eval in.ply --grid 1291 -o x.npy", "winding in.obj --grid 1291 -o x.npy",
+                            "shm grid in.obj --grid 1291 -o x.npy"}) {
+        const auto r = run_cli(cmd);
+        CHECK_MESSAGE(r.exit_code == 2, cmd);
+        CHECK_MESSAGE(r.output.find("1290") != std::string::npos, cmd << ": " << r.output);
+    }
     CHECK(run_cli("slice g.npy --bounds 0 0 0 1 1 1 --axis w --at 0 -o s.png").exit_code == 2);
     const auto help = run_cli("pat eval --help");
     CHECK(help.exit_code == 0);

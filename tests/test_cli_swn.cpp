@@ -9,6 +9,8 @@
 
 #include "support.hpp"
 
+#include <filesystem>
+
 #include <fstream>
 #include <iterator>
 #include <vector>
@@ -138,6 +140,10 @@ TEST_CASE("swn: bad input is a clear error and leaves no output") {
     fails("swn " + f.mesh + " --curves " + dir.file("empty.txt") + " -o " + out, "no curves", 1);
     fails("swn " + dir.file("missing.obj") + " --curves " + f.curves + " -o " + out, "missing.obj", 1);
     fails("swn " + f.curves + " -o " + out, "unsupported format '.txt'", 1);  // a curve file as the mesh
+    // MESH after the --curves list: the list takes it, and the error says so.
+    fails("swn --curves " + f.curves + " " + f.mesh + " -o " + out, "--curves took '" + f.mesh + "'", 2);
+    CHECK(run_cli("swn --curves " + f.curves + " -- " + f.mesh + " -o " + out + " -q").exit_code == 0);
+    std::filesystem::remove(out);
     // Three faces on one edge: SWN refuses with the reason, SHM's sign still works.
     test::write_bytes(dir.file("fan.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\nl 3 1\n");
     fails("swn " + dir.file("fan.obj") + " -o " + out, "manifold", 1);

@@ -184,7 +184,8 @@ void Progress::finish() {
 }
 
 void Domain::add_to(CLI::App& app, bool bounds_optional) {
-    auto* g = app.add_option("--grid", grid, "Evaluate on an N×N×N grid of nodes")->check(CLI::Range(2, 4096));
+    // 1290³ is the largest cube under 2^31 nodes (GridSpec::validate), so a larger N fails here.
+    auto* g = app.add_option("--grid", grid, "Evaluate on an N×N×N grid of nodes (N ≤ 1290: 2^31 nodes)")->check(CLI::Range(2, 1290));
     auto* b = app.add_option("--bounds", bounds,
                              bounds_optional ? "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)"
                                              : "Grid box x0 y0 z0 x1 y1 z1")

@@ -373,7 +373,7 @@ void add_shm(CLI::App& app) {
     auto solver = std::make_shared<std::string>("mg");
     auto opt = std::make_shared<ShmOptions>();
     grid->add_option("INPUT", *inputs, "Mesh(es) and/or point cloud(s); several are combined into one source")->required();
-    grid->add_option("--grid", *n, "Grid nodes per axis")->required()->check(CLI::Range(4, 2048));
+    grid->add_option("--grid", *n, "Grid nodes per axis (N ≤ 1290: 2^31 nodes)")->required()->check(CLI::Range(4, 1290));
     grid->add_option("--bounds", *bounds, "Grid box x0 y0 z0 x1 y1 z1 (default: the input's bounding cube + 10%)")->expected(6);
     grid->add_option("-o,--output", *output, "Output (N,N,N) float32 .npy, or .vdb (φ as an OpenVDB level set)")->required()->check(output_file({".npy", ".vdb"}));
     grid->add_option("--t-coef", opt->t_coef, "Diffusion time t = t_coef · h² (h: mean spacing or edge length)")
@@ -704,6 +704,32 @@ std::string flag_for(const std::string& where) {
 
 }  // namespace
 
+// A list option (--curves a.txt b.txt …) takes every value up to the next flag, so a
+// positional written after it ends up in the list and is then "required". Says so when the
+// list's last value is an existing mesh file.
+void hint_swallowed_positional(const CLI::App& app) {
+    std::vector<const CLI::App*> stack{&app};
+    while (!stack.empty()) {
+        const CLI::App* a = stack.back();
+        stack.pop_back();
+        for (const CLI::App* sub : a->get_subcommands()) stack.push_back(sub);
+        for (const CLI::Option* o : a->get_options()) {
+            if (!o->get_items_expected_max() || o->get_items_expected_max() < 2 || o->results().size() < 2) continue;
+            const std::string& last = o->results().back();
+            bool mesh = false;
+            try {
+                mesh = io::file_has_faces(last);
+            } catch (const Error&) {  // not a readable mesh: no hint
+            }
+            if (!mesh) continue;
+            std::fprintf(stderr, "gsd: %s took '%s' as one of its files: put the positional arguments before %s, "
+                                 "or end its list with --\n",
+                         o->get_name().c_str(), last.c_str(), o->get_name().c_str());
+            return;
+        }
+    }
+}
+
 int main(int argc, char** argv) {
     place_threads(argc, argv);
     CLI::App app{"gsd — generalized signed distance and winding numbers from imperfect geometry"};
@@ -738,6 +764,7 @@ int main(int argc, char** argv) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
         app.exit(e);
+        if (dynamic_cast<const CLI::RequiredError*>(&e)) hint_swallowed_positional(app);
         return kUsage;
     } catch (const Error& e) {
         if (e.where().empty()) std::fprintf(stderr, "gsd: error: %s\n", e.what());
