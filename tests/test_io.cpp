@@ -639,6 +639,25 @@ TEST_CASE(".obj meshes: polygons, v/vt/vn corners, negative indices, ignored sta
     CHECK(contains(err(tri + "\xEF\xBB\xBF" + "f 1 2 3\n"), "unknown OBJ statement"));
 }
 
+TEST_CASE("a UTF-8 byte-order mark is skipped by every line-based reader") {
+    ScratchDir dir("io-bom");
+    const std::string bom = "\xEF\xBB\xBF";
+    const std::vector<std::pair<std::string, std::string>> meshes = {
+        {"m.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"},
+        {"m.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"},
+        {"m.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
+                  "endfacet\nendsolid t\n"}};
+    for (const auto& [name, text] : meshes) {
+        CAPTURE(name);
+        write_bytes(dir.file(name), bom + text);
+        const PolygonMesh m = io::read_mesh(dir.file(name));
+        CHECK(m.vertices.rows() == 3);
+        CHECK(m.face_count() == 1);
+    }
+    write_bytes(dir.file("c.xyz"), bom + "0 0 0 0 0 1\n1 0 0 0 0 1\n");
+    CHECK(io::read_point_cloud(dir.file("c.xyz")).size() == 2);
+}
+
 TEST_CASE(".off meshes: comments, counts on the header line, colors after indices") {
     ScratchDir dir("io-off");
     const std::string p = dir.file("m.off");

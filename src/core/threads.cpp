@@ -14,10 +14,11 @@
 namespace gsd::detail {
 
 // Why: on small virtual machines (the 2-core ones CI and benchmarks run on) Linux often keeps
-// the OpenMP worker on the CPU of the thread that woke it, and both then share one CPU while
-// the other idles: measured, building the summation tree of a 1.3·10⁵-triangle mesh took
-// 0.13–0.14 s in most runs against 0.09 s with the threads bound (OMP_PROC_BIND=true), the
-// same as both threads forced onto one CPU (taskset -c 0). Bound threads cannot end up there.
+// the OpenMP worker on the CPU of the first thread, and both then share one CPU while the
+// other idles: measured, `gsd winding` of a 1.3·10⁵-triangle mesh at 10 queries (reading it
+// and building the tree) took 0.13–0.14 s in most runs against 0.09–0.10 s every time with
+// the threads bound (OMP_PROC_BIND=true), and 0.13–0.14 s with both threads forced onto one
+// CPU (taskset -c 0). Bound threads cannot end up there.
 std::string bind_openmp_threads() {
 #ifndef __linux__
     return "threads not bound (not Linux)";
@@ -42,7 +43,11 @@ std::string bind_openmp_threads() {
         CPU_SET(cpus[std::size_t((omp_get_thread_num() + offset) % n)], &one);
         bound += pthread_setaffinity_np(pthread_self(), sizeof one, &one) == 0 ? 1 : 0;
     }
-    return bound == n ? std::to_string(n) + " threads bound to one CPU each" : "threads not bound (the system refused)";
+    if (bound == n) return std::to_string(n) + " threads bound to one CPU each";
+    // All or nothing: threads that did bind get the whole mask back.
+#pragma omp parallel num_threads(n)
+    pthread_setaffinity_np(pthread_self(), sizeof mask, &mask);
+    return "threads not bound (the system refused)";
 #endif
 }
 

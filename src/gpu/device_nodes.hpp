@@ -10,7 +10,7 @@ namespace gsd::gpu {
 /// (dri/renderD*, dri/card*), NVIDIA's (nvidiactl, nvidia0), WSL's (dxg), or an embedded
 /// GPU's (kgsl-3d0, mali0, galcore, pvr_sync). A hardware Vulkan device needs one, so without
 /// any, select("auto") does not load the Vulkan drivers at all. True where `dev` is not a
-/// readable folder (nothing can be told).
+/// readable folder, and on systems other than Linux (nothing can be told).
 bool has_gpu_device_node(const std::string& dev = "/dev");
 
 }  // namespace gsd::gpu

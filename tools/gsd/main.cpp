@@ -705,16 +705,21 @@ std::string flag_for(const std::string& where) {
 }  // namespace
 
 // A list option (--curves a.txt b.txt …) takes every value up to the next flag, so a
-// positional written after it ends up in the list and is then "required". Says so when the
-// list's last value is an existing mesh file.
+// positional written after it ends up in the list and is then missing. Says so when a required
+// positional got nothing and a list option's last value is an existing mesh file.
 void hint_swallowed_positional(const CLI::App& app) {
     std::vector<const CLI::App*> stack{&app};
     while (!stack.empty()) {
         const CLI::App* a = stack.back();
         stack.pop_back();
         for (const CLI::App* sub : a->get_subcommands()) stack.push_back(sub);
-        for (const CLI::Option* o : a->get_options()) {
-            if (!o->get_items_expected_max() || o->get_items_expected_max() < 2 || o->results().size() < 2) continue;
+        const auto options = a->get_options();
+        const bool positional_missing = std::any_of(options.begin(), options.end(), [](const CLI::Option* o) {
+            return o->get_positional() && o->get_required() && o->count() == 0;
+        });
+        if (!positional_missing) continue;
+        for (const CLI::Option* o : options) {
+            if (o->get_positional() || o->get_items_expected_max() < 2 || o->results().size() < 2) continue;
             const std::string& last = o->results().back();
             bool mesh = false;
             try {
