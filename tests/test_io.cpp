@@ -647,9 +647,10 @@ TEST_CASE("a UTF-8 byte-order mark is skipped by every line-based reader") {
         {"m.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n"},
         {"m.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\n"
                   "endfacet\nendsolid t\n"}};
-    for (const auto& [name, text] : meshes) {
+    for (const auto& entry : meshes) {  // (no structured binding: clang 14 cannot capture one)
+        const std::string& name = entry.first;
         CAPTURE(name);
-        write_bytes(dir.file(name), bom + text);
+        write_bytes(dir.file(name), bom + entry.second);
         const PolygonMesh m = io::read_mesh(dir.file(name));
         CHECK(m.vertices.rows() == 3);
         CHECK(m.face_count() == 1);
