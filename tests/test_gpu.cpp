@@ -11,7 +11,7 @@
 #include <gsd/sums.hpp>
 
 #include "blend/blend.hpp"
-#include "gpu/device_nodes.hpp"
+#include "gpu/device_choice.hpp"
 #include "gpu/runtime.hpp"
 #include "support.hpp"
 

@@ -2,8 +2,9 @@
 // no_vulkan.cpp in a build without Vulkan).
 #include <gsd/gpu.hpp>
 
-#include "gpu/device_nodes.hpp"
+#include "gpu/device_choice.hpp"
 
+#include <cstdlib>
 #include <filesystem>
 #include <system_error>
 
@@ -19,6 +20,13 @@ std::string Device::describe() const {
 }  // namespace gsd
 
 namespace gsd::gpu {
+
+std::string requested_choice(const Device& device) {
+    if (device.context()) return {};
+    if (!device.choice().empty()) return device.choice();
+    const char* env = std::getenv("GSD_DEVICE");
+    return env && *env ? env : "auto";
+}
 
 bool has_gpu_device_node(const std::string& dev) {
 #ifndef __linux__

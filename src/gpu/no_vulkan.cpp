@@ -2,6 +2,8 @@
 #include <gsd/core.hpp>
 #include <gsd/gpu.hpp>
 
+#include "gpu/device_choice.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cstdlib>
@@ -19,11 +21,7 @@ Inventory list_devices() {
 Selection select(const Device& device) {
     Selection s;
     s.device_name = "cpu";
-    std::string choice = device.choice();
-    if (choice.empty()) {
-        const char* env = std::getenv("GSD_DEVICE");
-        choice = env && *env ? env : "auto";
-    }
+    std::string choice = requested_choice(device);
     std::transform(choice.begin(), choice.end(), choice.begin(), [](unsigned char c) { return char(std::tolower(c)); });
     if (choice == "cpu") return s;
     // The policy of the Vulkan build: auto and gpu fall back, a named device is a demand.

@@ -1,7 +1,7 @@
 // Vulkan runtime: instance and device selection (through volk, so a machine without a loader
 // still runs), buffers, kernels from the embedded SPIR-V, and command recording.
 #include "gpu/runtime.hpp"
-#include "gpu/device_nodes.hpp"
+#include "gpu/device_choice.hpp"
 
 #include "gsd_shader_registry.h"
 
@@ -295,13 +295,8 @@ Selection select(const Device& device) {
         sel.device_name = device.context()->info().name;
         return sel;
     }
-    std::string choice = device.choice();
-    if (choice.empty()) {
-        const char* env = std::getenv("GSD_DEVICE");
-        choice = env && *env ? env : "auto";
-    }
-    const std::string requested = choice;
-    choice = lower(choice);
+    const std::string requested = requested_choice(device);
+    const std::string choice = lower(requested);
     sel.device_name = "cpu";
     if (choice == "cpu") return sel;
 

@@ -37,14 +37,17 @@ std::string quoted(std::string_view token);
 
 // ---- text scanning ----------------------------------------------------------------------
 
+/// The text without a leading UTF-8 byte-order mark (some Windows editors write one).
+inline std::string_view without_byte_order_mark(std::string_view text) {
+    return text.substr(0, 3) == "\xEF\xBB\xBF" ? text.substr(3) : text;
+}
+
 /// Walks the lines of a text file: strips "\r", and everything from '#' on (every text
 /// format here uses '#' for comments). Line numbers count from 1. A UTF-8 byte-order mark
 /// at the start (some Windows editors write one) is skipped.
 class LineScanner {
 public:
-    explicit LineScanner(std::string_view text) : rest_(text) {
-        if (rest_.substr(0, 3) == "\xEF\xBB\xBF") rest_.remove_prefix(3);
-    }
+    explicit LineScanner(std::string_view text) : rest_(without_byte_order_mark(text)) {}
     /// Next line (possibly blank after comment stripping); false at the end of the text.
     bool next(std::string_view& line);
     std::size_t line_number() const { return line_; }

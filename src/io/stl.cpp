@@ -52,7 +52,7 @@ private:
 };
 
 bool starts_with_solid(std::string_view bytes) {
-    if (bytes.substr(0, 3) == "\xEF\xBB\xBF") bytes.remove_prefix(3);  // a UTF-8 byte-order mark (LineScanner skips it too)
+    bytes = without_byte_order_mark(bytes);  // as LineScanner reads it
     const std::size_t first = bytes.find_first_not_of(" \t\r\n");
     return first != std::string_view::npos && bytes.substr(first, 5) == "solid";
 }

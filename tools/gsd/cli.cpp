@@ -1,7 +1,7 @@
 #include "cli.hpp"
 
 #include "core/threads.hpp"
-#include "gpu/device_nodes.hpp"
+#include "gpu/device_choice.hpp"
 
 #include <sys/stat.h>
 
@@ -89,19 +89,16 @@ void write_all(const std::vector<std::pair<std::string, std::function<void()>>>&
 
 void place_threads(int argc, char** argv) {
     bool verbose = false, quiet = false, listing = false;
-    std::string device;  // the last --device given, else $GSD_DEVICE, else auto
+    std::string given;  // the last --device: the choice select() will resolve
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         if (a == "-v" || a == "--verbose") verbose = true;
         if (a == "-q" || a == "--quiet") quiet = true;
         if (a == "info") listing = true;  // lists the Vulkan devices
-        if (a == "--device" && i + 1 < argc) device = argv[i + 1];
-        if (a.rfind("--device=", 0) == 0) device = a.substr(9);
+        if (a == "--device" && i + 1 < argc) given = argv[i + 1];
+        if (a.rfind("--device=", 0) == 0) given = a.substr(9);
     }
-    if (device.empty()) {
-        const char* env = std::getenv("GSD_DEVICE");
-        device = env && *env ? env : "auto";
-    }
+    std::string device = gpu::requested_choice(Device(given));
     for (char& c : device) c = char(std::tolower(static_cast<unsigned char>(c)));
     // Vulkan drivers' threads would inherit the first thread's single CPU: bind only where none
     // is loaded ("auto" loads them only where a GPU might be).
