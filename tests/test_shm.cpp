@@ -346,6 +346,71 @@ TEST_CASE("broken meshes: 20% of the area in 3 holes and 10% of faces flipped �
     }
 }
 
+TEST_CASE("the outside veto: no inside bulging out of a sphere's missing cap, thin parts kept") {
+    // A sphere of radius 0.7 without the cap within 55° of +z (a fifth of its area): SHM's
+    // completion bulges out over the opening. Truth: |x| < 0.7, at nodes more than two cells
+    // from the sphere.
+    const double radius = 0.7;
+    const PolygonMesh sphere = shapes::icosphere(4, radius);
+    PolygonMesh open;
+    open.vertices = sphere.vertices;
+    for (std::size_t f = 0; f < sphere.face_count(); ++f) {
+        const std::uint32_t* v = &sphere.indices[sphere.offsets[f]];
+        const Eigen::Vector3d c = (sphere.vertices.row(v[0]) + sphere.vertices.row(v[1]) + sphere.vertices.row(v[2])).transpose() / 3;
+        if (c.z() / c.norm() < std::cos(55 * M_PI / 180)) open.add_face(v, 3);
+    }
+    const GridSpec g = GridSpec::cube(test::sized(48, 32), kCube);
+    const double cell = 2.0 / (g.nx - 1);
+    ShmOptions off, on;
+    off.device = on.device = "cpu";
+    off.veto_winding = 0;
+    const ShmResult a = SignedHeatGrid(shm_source(open), g, off).solve(), b = SignedHeatGrid(shm_source(open), g, on).solve();
+    CHECK(a.vetoed_nodes == 0);
+    const Points x = g.nodes();
+    int inside = 0, outside = 0, wrong_out_off = 0, wrong_out_on = 0, wrong_in_on = 0, changed = 0;
+    for (Eigen::Index i = 0; i < x.rows(); ++i) {
+        const double r = x.row(i).norm();
+        const std::size_t k = std::size_t(i);
+        changed += (a.phi[k] < 0) != (b.phi[k] < 0);
+        if (std::abs(r - radius) <= 2 * cell) continue;
+        if (r < radius) {
+            ++inside;
+            wrong_in_on += !(b.phi[k] < 0);
+        } else {
+            ++outside;
+            wrong_out_off += !(a.phi[k] > 0);
+            wrong_out_on += !(b.phi[k] > 0);
+        }
+    }
+    MESSAGE("outside nodes signed wrong: " << wrong_out_off << " without the veto, " << wrong_out_on << " with it (of " << outside
+                                           << "); inside wrong with it: " << wrong_in_on << " of " << inside << "; "
+                                           << b.vetoed_nodes << " nodes vetoed");
+    REQUIRE(wrong_out_off > 0.005 * outside);  // the bulge the veto is for
+    CHECK(2 * wrong_out_on < wrong_out_off);
+    CHECK(wrong_out_on < 0.01 * outside);
+    CHECK(wrong_in_on == 0);
+    CHECK(std::size_t(changed) == b.vetoed_nodes);  // the veto only turns inside to outside
+
+    // A thin slab (a rounded box squashed to a fifth of its height) with 20 % of its area in 3
+    // holes: its inside has low winding numbers, but it is thinner than the margin, so the veto
+    // leaves its sign alone.
+    PolygonMesh slab = shapes::mesh(*shapes::by_name("rounded-box"), test::sized(48, 32));
+    slab.vertices.col(2) *= 0.2;
+    shapes::MeshCorruption holes;
+    holes.holes = 3;
+    holes.hole_area = 0.2;
+    const PolygonMesh broken = shapes::corrupt(slab, holes, 5);
+    const GridSpec gs = GridSpec::cube(test::sized(48, 32), shm_default_bounds(shm_source(slab)));
+    const ShmResult c = SignedHeatGrid(shm_source(broken), gs, off).solve(), d = SignedHeatGrid(shm_source(broken), gs, on).solve();
+    const SignScore sc = score_signs(slab, broken, gs, c.phi), sd = score_signs(slab, broken, gs, d.phi);
+    MESSAGE("thin slab, inside / outside right: " << 100 * sc.shm_inside << " / " << 100 * sc.shm_outside << " % without the veto, "
+                                                  << 100 * sd.shm_inside << " / " << 100 * sd.shm_outside << " % with it; GWN inside "
+                                                  << 100 * sd.gwn_inside << " %");
+    REQUIRE(sd.inside > 100);
+    CHECK(sd.shm_inside == sc.shm_inside);
+    CHECK(sd.shm_outside >= sc.shm_outside);
+}
+
 TEST_CASE("fitting the zero set softly pulls φ to zero on the source") {
     shapes::Corruption holes;
     holes.holes = 2;
@@ -416,6 +481,15 @@ TEST_CASE("degenerate input gets a clear error") {
     bad = {};
     bad.sum_tolerance = 2;
     CHECK(field_at_fault(bad) == "ShmOptions::sum_tolerance");
+    bad = {};
+    bad.veto_winding = 1;
+    CHECK(field_at_fault(bad) == "ShmOptions::veto_winding");
+    bad = {};
+    bad.veto_margin = 0;
+    CHECK(field_at_fault(bad) == "ShmOptions::veto_margin");
+    bad = {};
+    bad.veto_slope = std::nan("");
+    CHECK(field_at_fault(bad) == "ShmOptions::veto_slope");
     CHECK(field_at_fault({}, GridSpec::cube(1, kCube)) == "GridSpec");
     CHECK(field_at_fault({}, GridSpec::cube(8, Box{{0, 0, 0}, {1e31, 1, 1}})) == "GridSpec::box");
     // A grid that does not contain the source cannot be shifted to it.

@@ -9,7 +9,8 @@
 // Step 1 diffuses the source normals with the screened kernel exp(−λr)/(4πr), λ = 1/√t,
 // t = t_coef·h²; step 2 normalizes them to Y; step 3 solves Δφ = ∇·Y with ∂φ/∂n = n·Y on the
 // box (7-point stencil, geometric multigrid), then shifts φ so the source is its zero set on
-// average (or fits it softly). docs/shm.md has the details and the error bounds.
+// average (or fits it softly), and turns outside what only the completion over a large hole put
+// inside (the outside veto). docs/shm.md has the details and the error bounds.
 #pragma once
 
 #include <gsd/export.hpp>
@@ -81,6 +82,17 @@ struct ShmOptions {
     /// It bends the zero set back onto the source where holes and flips pulled it away (docs/shm.md:
     /// inside/outside on broken meshes); 0: the shift alone.
     double fit_zero_set = 1.0;
+    /// The outside veto, last: a node that φ puts inside (φ < 0) is turned outside when its
+    /// sign rests on nothing but SHM's completion over a hole — it lies farther from every
+    /// element than veto_slope·|φ| + veto_margin·E (E: the largest extent of the source's
+    /// bounding box) *and* the source's winding number there is below veto_winding. Such nodes
+    /// are where the completion bulges out of a large hole; deep inside, |φ| is about the
+    /// distance, and in thin parts the distance is below the margin, so neither is touched.
+    /// φ → |φ| there, blended over a band (half the margin in distance, 0.1 in winding number)
+    /// so that φ stays continuous. veto_winding = 0 turns it off (docs/shm.md: the measurements).
+    double veto_winding = 0.2;
+    double veto_slope = 3.0;
+    double veto_margin = 0.1;
     /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
     /// the default (empty) is $GSD_DEVICE, else auto.
     Device device;
@@ -96,6 +108,7 @@ struct ShmResult {
     double seconds_diffuse = 0, seconds_solve = 0;
     std::size_t exact_nodes = 0;           ///< nodes where step 1 summed the kernel (the rest interpolated)
     std::size_t kernel_terms = 0;          ///< source terms summed in step 1 (its cost)
+    std::size_t vetoed_nodes = 0;          ///< nodes the outside veto turned from inside to outside
     std::string device;                    ///< "cpu" or the Vulkan device that ran step 1 / step 3
 };
 

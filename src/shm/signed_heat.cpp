@@ -1,8 +1,10 @@
-// SignedHeatGrid: the three steps of the grid Signed Heat Method and the zero-set shift.
+// SignedHeatGrid: the three steps of the grid Signed Heat Method, the zero-set shift and fit,
+// and the outside veto.
 #include <gsd/gpu.hpp>
 #include <gsd/shm.hpp>
 
 #include "shm/diffuse.hpp"
+#include "sums/sum_tree.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -201,6 +203,50 @@ struct SignedHeatGrid::Impl {
         }
         return phi;
     }
+
+    // The outside veto (ShmOptions::veto_winding). Where holes are large, SHM's completion can
+    // bulge out over them: nodes there get φ < 0 with no face nearby to say so. Such a node is
+    // (1) far from every element for its |φ| — deep inside, |φ| is about the distance to the
+    // surface — and (2) at a low winding number of the source, which a hole lowers only so
+    // far (docs/shm.md). φ → φ(1 − 2κ), κ ∈ [0, 1] the lesser of two ramps, each ½ where its
+    // condition starts to hold: the sign flips exactly where both hold, and φ stays continuous
+    // in its inputs (so that the GPU's φ and the CPU's stay as close after the veto as before).
+    // Returns the number of nodes turned outside.
+    std::size_t veto_outside(std::vector<double>& phi) const {
+        const Box extent_box = bounding_box(source.elements.corners);
+        const double margin = opt.veto_margin * extent_box.extent().maxCoeff();
+        if (!(margin > 0)) return 0;  // every element at one point: no hole to complete
+        // The ramps' widths: half the margin in distance (a part thinner than that is never
+        // touched, however low its winding number), 0.1 in winding number.
+        const double distance_band = 0.5 * margin, winding_band = 0.1;
+        const detail::SumTree tree(source.elements);
+        const WindingOptions criterion;  // the default accuracy: far below the band
+        const Eigen::Vector3d step = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
+        const std::ptrdiff_t count = std::ptrdiff_t(phi.size());
+        std::size_t turned = 0;
+#pragma omp parallel reduction(+ : turned)
+        {
+            std::uint32_t nearest = std::uint32_t(-1);  // the last node's nearest element: a good start
+#pragma omp for schedule(dynamic, 4096)
+            for (std::ptrdiff_t i = 0; i < count; ++i) {
+                double& value = phi[std::size_t(i)];
+                if (!(value < 0)) continue;
+                const std::ptrdiff_t iz = i % grid.nz, iy = (i / grid.nz) % grid.ny, ix = i / (std::ptrdiff_t(grid.nz) * grid.ny);
+                const Eigen::Vector3d x = grid.box.lo + step.cwiseProduct(Eigen::Vector3d(double(ix), double(iy), double(iz)));
+                const double threshold = opt.veto_slope * -value + margin;
+                // Exact up to where the ramp ends; that bound prunes the search.
+                const double d = tree.nearest_distance(x, threshold + 0.5 * distance_band, &nearest);
+                const double far = std::clamp(0.5 + (d - threshold) / distance_band, 0.0, 1.0);
+                if (far <= 0) continue;
+                std::size_t terms = 0;
+                const double w = tree.winding(x, criterion.beta, criterion.tolerance, terms);
+                const double kappa = std::min(far, std::clamp(0.5 + (opt.veto_winding - w) / winding_band, 0.0, 1.0));
+                value *= 1 - 2 * kappa;
+                turned += kappa > 0.5;
+            }
+        }
+        return turned;
+    }
 };
 
 SignedHeatGrid::SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions options) {
@@ -213,6 +259,12 @@ SignedHeatGrid::SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions optio
     if (options.fit_zero_set < 0) throw Error("ShmOptions::fit_zero_set", "the zero-set weight must be ≥ 0");
     if (!(options.sum_tolerance > 0) || !(options.sum_tolerance <= 1))
         throw Error("ShmOptions::sum_tolerance", "the step 1 sum tolerance must be in (0, 1]");
+    if (!(options.veto_winding >= 0) || !(options.veto_winding < 1))
+        throw Error("ShmOptions::veto_winding", "the outside veto's winding number must be in [0, 1) (0: no veto)");
+    if (!(options.veto_slope >= 0) || !std::isfinite(options.veto_slope))
+        throw Error("ShmOptions::veto_slope", "the outside veto's slope must be finite and ≥ 0");
+    if (!(options.veto_margin > 0) || !std::isfinite(options.veto_margin))
+        throw Error("ShmOptions::veto_margin", "the outside veto's margin must be finite and > 0");
     source.elements.validate();
     impl_ = std::make_unique<Impl>(Impl{std::move(source), grid, std::move(options)});
 }
@@ -248,6 +300,7 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     const double shift = m.mean_on_source(phi);
     for (double& v : phi) v -= shift;
     if (m.opt.fit_zero_set > 0) phi = m.fit_zero_set(phi, out.fit_history);  // on the CPU: a small grid
+    if (m.opt.veto_winding > 0) out.vetoed_nodes = m.veto_outside(phi);      // on the CPU: a few nodes' sums
     out.seconds_solve = seconds_since(t0);
     const std::string solve_device = poisson.device();
     out.device = diffuse_device == solve_device ? diffuse_device : diffuse_device + " (step 1), " + solve_device + " (step 3)";

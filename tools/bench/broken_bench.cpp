@@ -1,7 +1,7 @@
 // gsd-broken-bench: inside/outside on broken closed meshes — the grid SHM's sign against the
 // generalized winding number thresholded at ½ (the classic answer).
 //
-//   gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--only-given] [--dump DIR] [MESH.obj ...]
+//   gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--veto-winding T] [--veto-margin M] [--only-given] [--dump DIR] [MESH.obj ...]
 //
 // Each mesh (procedural shapes, plus any given) is scaled into [−0.9, 0.9]³ and damaged three
 // ways: (a) 20 % of the area in 3 holes + 10 % of faces flipped; (b) the same plus duplicated
@@ -9,8 +9,8 @@
 // of the diagonal, which makes the surface cross itself. Truth: the winding number of the intact
 // mesh. Scored at the nodes of an N³ grid on [−1, 1]³ farther than two cells from the intact
 // surface. Prints one row per mesh and damage: the share of inside and outside nodes signed
-// right by SHM and by the GWN, and the SHM run time. --t-coef, --cutoff and --fit-zero-set set
-// the ShmOptions of the same names.
+// right by SHM and by the GWN, and the SHM run time. --t-coef, --cutoff, --fit-zero-set,
+// --veto-winding and --veto-margin set the ShmOptions of the same names.
 //
 // --dump DIR writes, per mesh and damage, the broken mesh (.obj), and on the grid (.npy of shape
 // (nx, ny, nz), as `gsd shm grid` writes φ): φ, the truth (the intact mesh's winding number) and
@@ -122,10 +122,12 @@ int main(int argc, char** argv) {
         else if (a == "--t-coef" && i + 1 < argc) shm.t_coef = std::stod(argv[++i]);
         else if (a == "--cutoff" && i + 1 < argc) shm.cutoff = std::stod(argv[++i]);
         else if (a == "--fit-zero-set" && i + 1 < argc) shm.fit_zero_set = std::stod(argv[++i]);
+        else if (a == "--veto-winding" && i + 1 < argc) shm.veto_winding = std::stod(argv[++i]);
+        else if (a == "--veto-margin" && i + 1 < argc) shm.veto_margin = std::stod(argv[++i]);
         else if (a == "--only-given") only_given = true;
         else if (a == "--dump" && i + 1 < argc) dump = argv[++i];
         else if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--only-given] [--dump DIR] [MESH.obj ...]\n");
+            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--veto-winding T] [--veto-margin M] [--only-given] [--dump DIR] [MESH.obj ...]\n");
             return 2;
         } else {
             const auto slash = a.find_last_of('/');

@@ -386,6 +386,12 @@ void add_shm(CLI::App& app) {
     grid->add_option("--tolerance", opt->tolerance, "Relative residual to stop at")->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--fit-zero-set", opt->fit_zero_set, "Fit φ = 0 on the source softly with this weight (0: shift by the mean)")
         ->check(finite_number())->check(CLI::NonNegativeNumber)->capture_default_str();
+    grid->add_option("--veto-winding", opt->veto_winding,
+                     "Outside veto: turn outside the inside nodes far from the input (see --veto-margin) where its winding number is below this (0: no veto)")
+        ->check(CLI::Range(0.0, 0.999))->capture_default_str();
+    grid->add_option("--veto-margin", opt->veto_margin,
+                     "Outside veto: a node is far when its distance to the input exceeds 3|φ| + this × the input's largest extent")
+        ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     grid->callback([=] {
@@ -455,6 +461,7 @@ void add_shm(CLI::App& app) {
                       fmt("%.2e", r.fit_history.back());
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
                  " iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()) + fit);
+            if (opt->veto_winding > 0) note("outside veto: " + std::to_string(r.vetoed_nodes) + " nodes turned outside");
             note("peak memory: " + peak_memory());
         }
         if (!r.residual_history.empty() && r.residual_history.back() > opt->tolerance)
@@ -678,6 +685,8 @@ std::string flag_for(const std::string& where) {
         {"GridSpec::box", "--bounds"},
         {"ShmOptions::t_coef", "--t-coef"},
         {"ShmOptions::fit_zero_set", "--fit-zero-set"},
+        {"ShmOptions::veto_winding", "--veto-winding"},
+        {"ShmOptions::veto_margin", "--veto-margin"},
         {"ShmOptions::sum_tolerance", "--sum-tolerance"},
         {"ShmOptions::solver", "--solver"},
         {"solver", "--solver"},
