@@ -87,7 +87,7 @@ struct ShmOptions {
     /// element than veto_slope·|φ| + veto_margin·E (E: the largest extent of the source's
     /// bounding box) *and* the source's winding number there is below veto_winding. Such nodes
     /// are where the completion bulges out of a large hole; deep inside, |φ| is about the
-    /// distance, and in thin parts the distance is below the margin, so neither is touched.
+    /// distance, and in thin parts the distance is below ¾ of the margin, so neither is touched.
     /// φ → |φ| there, blended over a band (half the margin in distance, 0.1 in winding number)
     /// so that φ stays continuous. veto_winding = 0 turns it off (docs/shm.md: the measurements).
     double veto_winding = 0.2;

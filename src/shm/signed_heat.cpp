@@ -216,8 +216,9 @@ struct SignedHeatGrid::Impl {
         const Box extent_box = bounding_box(source.elements.corners);
         const double margin = opt.veto_margin * extent_box.extent().maxCoeff();
         if (!(margin > 0)) return 0;  // every element at one point: no hole to complete
-        // The ramps' widths: half the margin in distance (a part thinner than that is never
-        // touched, however low its winding number), 0.1 in winding number.
+        // The ramps' widths: half the margin in distance, so that a node closer than 0.75
+        // margins to an element is never touched, however low its winding number (nor, so,
+        // any part thinner than 1.5 margins); 0.1 in winding number.
         const double distance_band = 0.5 * margin, winding_band = 0.1;
         const detail::SumTree tree(source.elements);
         const WindingOptions criterion;  // the default accuracy: far below the band
