@@ -330,7 +330,8 @@ PYBIND11_MODULE(_gsd, m) {
     // ---- Signed Heat Method on grids ----
     m.def("signed_heat_grid", [](int n, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,
                                  std::optional<DoubleArray> vertices, py::object faces,
-                                 std::optional<std::array<double, 6>> bounds, double t_coef, const std::string& device) {
+                                 std::optional<std::array<double, 6>> bounds, double t_coef, double fit_zero_set,
+                                 double veto_winding, double veto_margin, const std::string& device) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -338,8 +339,11 @@ PYBIND11_MODULE(_gsd, m) {
         std::optional<PolygonMesh> mesh;
         if (points) cloud = cloud_from(*points, *normals);
         if (vertices) mesh = mesh_from(*vertices, faces);
-        ShmOptions o;
+        ShmOptions o;  // checked by the solver, whose errors name the option
         o.t_coef = t_coef;
+        o.fit_zero_set = fit_zero_set;
+        o.veto_winding = veto_winding;
+        o.veto_margin = veto_margin;
         o.device = device;
         py::gil_scoped_release nogil;
         ShmSource src;
@@ -351,13 +355,17 @@ PYBIND11_MODULE(_gsd, m) {
         py::gil_scoped_acquire gil;
         return py::make_tuple(to_numpy(std::move(r.phi), {n, n, n}), bounds_tuple(g.box));
     }, py::arg("n"), py::arg("points") = py::none(), py::arg("normals") = py::none(), py::arg("vertices") = py::none(),
-       py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("t_coef") = 1.0, py::arg("device") = "",
-       "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both.");
+       py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("t_coef") = ShmOptions{}.t_coef,
+       py::arg("fit_zero_set") = ShmOptions{}.fit_zero_set, py::arg("veto_winding") = ShmOptions{}.veto_winding,
+       py::arg("veto_margin") = ShmOptions{}.veto_margin, py::arg("device") = "",
+       "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both. fit_zero_set: weight of the "
+       "soft fit of φ = 0 on the source (0: the mean shift alone); veto_winding, veto_margin: the outside veto "
+       "(veto_winding 0: none), as the CLI's --fit-zero-set, --veto-winding, --veto-margin.");
 
     // ---- winding numbers ----
     m.def("winding_numbers", [](const DoubleArray& queries, std::optional<DoubleArray> vertices, py::object faces,
                                 std::optional<DoubleArray> points, std::optional<DoubleArray> normals, bool exact,
-                                const std::string& device) {
+                                double beta, double tolerance, const std::string& device) {
         const Points q = points_from(queries, "queries");
         OrientedElements elements;
         if (vertices && !faces.is_none()) elements = OrientedElements::from_mesh(mesh_from(*vertices, faces));
@@ -365,6 +373,8 @@ PYBIND11_MODULE(_gsd, m) {
         else throw Error("vertices", "give a mesh (vertices, faces) or a cloud (points, normals)");
         WindingOptions o;
         o.exact = exact;
+        o.beta = beta;
+        o.tolerance = tolerance;
         o.device = device;
         WindingResult r;
         {
@@ -373,8 +383,10 @@ PYBIND11_MODULE(_gsd, m) {
         }
         return to_numpy(std::move(r.w), {py::ssize_t(q.rows())});
     }, py::arg("queries"), py::arg("vertices") = py::none(), py::arg("faces") = py::none(), py::arg("points") = py::none(),
-       py::arg("normals") = py::none(), py::arg("exact") = false, py::arg("device") = "",
-       "Generalized winding number (M,) of a mesh in any state or an oriented cloud at (M,3) queries.");
+       py::arg("normals") = py::none(), py::arg("exact") = false, py::arg("beta") = WindingOptions{}.beta,
+       py::arg("tolerance") = WindingOptions{}.tolerance, py::arg("device") = "",
+       "Generalized winding number (M,) of a mesh in any state or an oriented cloud at (M,3) queries. beta, "
+       "tolerance: the opening criterion, as the CLI's --beta, --tolerance (exact: sum every element).");
 
     // ---- on surfaces ----
     m.def("signed_heat_surface", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,

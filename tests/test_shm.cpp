@@ -16,6 +16,7 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -484,6 +485,17 @@ TEST_CASE("degenerate input gets a clear error") {
     bad = {};
     bad.fit_zero_set = -1;
     CHECK(field_at_fault(bad) == "ShmOptions::fit_zero_set");
+    bad.fit_zero_set = std::nan("");  // NaN and infinity fail every test, not just the sign
+    CHECK(field_at_fault(bad) == "ShmOptions::fit_zero_set");
+    bad = {};
+    bad.t_coef = std::numeric_limits<double>::infinity();
+    CHECK(field_at_fault(bad) == "ShmOptions::t_coef");
+    bad = {};
+    bad.cutoff = std::nan("");
+    CHECK(field_at_fault(bad) == "ShmOptions::cutoff");
+    bad = {};
+    bad.interpolation_cells = std::nan("");
+    CHECK(field_at_fault(bad) == "ShmOptions::interpolation_cells");
     bad = {};
     bad.sum_tolerance = 2;
     CHECK(field_at_fault(bad) == "ShmOptions::sum_tolerance");

@@ -107,6 +107,27 @@ def test_winding_numbers_match_cli_and_are_one_inside(tmp_path):
     np.testing.assert_allclose(w_list, w, atol=0)
 
 
+def test_winding_opening_criterion_matches_cli(tmp_path):
+    mesh = tmp_path / "m.obj"
+    cli("mesh", "torus", "-r", 24, "--holes", 2, "--flip", 0.1, "-o", mesh)
+    v, f = gsd.read_mesh(str(mesh))
+    q = np.random.default_rng(3).uniform(-1.2, 1.2, (2000, 3))
+    np.save(tmp_path / "q.npy", q)
+    exact = gsd.winding_numbers(q, vertices=v, faces=f, exact=True, device="cpu")
+    # libigl's criterion (β = 2 alone) through both doors gives the same numbers.
+    w = gsd.winding_numbers(q, vertices=v, faces=f, beta=2.0, tolerance=0.0, device="cpu")
+    cli("winding", mesh, "--queries", tmp_path / "q.npy", "--beta", 2, "--tolerance", 0, "--device", "cpu",
+        "-o", tmp_path / "w.npy")
+    np.testing.assert_allclose(w, np.load(tmp_path / "w.npy"), atol=1e-6)
+    # A looser criterion is cheaper and less exact: the options reach the sums.
+    loose = gsd.winding_numbers(q, vertices=v, faces=f, beta=1.1, tolerance=0.0, device="cpu")
+    assert np.abs(loose - exact).max() > np.abs(w - exact).max()
+    with pytest.raises(gsd.Error, match="beta"):
+        gsd.winding_numbers(q, vertices=v, faces=f, beta=1.0)
+    with pytest.raises(gsd.Error, match="tolerance"):
+        gsd.winding_numbers(q, vertices=v, faces=f, tolerance=-1.0)
+
+
 def test_signed_heat_grid_matches_cli(tmp_path):
     mesh = tmp_path / "b.obj"
     cli("mesh", "sphere", "-r", 16, "--holes", 2, "--hole-area", 0.1, "-o", mesh)
@@ -116,6 +137,29 @@ def test_signed_heat_grid_matches_cli(tmp_path):
     assert phi.shape == (20, 20, 20) and bounds == BOUNDS
     np.testing.assert_allclose(phi, np.load(tmp_path / "shm.npy"), atol=1e-6)
     assert phi[10, 10, 10] < 0 < phi[0, 0, 0]  # inside the broken sphere, outside at the corner
+
+
+def test_signed_heat_grid_options_match_cli(tmp_path):
+    mesh = tmp_path / "b.obj"
+    cli("mesh", "sphere", "-r", 16, "--holes", 3, "--hole-area", 0.2, "--flip", 0.1, "-o", mesh)
+    v, f = gsd.read_mesh(str(mesh))
+    default, _ = gsd.signed_heat_grid(20, vertices=v, faces=f, bounds=BOUNDS, device="cpu")
+    # The mean shift alone, no outside veto: the CLI's --fit-zero-set 0 --veto-winding 0.
+    cli("shm", "grid", mesh, "--grid", 20, *bounds_args(), "--device", "cpu", "--fit-zero-set", 0,
+        "--veto-winding", 0, "-o", tmp_path / "shift.npy")
+    shift, _ = gsd.signed_heat_grid(20, vertices=v, faces=f, bounds=BOUNDS, fit_zero_set=0, veto_winding=0,
+                                    device="cpu")
+    np.testing.assert_allclose(shift, np.load(tmp_path / "shift.npy"), atol=1e-6)
+    assert np.abs(shift - default).max() > 1e-4  # the fit moves φ
+    cli("shm", "grid", mesh, "--grid", 20, *bounds_args(), "--device", "cpu", "--veto-margin", 0.3,
+        "--veto-winding", 0.5, "-o", tmp_path / "veto.npy")
+    veto, _ = gsd.signed_heat_grid(20, vertices=v, faces=f, bounds=BOUNDS, veto_margin=0.3, veto_winding=0.5,
+                                   device="cpu")
+    np.testing.assert_allclose(veto, np.load(tmp_path / "veto.npy"), atol=1e-6)
+    with pytest.raises(gsd.Error, match="veto_margin"):
+        gsd.signed_heat_grid(20, vertices=v, faces=f, veto_margin=0)
+    with pytest.raises(gsd.Error, match="fit_zero_set"):
+        gsd.signed_heat_grid(20, vertices=v, faces=f, fit_zero_set=-1)
 
 
 def test_surface_methods_match_cli(tmp_path):

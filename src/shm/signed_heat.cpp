@@ -254,10 +254,15 @@ SignedHeatGrid::SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions optio
     grid.validate();
     if (source.size() == 0) throw Error("the signed heat method needs a non-empty source");
     if (!(source.spacing > 0) || !std::isfinite(source.spacing)) throw Error("the source has no spacing (all samples coincide?)");
-    if (!(options.t_coef > 0)) throw Error("ShmOptions::t_coef", "the diffusion time coefficient must be > 0");
-    if (!(options.cutoff > 0)) throw Error("ShmOptions::cutoff", "the kernel cutoff must be > 0");
-    if (options.interpolation_cells < 0) throw Error("ShmOptions::interpolation_cells", "must be ≥ 0");
-    if (options.fit_zero_set < 0) throw Error("ShmOptions::fit_zero_set", "the zero-set weight must be ≥ 0");
+    // Every test is written so that NaN fails it (the Python module passes floats through as given).
+    if (!(options.t_coef > 0) || !std::isfinite(options.t_coef))
+        throw Error("ShmOptions::t_coef", "the diffusion time coefficient must be finite and > 0");
+    if (!(options.cutoff > 0) || !std::isfinite(options.cutoff))
+        throw Error("ShmOptions::cutoff", "the kernel cutoff must be finite and > 0");
+    if (!(options.interpolation_cells >= 0) || !std::isfinite(options.interpolation_cells))
+        throw Error("ShmOptions::interpolation_cells", "must be finite and ≥ 0");
+    if (!(options.fit_zero_set >= 0) || !std::isfinite(options.fit_zero_set))
+        throw Error("ShmOptions::fit_zero_set", "the zero-set weight must be finite and ≥ 0");
     if (!(options.sum_tolerance > 0) || !(options.sum_tolerance <= 1))
         throw Error("ShmOptions::sum_tolerance", "the step 1 sum tolerance must be in (0, 1]");
     if (!(options.veto_winding >= 0) || !(options.veto_winding < 1))
