@@ -404,10 +404,14 @@ PYBIND11_MODULE(_gsd, m) {
     }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("t_coef") = 1.0,
        "Signed distance per vertex to the curves in a file (docs/formats.md), by the surface Signed Heat Method.");
     m.def("surface_winding_numbers", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
-                                        const std::string& lp) {
+                                        const std::string& lp, const std::string& lp_solver, double curve_weight,
+                                        bool boundary_aware) {
         PolygonMesh mesh = mesh_from(vertices, faces);
-        SwnOptions o;
+        SwnOptions o;  // curve_weight is checked by the solver
         o.residual = swn_residual_from_name(lp);
+        o.solver = swn_solver_from_name(lp_solver);
+        o.curve_weight = curve_weight;
+        o.boundary_aware = boundary_aware;
         py::gil_scoped_release nogil;
         SurfaceMesh surface(std::move(mesh), "mesh");
         const SurfaceSources sources = read_surface_curves(curves, surface);
@@ -420,5 +424,8 @@ PYBIND11_MODULE(_gsd, m) {
         const py::ssize_t f = py::ssize_t(labels.size()), t = py::ssize_t(r.w.size());
         return py::make_tuple(to_numpy(std::move(labels), {f}), to_numpy(std::move(w), {t, 3}));
     }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("lp") = "reduced",
-       "(labels (F,) int32 per input face, w (T,3) per triangle corner): Surface Winding Numbers of curves in a file.");
+       py::arg("lp_solver") = "network", py::arg("curve_weight") = SwnOptions{}.curve_weight,
+       py::arg("boundary_aware") = SwnOptions{}.boundary_aware,
+       "(labels (F,) int32 per input face, w (T,3) per triangle corner): Surface Winding Numbers of curves in a file. "
+       "lp, lp_solver, curve_weight, boundary_aware: as the CLI's --lp, --lp-solver, --curve-weight, --boundary-aware.");
 }

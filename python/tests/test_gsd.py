@@ -180,6 +180,27 @@ def test_surface_methods_match_cli(tmp_path):
     assert phi[np.argmax(v[:, 2])] > 0 > phi[np.argmin(v[:, 2])]
 
 
+def test_surface_winding_options_match_cli(tmp_path):
+    # A torus with two holes (a surface with boundary, not simply connected) and a broken loop
+    # around its tube: every option changes w here.
+    mesh, curves = tmp_path / "t.obj", tmp_path / "c.txt"
+    cli("mesh", "torus", "-r", 24, "--holes", 2, "--hole-area", 0.1, "-o", mesh)
+    cli("curve", mesh, "--plane", 0, 1, 0, 0, "--near", 0.6, 0, 0, "--break", 0.3, "-o", curves)
+    v, f = gsd.read_mesh(str(mesh))
+    _, w_default = gsd.surface_winding_numbers(v, f, str(curves))
+    cli("swn", mesh, "--curves", curves, "--lp", "full", "--lp-solver", "clp", "--curve-weight", 0.5,
+        "--boundary-aware", "-o", tmp_path / "l.npy", "--w", tmp_path / "w.npy")
+    labels, w = gsd.surface_winding_numbers(v, f, str(curves), lp="full", lp_solver="clp", curve_weight=0.5,
+                                            boundary_aware=True)
+    np.testing.assert_array_equal(labels, np.load(tmp_path / "l.npy"))
+    np.testing.assert_allclose(w, np.load(tmp_path / "w.npy"), atol=1e-5)
+    assert np.abs(w - w_default).max() > 0.1
+    with pytest.raises(gsd.Error, match="curve_weight"):
+        gsd.surface_winding_numbers(v, f, str(curves), curve_weight=2.0)
+    with pytest.raises(gsd.Error):
+        gsd.surface_winding_numbers(v, f, str(curves), lp_solver="simplex")
+
+
 def test_threads_share_a_field(sphere):
     _, cloud = sphere
     points, normals = gsd.read_point_cloud(str(cloud))
