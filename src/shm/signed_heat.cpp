@@ -253,23 +253,24 @@ struct SignedHeatGrid::Impl {
 SignedHeatGrid::SignedHeatGrid(ShmSource source, GridSpec grid, ShmOptions options) {
     grid.validate();
     if (source.size() == 0) throw Error("the signed heat method needs a non-empty source");
-    if (!(source.spacing > 0) || !std::isfinite(source.spacing)) throw Error("the source has no spacing (all samples coincide?)");
-    // Every test is written so that NaN fails it (the Python module passes floats through as given).
-    if (!(options.t_coef > 0) || !std::isfinite(options.t_coef))
+    // Finite and in range; NaN fails both (the Python module passes floats through as given).
+    const auto positive = [](double x) { return x > 0 && std::isfinite(x); };
+    const auto non_negative = [](double x) { return x >= 0 && std::isfinite(x); };
+    if (!positive(source.spacing)) throw Error("the source has no spacing (all samples coincide?)");
+    if (!positive(options.t_coef))
         throw Error("ShmOptions::t_coef", "the diffusion time coefficient must be finite and > 0");
-    if (!(options.cutoff > 0) || !std::isfinite(options.cutoff))
-        throw Error("ShmOptions::cutoff", "the kernel cutoff must be finite and > 0");
-    if (!(options.interpolation_cells >= 0) || !std::isfinite(options.interpolation_cells))
+    if (!positive(options.cutoff)) throw Error("ShmOptions::cutoff", "the kernel cutoff must be finite and > 0");
+    if (!non_negative(options.interpolation_cells))
         throw Error("ShmOptions::interpolation_cells", "must be finite and ≥ 0");
-    if (!(options.fit_zero_set >= 0) || !std::isfinite(options.fit_zero_set))
+    if (!non_negative(options.fit_zero_set))
         throw Error("ShmOptions::fit_zero_set", "the zero-set weight must be finite and ≥ 0");
     if (!(options.sum_tolerance > 0) || !(options.sum_tolerance <= 1))
         throw Error("ShmOptions::sum_tolerance", "the step 1 sum tolerance must be in (0, 1]");
     if (!(options.veto_winding >= 0) || !(options.veto_winding < 1))
         throw Error("ShmOptions::veto_winding", "the outside veto's winding number must be in [0, 1) (0: no veto)");
-    if (!(options.veto_slope >= 0) || !std::isfinite(options.veto_slope))
+    if (!non_negative(options.veto_slope))
         throw Error("ShmOptions::veto_slope", "the outside veto's slope must be finite and ≥ 0");
-    if (!(options.veto_margin > 0) || !std::isfinite(options.veto_margin))
+    if (!positive(options.veto_margin))
         throw Error("ShmOptions::veto_margin", "the outside veto's margin must be finite and > 0");
     source.elements.validate();
     impl_ = std::make_unique<Impl>(Impl{std::move(source), grid, std::move(options)});
