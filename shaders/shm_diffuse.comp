@@ -10,6 +10,7 @@ layout(local_size_x_id = 0) in;
 
 const int STACK = 64;
 const int PIECES = 68;
+const int MAX_SPLITS = 4096;  // sums::kMaxSplits
 
 layout(std430, binding = 0) readonly buffer Nodes { Node nodes[]; };
 layout(std430, binding = 1) readonly buffer Moments { vec4 moments[]; };
@@ -83,6 +84,104 @@ vec3 node_expansion(uint i, vec3 d, float r_min) {
     return X;
 }
 
+// One triangle a, a + ab, a + ac (vector area v, covariance diagonal cd and off-diagonal co,
+// radius ρ0 about its centroid), refined until its pieces pass (SumTree::screened_triangle).
+vec3 refine_triangle(vec3 x, vec3 a, vec3 ab, vec3 ac, vec3 v, vec3 cd, vec3 co, float rho0, float rmin, float R,
+                     inout uint terms) {
+    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
+    vec3 X = vec3(0.0);
+    float area = length(v);
+    int np = 0, splits = 0;
+    pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
+    while (np > 0) {
+        vec4 pq = pieces[--np];
+        ++iters;
+        float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
+        // Every piece is similar to the element: radius h·ρ0.
+        vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
+        float rho = rho0 * pq.z;
+        vec3 dg = x - g;
+        float dist = length(dg);
+        if (dist - rho > R) continue;
+        float share = pq.z * pq.z;
+        vec3 m0 = v * share;
+        if (accept(rho, dist, area * share, rmin)) {
+            // A piece about its own centroid: M1 = 0, M2_a = m0_a · share · C.
+            vec3 u = dg / dist;
+            vec3 f = radial(dist, rmin);
+            float A = f.z - f.y / dist, B = f.y / dist;
+            float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
+                       2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
+            float ct = cd.x + cd.y + cd.z;
+            X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
+        } else if (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS) {
+            X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+        } else {
+            float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
+            ++splits;
+            pieces[np++] = vec4(pq.x, pq.y, h, w);
+            pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
+            pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
+            pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
+            continue;
+        }
+        ++terms;
+    }
+    return X;
+}
+
+// A triangle's element term: the whole triangle, or — when it is wider than the reach R — its
+// part in the cube of half-side R about x, fanned into triangles (SumTree::screened_element:
+// the work is bounded by the reach, not by the element's extent).
+vec3 element_term(vec3 x, vec3 pa, vec3 pb, vec3 pc3, vec3 v, float rmin, float R, inout uint terms) {
+    vec3 poly[9];
+    poly[0] = pa; poly[1] = pb; poly[2] = pc3;
+    vec3 g0 = (pa + pb + pc3) / 3.0;
+    float rho0 = max(length(pa - g0), max(length(pb - g0), length(pc3 - g0)));
+    int n = 3;
+    float whole = 1.0;
+    if (rho0 > R) {
+        whole = length(cross(pb - pa, pc3 - pa));
+        vec3 next[9];
+        for (int axis = 0; axis < 3 && n > 0; ++axis) {
+            for (int side = 0; side < 2 && n > 0; ++side) {
+                float plane = side == 1 ? x[axis] + R : x[axis] - R;
+                int m = 0;
+                for (int i = 0; i < n; ++i) {
+                    ++iters;
+                    vec3 p = poly[i], q = poly[(i + 1) % n];
+                    float dp = side == 1 ? plane - p[axis] : p[axis] - plane;
+                    float dq = side == 1 ? plane - q[axis] : q[axis] - plane;
+                    if (dp >= 0.0 && m < 9) next[m++] = p;
+                    if ((dp >= 0.0) != (dq >= 0.0) && m < 9) {
+                        vec3 e = dp >= 0.0 ? p : q, f = dp >= 0.0 ? q : p;
+                        float din = abs(dp >= 0.0 ? dp : dq), dout = abs(dp >= 0.0 ? dq : dp);
+                        vec3 c = e + (f - e) * (din / (din + dout));
+                        c[axis] = plane;
+                        next[m++] = c;
+                    }
+                }
+                for (int i = 0; i < m; ++i) poly[i] = next[i];
+                n = m;
+            }
+        }
+    }
+    vec3 X = vec3(0.0);
+    for (int i = 1; i + 1 < n; ++i) {
+        vec3 a = poly[0], ab = poly[i] - a, ac = poly[i + 1] - a;
+        float share = rho0 > R ? length(cross(ab, ac)) / whole : 1.0;
+        if (!(share > 0.0)) continue;
+        // Covariance of the triangle: (1/12) Σ (p − g)(p − g)ᵀ as (xx yy zz xy xz yz).
+        vec3 g = (ab + ac) / 3.0, qa = -g, qb = ab - g, qc = ac - g;
+        vec3 cd = (qa * qa + qb * qb + qc * qc) / 12.0;
+        vec3 co = vec3(qa.x * qa.y + qb.x * qb.y + qc.x * qc.y, qa.x * qa.z + qb.x * qb.z + qc.x * qc.z,
+                       qa.y * qa.z + qb.y * qb.z + qc.y * qc.z) / 12.0;
+        float rho = rho0 > R ? max(length(qa), max(length(qb), length(qc))) : rho0;
+        X += refine_triangle(x, a, ab, ac, v * share, cd, co, rho, rmin, R, terms);
+    }
+    return X;
+}
+
 void main() {
     uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
     if (q >= pc.count) return;
@@ -92,7 +191,6 @@ void main() {
     vec3 X = vec3(0.0);
     uint terms = 0u;
     uint stack[STACK];
-    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
     int top = 0;
     stack[top++] = 0u;
     while (top > 0) {
@@ -113,50 +211,7 @@ void main() {
         for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
             ++iters;
             vec4 ea = elems[3u * j], eb = elems[3u * j + 1u], ec = elems[3u * j + 2u];
-            vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w);
-            float area = length(v);
-            // Covariance of the triangle: (1/12) Σ (p − g)(p − g)ᵀ as (xx yy zz xy xz yz).
-            vec3 g0 = (ab + ac) / 3.0, pa = -g0, pb = ab - g0, pc3 = ac - g0;
-            vec3 cd = (pa * pa + pb * pb + pc3 * pc3) / 12.0;
-            vec3 co = vec3(pa.x * pa.y + pb.x * pb.y + pc3.x * pc3.y, pa.x * pa.z + pb.x * pb.z + pc3.x * pc3.z,
-                           pa.y * pa.z + pb.y * pb.z + pc3.y * pc3.z) / 12.0;
-            vec3 gc = a + g0;
-            float rho0 = max(length(a - gc), max(length(eb.xyz - gc), length(ec.xyz - gc)));
-            int np = 0;
-            pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
-            while (np > 0) {
-                vec4 pq = pieces[--np];
-                ++iters;
-                float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
-                // Every piece is similar to the element: radius h·ρ0.
-                vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
-                float rho = rho0 * pq.z;
-                vec3 dg = x - g;
-                float dist = length(dg);
-                if (dist - rho > R) continue;
-                float share = pq.z * pq.z;
-                vec3 m0 = v * share;
-                if (accept(rho, dist, area * share, rmin)) {
-                    // A piece about its own centroid: M1 = 0, M2_a = m0_a · share · C.
-                    vec3 u = dg / dist;
-                    vec3 f = radial(dist, rmin);
-                    float A = f.z - f.y / dist, B = f.y / dist;
-                    float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
-                               2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
-                    float ct = cd.x + cd.y + cd.z;
-                    X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
-                } else if (rho <= pc.r_floor || level >= 20.0) {
-                    X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
-                } else {
-                    float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
-                    pieces[np++] = vec4(pq.x, pq.y, h, w);
-                    pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
-                    pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
-                    pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
-                    continue;
-                }
-                ++terms;
-            }
+            X += element_term(x, ea.xyz, eb.xyz, ec.xyz, vec3(ea.w, eb.w, ec.w), rmin, R, terms);
         }
     }
     float len = length(X);

@@ -70,6 +70,61 @@ TEST_CASE("mesh sources: a face far larger than a tight grid costs work near the
     }
 }
 
+TEST_CASE("far geometry: a face with a corner at 1e30, or a stray vertex 10^9 edges away, costs what the grid sees") {
+    // Issue 32: the zero-set fit sampled a face by its own extent (one triangle reaching 1e30
+    // spun for ever under a [-1, 1]³ crop), step 1 refined a 4·10⁹-long needle near every node,
+    // and one stray vertex set the mean edge length — the diffusion time — 10⁴× too large.
+    ScratchDir dir("far");
+    const std::string d = dir.path().string() + "/";
+    test::write_bytes(d + "needle.obj", "v 0 0 0\nv 1 0 0\nv 0 1 1e30\nf 1 2 3\n");
+    auto r = run_cli("shm grid " + d + "needle.obj --grid 8 --bounds -1 -1 -1 1 1 1 -o " + d + "needle.npy");
+    CHECK(r.exit_code == 0);
+    const io::NpyArray phi = io::read_grid(d + "needle.npy");
+    for (double v : phi.data) CHECK(std::isfinite(v));
+    // The same on both device paths where one is there (GPU φ within its tolerance of the CPU's).
+    for (const char* device : {"cpu", "gpu"}) {
+        CAPTURE(device);
+        ShmOptions o;
+        o.device = device;
+        const PolygonMesh m = io::read_mesh(d + "needle.obj");
+        const ShmResult res = SignedHeatGrid(shm_source(m), GridSpec::cube(8, Box{{-1, -1, -1}, {1, 1, 1}}), o).solve();
+        for (float v : res.phi) CHECK(std::isfinite(v));
+    }
+
+    // A 24×24 grid of triangles in z = 0 with one corner moved 4·10⁹ away: the scale stays the
+    // typical edge's (each length counts at most 100 medians), and φ under a crop is what the
+    // intact plane gives, sign for sign.
+    constexpr int n = 24;
+    PolygonMesh plane;
+    plane.vertices.resize((n + 1) * (n + 1), 3);
+    for (int i = 0; i <= n; ++i)
+        for (int j = 0; j <= n; ++j) plane.vertices.row((n + 1) * i + j) << 2.0 * i / n - 1, 2.0 * j / n - 1, 0;
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            const auto a = std::uint32_t((n + 1) * i + j), row = std::uint32_t(n + 1);
+            plane.add_face({a, a + row, a + row + 1});
+            plane.add_face({a, a + row + 1, a + 1});
+        }
+    PolygonMesh stray = plane;
+    stray.vertices((n + 1) * (n + 1) - 1, 1) = 4294967295.0;
+    CHECK(shm_source(stray).spacing == doctest::Approx(shm_source(plane).spacing).epsilon(0.25));
+    ShmOptions o;
+    o.device = "cpu";
+    const GridSpec g = GridSpec::cube(16, Box{{-0.6, -0.6, -0.6}, {0.6, 0.6, 0.6}});
+    const ShmResult intact = SignedHeatGrid(shm_source(plane), g, o).solve();
+    const ShmResult broken = SignedHeatGrid(shm_source(stray), g, o).solve();
+    std::size_t same = 0;
+    for (std::size_t i = 0; i < intact.phi.size(); ++i) same += (intact.phi[i] > 0) == (broken.phi[i] > 0);
+    CHECK(double(same) / double(intact.phi.size()) > 0.98);
+}
+
+TEST_CASE("tiny cells: a grid whose cells double precision cannot resolve at its coordinates is refused") {
+    CHECK_THROWS_WITH_AS(GridSpec::cube(8, Box{{1e6, 1e6, 1e6}, {1e6 + 1e-9, 1e6 + 1e-9, 1e6 + 1e-9}}).validate(),
+                         doctest::Contains("too small"), Error);
+    CHECK_THROWS_AS(GridSpec::cube(8, Box{{0, 0, 0}, {1e-120, 1e-120, 1e-120}}).validate(), Error);
+    CHECK_NOTHROW(GridSpec::cube(8, Box{{0, 0, 0}, {1e-3, 1e-3, 1e-3}}).validate());
+}
+
 TEST_CASE("memory budget: GSD_MEMORY_LIMIT is read, and work past it is refused before allocating") {
     ::setenv("GSD_MEMORY_LIMIT", "1M", 1);
     CHECK(memory_budget() == (std::size_t(1) << 20));

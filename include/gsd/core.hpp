@@ -141,9 +141,23 @@ GSD_EXPORT void validate(PointCloud& cloud, const std::string& where = {});
 /// them say so.
 GSD_EXPORT void validate(const PolygonMesh& mesh, const std::string& where = {});
 
-/// The mean length of the faces' edges, each edge counted once per face that has it (0 for a
-/// mesh without faces). The mesh's scale: SHM's h, the distance past which fast winding numbers
-/// keep their error bound.
+/// Coordinates within ±kMaxCoordinate, and the whole extent within kMaxExtentRatio of the bulk's
+/// size (the largest interquartile range over the axes): a stray element far out is named
+/// ("<element> <row> …"). Part of validate(); for other point sets (tori, queries).
+GSD_EXPORT void check_coordinates(const Points& p, const std::string& where, const char* element);
+
+/// robust_mean() caps every value at this many times the median.
+constexpr double kRobustMeanCap = 100;
+/// The mean of the values, each capped at kRobustMeanCap × their median (0 for none): the
+/// scale of an input, which one stray element must not set. A face with a corner 10⁹ edges
+/// away would otherwise make the mean edge length 10⁴× the typical one, and every parameter
+/// scaled by it (SHM's diffusion time, PAT's blend radius) meaningless; below the cap — every
+/// shared test mesh and cloud — the mean is unchanged.
+GSD_EXPORT double robust_mean(std::vector<double> values);
+
+/// The robust_mean() of the faces' edge lengths, each edge counted once per face that has it
+/// (0 for a mesh without faces). The mesh's scale: SHM's h, the distance past which fast
+/// winding numbers keep their error bound.
 GSD_EXPORT double mean_edge_length(const PolygonMesh& mesh);
 
 }  // namespace gsd

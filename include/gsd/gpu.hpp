@@ -42,6 +42,8 @@ struct DeviceInfo {
     std::string api_version;
     std::uint64_t device_local_bytes = 0;
     std::uint32_t subgroup_size = 0;
+    bool subgroup_vote = false;    ///< compute shaders may vote across a subgroup (subgroupAny)
+    bool subgroup_ballot = false;  ///< ... and broadcast within it (subgroupBroadcast)
     std::uint64_t max_storage_buffer_range = 0;
     bool usable = false;      ///< has what gsd needs (compute queue, push descriptors, Vulkan 1.1)
     std::string why_not;      ///< if not usable

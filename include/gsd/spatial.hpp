@@ -40,8 +40,9 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-/// Mean distance from each point to its nearest other point (duplicates count as 0): the
-/// spacing h that scales default parameters. Throws if there are fewer than two points.
+/// Mean distance from each point to its nearest other point (duplicates count as 0; each
+/// capped at kRobustMeanCap × the median, see robust_mean): the spacing h that scales default
+/// parameters. Throws if there are fewer than two points.
 GSD_EXPORT double mean_spacing(const Points& p);
 GSD_EXPORT double mean_spacing(const KdTree& tree);
 

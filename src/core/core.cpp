@@ -43,6 +43,17 @@ void GridSpec::validate() const {
     if (double(nx) * double(ny) * double(nz) > double(1u << 31))
         throw Error("GridSpec", "grid has more than 2^31 nodes");
     validate_box(box, "GridSpec::box");
+    // Cells that double precision still resolves at the box's coordinates (and whose squares
+    // and inverses stay normal numbers): past that, node positions coincide and the Poisson
+    // operator's 1/h² overflows.
+    const int n[3] = {nx, ny, nz};
+    for (int a = 0; a < 3; ++a) {
+        const double cell = (box.hi[a] - box.lo[a]) / (n[a] - 1);
+        const double at = std::max(std::abs(box.lo[a]), std::abs(box.hi[a]));
+        if (!(cell >= 1e-100) || !(cell >= 1e-12 * at))
+            throw Error("GridSpec::box", "grid cells of " + std::to_string(cell) +
+                                             " are too small for the box's coordinates (at least 1e-12 of them, and 1e-100)");
+    }
 }
 
 Box bounding_box(PointsView p) {
@@ -73,8 +84,8 @@ std::string gib(double bytes) {
     return s.str();
 }
 
-/// Coordinates within ±kMaxCoordinate, and the whole extent within kMaxExtentRatio of the bulk's
-/// size (the largest interquartile range over the axes): a stray element far out is named.
+}  // namespace
+
 void check_coordinates(const Points& p, const std::string& where, const char* element) {
     for (Eigen::Index i = 0; i < p.rows(); ++i)
         if (!(p.row(i).cwiseAbs().maxCoeff() <= kMaxCoordinate))
@@ -110,7 +121,6 @@ void check_coordinates(const Points& p, const std::string& where, const char* el
         throw Error(where, s.str());
     }
 }
-}  // namespace
 
 std::size_t memory_budget() {
     if (const char* env = std::getenv("GSD_MEMORY_LIMIT"); env && *env) {
@@ -172,16 +182,25 @@ void validate(PointCloud& cloud, const std::string& where) {
     if (!(b.diagonal() > 0)) throw Error(where, "all points coincide");
 }
 
+double robust_mean(std::vector<double> values) {
+    if (values.empty()) return 0.0;
+    const auto mid = values.begin() + std::ptrdiff_t(values.size() / 2);
+    std::nth_element(values.begin(), mid, values.end());
+    const double cap = kRobustMeanCap * *mid;
+    double sum = 0;
+    for (const double v : values) sum += std::min(v, cap);
+    return sum / double(values.size());
+}
+
 double mean_edge_length(const PolygonMesh& mesh) {
-    double length = 0;
-    std::size_t edges = 0;
+    std::vector<double> lengths;
+    lengths.reserve(mesh.indices.size());
     for (std::size_t f = 0; f < mesh.face_count(); ++f)
         for (auto k = mesh.offsets[f]; k < mesh.offsets[f + 1]; ++k) {
             const auto next = k + 1 < mesh.offsets[f + 1] ? k + 1 : mesh.offsets[f];
-            length += (mesh.vertices.row(mesh.indices[k]) - mesh.vertices.row(mesh.indices[next])).norm();
-            ++edges;
+            lengths.push_back((mesh.vertices.row(mesh.indices[k]) - mesh.vertices.row(mesh.indices[next])).norm());
         }
-    return edges > 0 ? length / double(edges) : 0.0;
+    return robust_mean(std::move(lengths));
 }
 
 void validate(const PolygonMesh& mesh, const std::string& where) {

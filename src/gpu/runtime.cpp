@@ -132,6 +132,9 @@ DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, st
         if (mem.memoryHeaps[h].flags & VK_MEMORY_HEAP_DEVICE_LOCAL_BIT)
             d.device_local_bytes = std::max<std::uint64_t>(d.device_local_bytes, mem.memoryHeaps[h].size);
     d.subgroup_size = sub.subgroupSize;
+    const bool compute = sub.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT;
+    d.subgroup_vote = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_VOTE_BIT);
+    d.subgroup_ballot = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_BALLOT_BIT);
     d.max_storage_buffer_range = p.limits.maxStorageBufferRange;
     std::uint32_t family = 0;
     if (p.apiVersion < VK_API_VERSION_1_1) d.why_not = "needs Vulkan 1.1";
@@ -495,10 +498,11 @@ std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
 }
 
 const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                              std::initializer_list<std::int32_t> constants) {
-    std::string key = shader;
-    for (auto c : constants) key.append(",").append(std::to_string(c));
+                              std::initializer_list<std::int32_t> constants, std::uint32_t workgroup) {
     State& st = *s_;
+    if (workgroup == 0) workgroup = st.workgroup;
+    std::string key = shader + "@" + std::to_string(workgroup);
+    for (auto c : constants) key.append(",").append(std::to_string(c));
     std::lock_guard<std::mutex> lock(st.kernels_mutex);
     if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
 
@@ -518,7 +522,7 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     k->name = shader;
     k->bindings = bindings;
     k->push_bytes = push_bytes;
-    k->workgroup = st.workgroup;
+    k->workgroup = workgroup;
     std::vector<VkDescriptorSetLayoutBinding> b(bindings);
     for (std::uint32_t i = 0; i < bindings; ++i)
         b[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
@@ -535,7 +539,7 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     pl.pPushConstantRanges = &range;
     check(st.vk.vkCreatePipelineLayout(st.device, &pl, nullptr, &k->layout), "vkCreatePipelineLayout");
 
-    std::vector<std::int32_t> values{std::int32_t(st.workgroup)};
+    std::vector<std::int32_t> values{std::int32_t(workgroup)};
     values.insert(values.end(), constants.begin(), constants.end());
     std::vector<VkSpecializationMapEntry> entries(values.size());
     for (std::uint32_t i = 0; i < values.size(); ++i) entries[i] = {i, i * 4, 4};

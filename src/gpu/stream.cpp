@@ -55,6 +55,8 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     for (std::size_t m = 0; m < used; ++m) drain(slots[(index + m) % used]);
 }
 
+std::size_t default_chunk(const Context& ctx) { return ctx.info().is_software() ? 65536 : std::size_t(1) << 20; }
+
 void fill_vec4(PointsView points, std::size_t first, std::size_t n, void* dst) {
     float* up = static_cast<float*>(dst);
     for (std::size_t i = 0; i < n; ++i) {

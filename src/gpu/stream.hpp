@@ -26,6 +26,10 @@ struct StreamJob {
 
 void stream(Context& ctx, const StreamJob& job, const ProgressFn& progress);
 
+/// Items per chunk for a device: a GPU wants millions of queries in flight (2^20), a software
+/// device's few cores 65 536 (progress and the first results come sooner).
+std::size_t default_chunk(const Context& ctx);
+
 /// A StreamJob::fill for query points: rows [first, first + n) of `points` as float vec4 (w = 0).
 void fill_vec4(PointsView points, std::size_t first, std::size_t n, void* dst);
 

@@ -106,6 +106,8 @@ FittedTori load_tori(const std::string& path) {
             std::abs(t.normals.row(r).dot(t.tangents.row(r))) > 1e-6)
             throw Error(path, "record " + std::to_string(r) + " has a frame that is not orthonormal");
     }
+    // The same limits as a cloud's: points squared in the blend and the trees must not overflow.
+    check_coordinates(t.points, path, "torus");
     return t;
 }
 

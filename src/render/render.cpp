@@ -107,7 +107,9 @@ double trilinear(const GridSpec& grid, const std::vector<float>& v, const Eigen:
     double f[3], h[3];
     for (int a = 0; a < 3; ++a) {
         h[a] = (grid.box.hi[a] - grid.box.lo[a]) / (n[a] - 1);
-        const double s = (x[a] - grid.box.lo[a]) / h[a];
+        // Clamped in double first: a hit far outside the grid's box (a --color grid of another
+        // extent) would otherwise convert a number past int's range.
+        const double s = std::clamp((x[a] - grid.box.lo[a]) / h[a], -1.0, double(n[a]));
         c[a] = std::clamp(int(std::floor(s)), 0, n[a] - 2);
         f[a] = std::clamp(s - c[a], 0.0, 1.0);
     }

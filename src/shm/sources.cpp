@@ -2,13 +2,13 @@
 #include <gsd/shm.hpp>
 #include <gsd/spatial.hpp>
 
+#include "core/clip.hpp"
 #include "shm/diffuse.hpp"
 
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <array>
-#include <optional>
 #include <cmath>
 #include <cstdio>
 
@@ -18,24 +18,19 @@ namespace {
 
 using Vec3 = Eigen::Vector3d;
 
-/// Distance from x to a box (0 inside).
-double box_distance(const Vec3& x, const Box& box) {
-    return (x.cwiseMax(box.lo).cwiseMin(box.hi) - x).norm();
-}
-
-/// Splits faces into pieces by midpoint subdivision and emits each piece's vector area at its
-/// centroid. A piece is split while its longest edge exceeds max_element — or, away from the
-/// focus box (the grid), a quarter of its distance to the box: far pieces are summed from
-/// afar, where a coarse piece is as good as its parts, so cropping a large mesh with tight
-/// bounds costs pieces near the box only. Iterative (an explicit stack), so no recursion
-/// depth depends on the data; `emit` returns false to stop early.
+/// Emits (centroid, vector area) of pieces of a triangle no longer than max_element.
+/// Triangles inside the box are split at their edge midpoints (four similar pieces); pieces cut
+/// from a triangle at the box's faces, which can be needles, are bisected at their longest edge
+/// instead, so that a needle of length L costs about L / max_element pieces, not its square.
+/// Either way a piece is never longer than the box's diagonal, so the count per triangle is at
+/// most (2 · diagonal / max_element)² (a few times the cells the piece meets). Iterative (an
+/// explicit stack): no recursion depth depends on the data.
 class FaceSplitter {
 public:
-    FaceSplitter(double max_element, const std::optional<Box>& focus)
-        : max_element_(max_element), has_focus_(focus.has_value()), focus_(focus.value_or(Box{})) {}
+    explicit FaceSplitter(double max_element) : max_element_(max_element) {}
 
     template <class Emit>
-    bool split(const Vec3& a, const Vec3& b, const Vec3& c, Emit&& emit) {
+    void split(const Vec3& a, const Vec3& b, const Vec3& c, bool bisect, Emit&& emit) {
         stack_.clear();
         stack_.push_back({a, b, c});
         while (!stack_.empty()) {
@@ -43,11 +38,18 @@ public:
             stack_.pop_back();
             const Vec3 area = 0.5 * (t[1] - t[0]).cross(t[2] - t[0]);
             if (!(area.norm() > 0)) continue;  // degenerate: no orientation, no area
-            const Vec3 centroid = (t[0] + t[1] + t[2]) / 3;
-            const double longest = std::max({(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()});
-            const double far = has_focus_ ? std::max(0.0, box_distance(centroid, focus_) - longest) : 0.0;
-            if (longest <= std::max(max_element_, 0.25 * far)) {
-                if (!emit(centroid, area)) return false;
+            const double len[3] = {(t[1] - t[0]).norm(), (t[2] - t[1]).norm(), (t[0] - t[2]).norm()};
+            const int longest = int(std::max_element(len, len + 3) - len);
+            if (len[longest] <= max_element_) {
+                emit((t[0] + t[1] + t[2]) / 3, area);
+                continue;
+            }
+            if (bisect) {
+                // Corners i, j = i + 1 span the longest edge; k is opposite. Same orientation.
+                const int i = longest, j = (i + 1) % 3, k = (i + 2) % 3;
+                const Vec3 m = 0.5 * (t[std::size_t(i)] + t[std::size_t(j)]);
+                stack_.push_back({t[std::size_t(i)], m, t[std::size_t(k)]});
+                stack_.push_back({m, t[std::size_t(j)], t[std::size_t(k)]});
                 continue;
             }
             const Vec3 ab = 0.5 * (t[0] + t[1]), bc = 0.5 * (t[1] + t[2]), ca = 0.5 * (t[2] + t[0]);
@@ -56,13 +58,10 @@ public:
             stack_.push_back({ca, bc, t[2]});
             stack_.push_back({ab, bc, ca});
         }
-        return true;
     }
 
 private:
     double max_element_;
-    bool has_focus_;
-    Box focus_;  // (a plain Box: GCC 12 misreads an optional here as maybe uninitialized)
     std::vector<std::array<Vec3, 3>> stack_;
 };
 
@@ -115,18 +114,24 @@ namespace shm_detail {
 void for_each_sample(const ShmSource& source, double max_element, const Box& focus,
                      const std::function<void(const Eigen::Vector3d&, double)>& emit) {
     const OrientedElements& e = source.elements;
-    FaceSplitter splitter(max_element, focus);
+    // Never finer than a millionth of the box: a stated floor on top of the caller's cell, so
+    // that the count per triangle stays (2·10⁶·√3)² at worst whatever the caller asks.
+    FaceSplitter splitter(std::max(max_element, 1e-6 * focus.diagonal()));
+    std::array<Vec3, 9> poly;
     for (Eigen::Index j = 0; j < e.vectors.rows(); ++j) {
         const Vec3 a = e.corners.row(3 * j).transpose(), b = e.corners.row(3 * j + 1).transpose(),
                    c = e.corners.row(3 * j + 2).transpose();
         if (a == b && a == c) {
-            emit(a, e.vectors.row(j).norm());
+            if ((a.array() >= focus.lo.array()).all() && (a.array() <= focus.hi.array()).all())
+                emit(a, e.vectors.row(j).norm());
             continue;
         }
-        splitter.split(a, b, c, [&](const Vec3& p, const Vec3& v) {
-            emit(p, v.norm());
-            return true;
-        });
+        const int n = detail::clip_triangle_to_box(a, b, c, focus.lo, focus.hi, poly);
+        if (n < 3) continue;  // misses the box (or touches it along an edge: no area there)
+        const bool whole = n == 3 && poly[0] == a && poly[1] == b && poly[2] == c;
+        for (int i = 1; i + 1 < n; ++i)  // a fan over the convex part inside
+            splitter.split(poly[0], poly[std::size_t(i)], poly[std::size_t(i + 1)], !whole,
+                           [&](const Vec3& p, const Vec3& v) { emit(p, v.norm()); });
     }
 }
 

@@ -68,18 +68,18 @@ void KdTree::radius(const Eigen::Vector3d& q, double r, std::vector<Neighbor>& o
 double mean_spacing(const KdTree& tree) {
     const Points& p = tree.points();
     if (p.rows() < 2) throw Error("mean spacing needs at least two points");
-    double sum = 0;
+    std::vector<double> gap(std::size_t(p.rows()));
 #pragma omp parallel
     {
         std::vector<Neighbor> nb;
-#pragma omp for reduction(+ : sum) schedule(static)
+#pragma omp for schedule(static)
         for (Eigen::Index i = 0; i < p.rows(); ++i) {
             tree.knn(p.row(i).transpose(), 2, nb);
             // nb[0] is the point itself (or a duplicate at distance 0).
-            sum += nb.size() > 1 ? nb[1].distance : 0.0;
+            gap[std::size_t(i)] = nb.size() > 1 ? nb[1].distance : 0.0;
         }
     }
-    return sum / double(p.rows());
+    return robust_mean(std::move(gap));  // a stray point far away must not set the scale
 }
 
 double mean_spacing(const Points& p) {

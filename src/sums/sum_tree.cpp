@@ -1,5 +1,7 @@
 #include "sums/sum_tree.hpp"
 
+#include "core/clip.hpp"
+
 #include "spatial/box_tree.hpp"
 
 #include <Eigen/Geometry>
@@ -779,6 +781,42 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
 
 void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened& k, double r_min, double R, double budget,
                                double* Xp, std::size_t& terms) const {
+    const double* p = corners(j);
+    const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
+    const double rho0 = elem_rho_[j];
+    if (rho0 <= R) {
+        const double decay = decay_lambda_ == k.lambda ? elem_decay_[j] : std::exp(-k.lambda * rho0);
+        screened_triangle(a, b - a, c - a, vector(j), covariance(j), rho0, decay, xp, k, r_min, R, budget, Xp, terms);
+        return;
+    }
+    // An element wider than the reach R: only its part within R of x weighs anything, and that
+    // part lies in the cube of half-side R about x. Refining the whole element would cost what
+    // its extent costs (a face with a stray corner at 4·10⁹ ran for hours); its part in the cube
+    // costs what the reach holds. The cube's part, fanned into triangles, each refined as an
+    // element of its own (vector area in proportion to its area).
+    const Vec3 x = vec(xp), reach = Vec3::Constant(R);
+    std::array<Vec3, 9> poly;
+    const int n = clip_triangle_to_box(a, b, c, x - reach, x + reach, poly);
+    const double whole = (b - a).cross(c - a).norm();
+    const double* v = vector(j);
+    for (int i = 1; i + 1 < n; ++i) {
+        const Vec3 &pa = poly[0], &pb = poly[std::size_t(i)], &pc = poly[std::size_t(i + 1)];
+        const double share = (pb - pa).cross(pc - pa).norm() / whole;
+        if (!(share > 0)) continue;
+        const double vs[3] = {v[0] * share, v[1] * share, v[2] * share};
+        const Vec3 g = (pa + pb + pc) / 3;
+        const Vec3 da = pa - g, db = pb - g, dc = pc - g;
+        const double cov[6] = {(da[0] * da[0] + db[0] * db[0] + dc[0] * dc[0]) / 12, (da[1] * da[1] + db[1] * db[1] + dc[1] * dc[1]) / 12,
+                               (da[2] * da[2] + db[2] * db[2] + dc[2] * dc[2]) / 12, (da[0] * da[1] + db[0] * db[1] + dc[0] * dc[1]) / 12,
+                               (da[0] * da[2] + db[0] * db[2] + dc[0] * dc[2]) / 12, (da[1] * da[2] + db[1] * db[2] + dc[1] * dc[2]) / 12};
+        const double rho = std::max({da.norm(), db.norm(), dc.norm()});
+        screened_triangle(pa, pb - pa, pc - pa, vs, cov, rho, std::exp(-k.lambda * rho), xp, k, r_min, R, budget, Xp, terms);
+    }
+}
+
+void SumTree::screened_triangle(const Vec3& a, const Vec3& ab, const Vec3& ac, const double* v, const double* cov,
+                                double rho0, double decay0, const double* xp, const Screened& k, double r_min, double R,
+                                double budget, double* Xp, std::size_t& terms) {
     // One sub-triangle of the element being refined: barycentric origin (s, t), scale h and
     // orientation σ; its corners are o, o + σh e1, o + σh e2 in the (s, t) parameters of the
     // element (a + s (b − a) + t (c − a)). Children: the three corner triangles at h/2 and the
@@ -788,14 +826,9 @@ void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened
     Piece pieces[3 * 20 + 8];
     const Vec3 x = vec(xp);
     Vec3 X = vec(Xp);
-    const double* p = corners(j);
-    const double* v = vector(j);
-    const Vec3 a = vec(p), ab = vec(p + 3) - a, ac = vec(p + 6) - a;
-    const double* cov = covariance(j);
     const double area = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-    const double rho0 = elem_rho_[j];
-    int np = 0;
-    pieces[np++] = {0, 0, 1, 1, decay_lambda_ == k.lambda ? elem_decay_[j] : std::exp(-k.lambda * rho0), 0};
+    int np = 0, splits = 0;
+    pieces[np++] = {0, 0, 1, 1, decay0, 0};
     while (np > 0) {
         const Piece q = pieces[--np];
         const Vec3 g = a + (q.s + q.sigma * q.h / 3) * ab + (q.t + q.sigma * q.h / 3) * ac;
@@ -810,13 +843,14 @@ void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened
             double piece_cov[6];  // the piece's covariance: the element's, scaled like its area
             for (int b = 0; b < 6; ++b) piece_cov[b] = cov[b] * share;
             screened_piece_expansion(m0, piece_cov, dg, dist, k, E, X);
-        } else if (rho <= k.r_floor || q.level >= 20) {
-            // Small enough that 1/r no longer resolves it (or at the depth limit): its
-            // centroid, at no closer than r_floor.
+        } else if (rho <= k.r_floor || q.level >= 20 || splits >= sums::kMaxSplits) {
+            // Small enough that 1/r no longer resolves it (or at the depth or split limit):
+            // its centroid, at no closer than r_floor.
             const double w = std::exp(-k.lambda * (dist - r_min)) / std::max(dist, k.r_floor);
             for (int c = 0; c < 3; ++c) X[c] += m0[c] * w;
         } else {
             const double h = q.h / 2, sh = q.sigma * h, decay = std::sqrt(q.decay);
+            ++splits;
             pieces[np++] = {q.s, q.t, h, q.sigma, decay, q.level + 1};
             pieces[np++] = {q.s + sh, q.t, h, q.sigma, decay, q.level + 1};
             pieces[np++] = {q.s, q.t + sh, h, q.sigma, decay, q.level + 1};

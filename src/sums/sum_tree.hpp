@@ -126,6 +126,12 @@ public:
                       double tolerance, double* w, std::size_t& terms) const;
     /// The exact sum over every element (the reference).
     double winding_exact(const Eigen::Vector3d& x) const;
+    /// The float32 walk's records, one per node (what the GPU walk uploads), and its
+    /// coordinates: x ↦ (x − winding_origin())·winding_scale().
+    const WindingTestT<float>* winding_tests_f() const { return wtests_f_.data(); }
+    const WindingNodeT<float>* winding_nodes_f() const { return wnodes_f_.data(); }
+    const double* winding_origin() const { return w_origin_; }
+    double winding_scale() const { return w_scale_; }
 
     // ---- the screened kernel of SHM step 1 ---------------------------------------------
     struct Screened {
@@ -160,9 +166,15 @@ public:
 private:
     /// nearest_distance() for the packet of screened(): r_min[l] for each lane of `lanes`.
     void nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const;
-    /// Element j's part of screened() at x: the triangle refined until its pieces pass.
+    /// Element j's part of screened() at x: the triangle refined until its pieces pass; an
+    /// element wider than the reach R, only its part in the cube of half-side R about x.
     void screened_element(std::uint32_t j, const double* x, const Screened& k, double r_min, double R, double budget,
                           double* X, std::size_t& terms) const;
+    /// The refinement itself, for a triangle a, a + ab, a + ac with vector area v, covariance
+    /// cov, radius ρ0 about its centroid and e^(−λρ0) = decay0.
+    static void screened_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& ab, const Eigen::Vector3d& ac,
+                                  const double* v, const double* cov, double rho0, double decay0, const double* x,
+                                  const Screened& k, double r_min, double R, double budget, double* X, std::size_t& terms);
     void compute_node(std::uint32_t i);  ///< from its elements (the leaves)
     void merge_node(std::uint32_t i);    ///< from its children (inner nodes)
     /// Element j's exact term: its solid angle / 4π, or a point's dipole.
@@ -207,7 +219,17 @@ private:
     bool triangles_ = false;
 };
 
+/// The indices of the points in Morton (Z-curve) order on a 2^10 grid over their box: neighbors
+/// in the order walk the same tree nodes (sums/winding.cpp).
+std::vector<std::uint32_t> morton_order(PointsView q);
+
 namespace sums {
+
+/// The most splits one (query, element) pair's refinement makes (SumTree::screened_triangle and
+/// shaders/shm_diffuse.comp alike): past it, pieces count by their centroids. A triangle within
+/// the reach needs tens of splits and a needle of aspect 10³ hundreds; the cap bounds the
+/// pathological rest (an element clipped to the reach is at most 2√3·R across).
+constexpr int kMaxSplits = 4096;
 
 /// Squared distance from x to the triangle (a, b, c) (degenerate triangles included).
 double point_triangle_distance2(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b,

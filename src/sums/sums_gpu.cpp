@@ -6,18 +6,13 @@
 #include "sums/sum_tree.hpp"
 
 #include <cmath>
+#include <cstring>
 
 namespace gsd::sums_detail {
 
 namespace {
 
 constexpr std::size_t kMomentVec4 = 9;  // per node: c, ρ | m0, area | m1 (9) m2 (18) pad
-
-struct WindingPush {
-    std::uint32_t count, first_leaf;
-    float beta, tolerance;
-    std::uint32_t lane_cap;
-};
 
 // Rounds a box outward to float so every float32 corner stays inside it.
 void outward(const double* lo, const double* hi, gpu::DeviceNode& out) {
@@ -94,34 +89,118 @@ DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree) {
     return d;
 }
 
+namespace {
+
+struct WindingPush {
+    std::uint32_t count, first_leaf;
+    float beta, reach_scale;
+    std::uint32_t group_cap;
+};
+
+/// The tree as sums_winding.comp walks it: 8 vec4 per node (the float32 walk's test and
+/// expansion records, with the node's element range) and 3 vec4 per element, all in the float
+/// walk's normalized coordinates (vector areas scaled by scale², so that a point's dipole
+/// v·y/|y|³ is unchanged).
+struct DeviceWindingTree {
+    gpu::Buffer nodes, elements;
+    std::uint32_t first_leaf = 0, widest_leaf = 0;
+};
+
+DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree) {
+    const auto& nodes = tree.nodes();
+    const auto* tests = tree.winding_tests_f();
+    const auto* expansions = tree.winding_nodes_f();
+    static_assert(sizeof(detail::SumTree::WindingNodeT<float>) == 23 * sizeof(float), "23 floats");
+    DeviceWindingTree d;
+    std::vector<float> nd(nodes.size() * 32, 0.0f);
+    for (std::size_t i = 0; i < nodes.size(); ++i) {
+        float* r = &nd[32 * i];
+        const auto& t = tests[i];
+        r[0] = t.c[0], r[1] = t.c[1], r[2] = t.c[2], r[3] = t.rho, r[4] = t.q;
+        std::memcpy(&r[5], &nodes[i].begin, 4);
+        std::memcpy(&r[6], &nodes[i].end, 4);
+        std::memcpy(&r[8], &expansions[i], sizeof(expansions[i]));
+        if (i >= tree.first_leaf()) d.widest_leaf = std::max(d.widest_leaf, nodes[i].end - nodes[i].begin);
+    }
+    const double* origin = tree.winding_origin();
+    const double scale = tree.winding_scale();
+    std::vector<float> el(tree.size() * 12);
+    for (std::size_t j = 0; j < tree.size(); ++j) {
+        const double* p = tree.corners(j);
+        const double* v = tree.vector(j);
+        for (int k = 0; k < 3; ++k) {
+            for (int a = 0; a < 3; ++a) el[12 * j + std::size_t(4 * k + a)] = float((p[3 * k + a] - origin[a]) * scale);
+            el[12 * j + std::size_t(4 * k + 3)] = float(v[k] * scale * scale);
+        }
+    }
+    d.nodes = gpu::upload(ctx, nd.data(), nd.size() * 4);
+    d.elements = gpu::upload(ctx, el.data(), el.size() * 4);
+    d.first_leaf = tree.first_leaf();
+    return d;
+}
+
+}  // namespace
+
 bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, PointsView queries,
                  const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
     why_not = gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return false;
-    const DeviceSumTree d = upload(*ctx, tree);
-    const gpu::Kernel& k = ctx->kernel("sums_winding", 5, sizeof(WindingPush));
+    if (!ctx->info().subgroup_vote) {
+        why_not = ctx->info().name + " has no subgroup vote in compute shaders; the winding numbers run on the CPU";
+        return false;
+    }
+    const DeviceWindingTree d = upload_winding(*ctx, tree);
+    // One subgroup walks together. On a software device a workgroup is one subgroup, so that
+    // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
+    const bool software = ctx->info().is_software();
+    const std::uint32_t workgroup = software ? std::max<std::uint32_t>(ctx->info().subgroup_size, 1) : 0;
+    const gpu::Kernel& k = ctx->kernel("sums_winding", 4, sizeof(WindingPush), {}, workgroup);
+    const std::uint32_t cap = software ? 65535u - 64u - d.widest_leaf : 0u;
     const auto n = std::size_t(queries.rows());
-    std::size_t terms = 0;
-    const std::uint32_t cap = lane_cap(*ctx), lanes = lanes_per_group(*ctx);
+    // Morton order, so that a subgroup's queries are neighbours; results go back in input order.
+    const std::vector<std::uint32_t> order = detail::morton_order(queries);
+    const double* origin = tree.winding_origin();
+    const double scale = tree.winding_scale();
+    // Queries so far out that float32's expansion terms could overflow, and those the loop
+    // limit cut short, are summed on the CPU (which walks far queries in double).
+    constexpr double kDeviceReach = 1e6;  // root radii
     std::vector<char> redo(n, 0);
+    std::size_t terms = 0;
     gpu::StreamJob job;
     job.count = n;
     job.in_bytes = 16;
     job.out_bytes = 8;
     job.stage = "winding";
-    if (opt.chunk_size) job.chunk = opt.chunk_size;
-    job.fill = [&](std::size_t first, std::size_t m, void* dst) { gpu::fill_vec4(queries, first, m, dst); };
+    job.chunk = opt.chunk_size ? opt.chunk_size : gpu::default_chunk(*ctx);
+    job.fill = [&](std::size_t first, std::size_t m, void* dst) {
+        float* up = static_cast<float*>(dst);
+        for (std::size_t i = 0; i < m; ++i) {
+            const auto q = Eigen::Index(order[first + i]);
+            double far = 0;
+            for (int a = 0; a < 3; ++a) {
+                const double u = (queries(q, a) - origin[a]) * scale;
+                far = std::max(far, std::abs(u));
+                up[4 * i + std::size_t(a)] = float(u);
+            }
+            up[4 * i + 3] = 0;
+            if (far > kDeviceReach) {
+                redo[std::size_t(q)] = 1;
+                for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = 0;  // a cheap stand-in
+            }
+        }
+    };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
-        const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), float(opt.tolerance), cap};
-        rec.dispatch(k, {{&d.nodes}, {&d.moments}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
+        const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), float(detail::sums::winding_reach_scale(opt.tolerance)), cap};
+        rec.dispatch(k, {{&d.nodes}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
                      std::uint32_t((m + k.workgroup - 1) / k.workgroup));
     };
     job.drain = [&](std::size_t first, std::size_t m, const void* src) {
         const float* r = static_cast<const float*>(src);
         for (std::size_t i = 0; i < m; ++i) {
-            out.w[first + i] = r[2 * i];
-            if (r[2 * i + 1] < 0) mark_group(redo, first, first + i, lanes, first + m);
-            else terms += std::size_t(r[2 * i + 1]);
+            const std::uint32_t q = order[first + i];
+            out.w[q] = r[2 * i];
+            if (r[2 * i + 1] < 0) redo[q] = 1;
+            else if (!redo[q]) terms += std::size_t(r[2 * i + 1]);
         }
     };
     gpu::stream(*ctx, job, progress);
@@ -132,7 +211,8 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
             out.w[q] = tree.winding(queries.row(Eigen::Index(q)).transpose(), opt.beta, opt.tolerance, terms);
             ++redone;
         }
-    if (redone) log_once("winding: queries that " + ctx->info().name + "'s loop limit may have cut short were redone on the CPU");
+    if (redone) log_once("winding: " + std::to_string(redone) + " queries far outside the source or past " + ctx->info().name +
+                         "'s loop limit were summed on the CPU");
     out.terms = terms;
     out.device = ctx->info().name;
     return true;

@@ -49,8 +49,11 @@ std::string isolines_obj(const SurfaceMesh& mesh, const std::vector<double>& phi
         if (!std::isfinite(x)) x = hi + spacing;  // vertices without a value never cross a level
     std::string out = "# isolines of the surface signed distance written by gsd: one group per level\n";
     std::size_t vertices = 0;
-    for (long long k = (long long)std::ceil(lo / spacing); k * spacing <= hi; ++k) {
-        const double level = double(k) * spacing;
+    // Levels k·spacing in [lo, hi], counted in double: k itself can be past any integer type
+    // (φ ≈ 10 with a spacing of 1e-18) while the count stays small (the caller caps it).
+    const double first = std::ceil(lo / spacing), count = std::floor(hi / spacing) - first + 1;
+    for (double i = 0; i < count; ++i) {
+        const double level = (first + i) * spacing;
         const std::vector<SurfaceCurve> curves = level_set_curves(mesh, finite, level);
         if (curves.empty()) continue;
         char name[64];
@@ -166,7 +169,7 @@ void run(const SurfaceArgs& a) {
         p.curves.push_back({source_polylines(mesh, sources), {20, 150, 60}, 3.0});  // green: apart from the black zero contour
         SurfaceRenderOptions o;
         o.range = top > 0 ? top : 1.0;
-        o.isolines = int(std::lround(2 * o.range / spacing));
+        o.isolines = int(std::lround(std::min(2 * o.range / spacing, kMaxIsolines)));
         picture = render_surface(p, o);
     }
     write_all({{a.output, [&] { io::write_npy(a.output, {phi.size()}, phi); }},
