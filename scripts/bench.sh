@@ -13,6 +13,10 @@
 #                               treecode vs exact sum on grids: time, terms per query; CPU and GPU)
 #                               and SHM step 1 on broken meshes with coarse faces (step 1 / step 3
 #                               seconds, terms)
+#   scripts/bench.sh gpu        one table of every query-heavy stage, CPU path vs device (gsd-gpu-bench:
+#                               PAT evaluation, winding numbers, a PAT render, SHM step 1 / step 3,
+#                               TorusNet fit; full sizes on a hardware GPU, small ones on lavapipe;
+#                               GSD_BENCH_GPU_ARGS adds arguments, e.g. --full or --stages pat,winding)
 #   scripts/bench.sh swn        Surface Winding Numbers: mislabeled area on a synthetic benchmark
 #                               (SWN full and reduced, naive rounding, SHM sign, a reference program
 #                               when one is there), time per step vs mesh size, whole runs
@@ -38,6 +42,15 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 
 echo "== machine: $(nproc) cores; $($gsd info | grep -- '--device gpu')"
+
+if [ "$what" = all ] || [ "$what" = gpu ]; then
+  echo
+  echo "== GPU kernels against the CPU path (docs/gpu.md, \"Throughput\")"
+  size=""
+  "$gsd" info | grep -- '--device auto' | grep -qv 'CPU path' && size="--full"  # a hardware GPU
+  # shellcheck disable=SC2086
+  build/bin/gsd-gpu-bench $size ${GSD_BENCH_GPU_ARGS:-}
+fi
 
 if [ "$what" = all ] || [ "$what" = pat ]; then
   echo

@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_vote : require
 // The blend engine on the GPU (mirrors src/blend/blend_cpu.cpp): for each query, choose the
 // summed set (all points, the ball of radius r_eval, or the k nearest), then blend the
 // per-point terms of PAT (tori), SSPD (tangent planes) or signed Hopf–Cole (screened dipoles).

@@ -2,7 +2,8 @@
 // and the renderer (render_pat.comp). The including shader declares, before including this:
 // the KIND specialization constant (0 PAT, 1 SSPD, 2 SHC), the buffers `pts` (tree order),
 // `terms` (PAT: 3 per point; else (n, area)) and `nodes`, and the push constants `pc`
-// (point_count, first_leaf, k_fallback, r_eval, C, dmin).
+// (point_count, first_leaf, k_fallback, r_eval, C, dmin), and enables
+// GL_KHR_shader_subgroup_vote.
 const int K_MAX = 32;     // largest fallback_k the kernel supports
 const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
 const float PI = 3.14159265358979;
@@ -69,33 +70,40 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
 }
 
 // Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
+// The subgroup walks the tree together (as sums_winding.comp does): a node is opened when any
+// lane's ball meets its box, and a leaf's points are read once for the subgroup, each lane
+// adding those within its own ball. With queries in Morton order (blend_gpu.cpp) the lanes are
+// neighbours and their balls open nearly the same nodes; no lane waits on another's branch, and
+// no stack is needed: the tree is complete, so the next node in depth-first order comes from the
+// node's index (climb while it is a right child, then step to its sibling).
 uint sum_ball(vec3 x, inout Acc a, bool grad) {
     float r2 = pc.r_eval * pc.r_eval;
     float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
     uint found = 0;
-    uint stack[STACK];
-    int top = 0;
-    stack[top++] = 0;
-    while (top > 0) {
-        uint i = stack[--top];
-        if (node_distance2(x, i) > r2) continue;
-        if (i >= pc.first_leaf) {
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+    uint node = 0u;
+    while (true) {
+        bool near = node_distance2(x, node) <= r2;
+        if (subgroupAny(near)) {
+            if (node < pc.first_leaf) {
+                node = 2u * node + 1u;
+                continue;
+            }
+            for (uint j = nodes[node].begin; j < nodes[node].end; ++j) {
                 vec3 dv = x - pts[j].xyz;
                 float d2 = dot(dv, dv);
-                if (d2 <= r2) {
+                if (near && d2 <= r2) {
                     add_point(a, x, j, sqrt(d2), lambda, sigma, pc.r_eval, true, grad);
                     ++found;
                 }
             }
-        } else {
-            stack[top++] = 2 * i + 1;
-            stack[top++] = 2 * i + 2;
         }
+        uint k = node + 1u;  // 1-based: right children odd
+        k >>= uint(findLSB(~k));
+        if (k == 0u) break;
+        node = k;
     }
     return found;
 }
-
 
 // The accelerated sum at x (the ball of radius r_eval, else the k nearest): fills the sums,
 // ρ, and, when ρ depends on x, the point that sets it.

@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_vote : require
 // Sphere-traces a blended field (PAT, SSPD, SHC; the accelerated sum) per pixel: the renderer's
 // GPU path (src/render/render_gpu.cpp). Bindings 0–2 and the first push constants are those of
 // blend_eval.comp, so the field's device data serves both.

@@ -130,56 +130,67 @@ vec3 refine_triangle(vec3 x, vec3 a, vec3 ab, vec3 ac, vec3 v, vec3 cd, vec3 co,
     return X;
 }
 
-// A triangle's element term: the whole triangle, or — when it is wider than the reach R — its
-// part in the cube of half-side R about x, fanned into triangles (SumTree::screened_element:
-// the work is bounded by the reach, not by the element's extent).
-vec3 element_term(vec3 x, vec3 pa, vec3 pb, vec3 pc3, vec3 v, float rmin, float R, inout uint terms) {
-    vec3 poly[9];
+// Covariance of the triangle a, a + ab, a + ac: (1/12) Σ (p − g)(p − g)ᵀ as its diagonal cd
+// and off-diagonal co (xy xz yz); its radius about the centroid.
+void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
+    vec3 g = (ab + ac) / 3.0, qa = -g, qb = ab - g, qc = ac - g;
+    cd = (qa * qa + qb * qb + qc * qc) / 12.0;
+    co = vec3(qa.x * qa.y + qb.x * qb.y + qc.x * qc.y, qa.x * qa.z + qb.x * qb.z + qc.x * qc.z,
+              qa.y * qa.z + qb.y * qb.z + qc.y * qc.z) / 12.0;
+    rho = max(length(qa), max(length(qb), length(qc)));
+}
+
+// A triangle wider than the reach R: its part in the cube of half-side R about x, fanned into
+// triangles, each refined as an element of its own (SumTree::screened_element: the work is
+// bounded by the reach, not by the element's extent). Its own function, so that the common
+// case never touches the polygon's arrays (private arrays live in memory on llvmpipe).
+vec3 clipped_term(vec3 x, vec3 pa, vec3 pb, vec3 pc3, vec3 v, float rmin, float R, inout uint terms) {
+    vec3 poly[9], next[9];
     poly[0] = pa; poly[1] = pb; poly[2] = pc3;
-    vec3 g0 = (pa + pb + pc3) / 3.0;
-    float rho0 = max(length(pa - g0), max(length(pb - g0), length(pc3 - g0)));
     int n = 3;
-    float whole = 1.0;
-    if (rho0 > R) {
-        whole = length(cross(pb - pa, pc3 - pa));
-        vec3 next[9];
-        for (int axis = 0; axis < 3 && n > 0; ++axis) {
-            for (int side = 0; side < 2 && n > 0; ++side) {
-                float plane = side == 1 ? x[axis] + R : x[axis] - R;
-                int m = 0;
-                for (int i = 0; i < n; ++i) {
-                    ++iters;
-                    vec3 p = poly[i], q = poly[(i + 1) % n];
-                    float dp = side == 1 ? plane - p[axis] : p[axis] - plane;
-                    float dq = side == 1 ? plane - q[axis] : q[axis] - plane;
-                    if (dp >= 0.0 && m < 9) next[m++] = p;
-                    if ((dp >= 0.0) != (dq >= 0.0) && m < 9) {
-                        vec3 e = dp >= 0.0 ? p : q, f = dp >= 0.0 ? q : p;
-                        float din = abs(dp >= 0.0 ? dp : dq), dout = abs(dp >= 0.0 ? dq : dp);
-                        vec3 c = e + (f - e) * (din / (din + dout));
-                        c[axis] = plane;
-                        next[m++] = c;
-                    }
+    float whole = length(cross(pb - pa, pc3 - pa));
+    for (int axis = 0; axis < 3 && n > 0; ++axis) {
+        for (int side = 0; side < 2 && n > 0; ++side) {
+            float plane = side == 1 ? x[axis] + R : x[axis] - R;
+            int m = 0;
+            for (int i = 0; i < n; ++i) {
+                ++iters;
+                vec3 p = poly[i], q = poly[(i + 1) % n];
+                float dp = side == 1 ? plane - p[axis] : p[axis] - plane;
+                float dq = side == 1 ? plane - q[axis] : q[axis] - plane;
+                if (dp >= 0.0 && m < 9) next[m++] = p;
+                if ((dp >= 0.0) != (dq >= 0.0) && m < 9) {
+                    vec3 e = dp >= 0.0 ? p : q, f = dp >= 0.0 ? q : p;
+                    float din = abs(dp >= 0.0 ? dp : dq), dout = abs(dp >= 0.0 ? dq : dp);
+                    vec3 c = e + (f - e) * (din / (din + dout));
+                    c[axis] = plane;
+                    next[m++] = c;
                 }
-                for (int i = 0; i < m; ++i) poly[i] = next[i];
-                n = m;
             }
+            for (int i = 0; i < m; ++i) poly[i] = next[i];
+            n = m;
         }
     }
     vec3 X = vec3(0.0);
     for (int i = 1; i + 1 < n; ++i) {
         vec3 a = poly[0], ab = poly[i] - a, ac = poly[i + 1] - a;
-        float share = rho0 > R ? length(cross(ab, ac)) / whole : 1.0;
+        float share = length(cross(ab, ac)) / whole;
         if (!(share > 0.0)) continue;
-        // Covariance of the triangle: (1/12) Σ (p − g)(p − g)ᵀ as (xx yy zz xy xz yz).
-        vec3 g = (ab + ac) / 3.0, qa = -g, qb = ab - g, qc = ac - g;
-        vec3 cd = (qa * qa + qb * qb + qc * qc) / 12.0;
-        vec3 co = vec3(qa.x * qa.y + qb.x * qb.y + qc.x * qc.y, qa.x * qa.z + qb.x * qb.z + qc.x * qc.z,
-                       qa.y * qa.z + qb.y * qb.z + qc.y * qc.z) / 12.0;
-        float rho = rho0 > R ? max(length(qa), max(length(qb), length(qc))) : rho0;
+        vec3 cd, co;
+        float rho;
+        triangle_shape(ab, ac, cd, co, rho);
         X += refine_triangle(x, a, ab, ac, v * share, cd, co, rho, rmin, R, terms);
     }
     return X;
+}
+
+// An element's term: the whole triangle refined, or, wider than the reach, its part within it.
+vec3 element_term(vec3 x, vec3 pa, vec3 pb, vec3 pc3, vec3 v, float rmin, float R, inout uint terms) {
+    vec3 ab = pb - pa, ac = pc3 - pa, cd, co;
+    float rho0;
+    triangle_shape(ab, ac, cd, co, rho0);
+    if (rho0 > R) return clipped_term(x, pa, pb, pc3, v, rmin, R, terms);
+    return refine_triangle(x, pa, ab, ac, v, cd, co, rho0, rmin, R, terms);
 }
 
 void main() {

@@ -21,7 +21,9 @@
 
 layout(local_size_x_id = 0) in;
 
-// Per node, 8 vec4: the acceptance test (c, ρ), (q, begin, end, -) and the expansion
+// Per node, 8 vec4: the acceptance test (c, reach²) — reach² = sums::winding_reach2 for this
+// call's β and tolerance, made on the host in float32 as the CPU's float walk makes it, so the
+// two accept the same nodes —, the element range (begin, end, -, -) and the expansion
 // (SumTree::WindingNodeT<float>: k0, m0[3], p[3], s1[6], t3[10], padded to 24 floats).
 layout(std430, binding = 0) readonly buffer Nodes { vec4 nodes[]; };
 // Per element, 3 vec4: (a, v.x), (b, v.y), (c, v.z), a point when a = b = c.
@@ -32,8 +34,6 @@ layout(std430, binding = 3) writeonly buffer Out { vec2 outv[]; };  // (w, terms
 layout(push_constant) uniform Push {
     uint count;
     uint first_leaf;
-    float beta;
-    float reach_scale;  // tolerance^(−1/5), 0 for tolerance 0 (sums::winding_reach_scale)
     uint group_cap;     // loop iterations one subgroup may run (0: no limit), see below
 } pc;
 
@@ -91,12 +91,10 @@ void main() {
         ++iters;
         if (valid && depth <= sit_out) sit_out = NONE;  // the walk left the subtree it sat out
         bool walking = sit_out == NONE;
-        vec4 t0 = nodes[8u * node], t1 = nodes[8u * node + 1u];
-        vec3 d = x - t0.xyz;
+        vec4 test = nodes[8u * node];  // (c, reach²): all a visit reads, unless it sums
+        vec3 d = x - test.xyz;
         float d2 = dot(d, d);
-        float a = pc.beta * t0.w, b = t0.w + t1.x * pc.reach_scale;  // sums::winding_reach2
-        float reach = max(a, b);
-        bool accepted = walking && d2 > reach * reach;
+        bool accepted = walking && d2 > test.w;
         if (accepted) {
             w_far += winding_expansion(nodes[8u * node + 2u], nodes[8u * node + 3u], nodes[8u * node + 4u],
                                        nodes[8u * node + 5u], nodes[8u * node + 6u], nodes[8u * node + 7u], d, inversesqrt(d2));
@@ -106,7 +104,8 @@ void main() {
         bool leaf = node >= pc.first_leaf;
         bool any_open = subgroupAny(open);
         if (leaf && any_open) {  // the leaf's elements exactly, on the lanes that opened it
-            uint begin = floatBitsToUint(t1.y), end = floatBitsToUint(t1.z);
+            uvec2 range = floatBitsToUint(nodes[8u * node + 1u].xy);
+            uint begin = range.x, end = range.y;
             for (uint j = begin; j < end; ++j) {
                 ++iters;
                 float v = element_winding(x, elems[3u * j], elems[3u * j + 1u], elems[3u * j + 2u]);

@@ -102,6 +102,8 @@ public:
     std::mutex& queue_mutex();
 
     struct State;
+    /// The context's state (its definition is private to the library: src/gpu/runtime.hpp).
+    State& state() const { return *s_; }
 
 private:
     explicit Context(std::unique_ptr<State> state);

@@ -61,6 +61,11 @@ public:
     explicit Queries(const GridSpec& g) : grid_(g) {}
     std::size_t size() const { return points_ ? rows_ : grid_.node_count(); }
     Eigen::Vector3d at(std::size_t i) const;
+    /// An explicit list (not a grid)?, and then the list itself.
+    bool is_list() const { return points_ != nullptr; }
+    PointsView list() const {
+        return PointsView(Eigen::Map<const Points, 0, Eigen::OuterStride<>>(points_, Eigen::Index(rows_), 3, Eigen::OuterStride<>(Eigen::Index(stride_))));
+    }
 
 private:
     const double* points_ = nullptr;  // row i at points_[i·stride_], not owned

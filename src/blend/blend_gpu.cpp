@@ -4,6 +4,7 @@
 #include <gsd/baselines.hpp>
 #include <gsd/vulkan.hpp>
 
+#include "spatial/morton.hpp"
 #include "blend/blend.hpp"
 #include "gpu/device_tree.hpp"
 #include "gpu/runtime.hpp"
@@ -105,7 +106,7 @@ private:
         // The exact sum costs O(N) per query: smaller chunks keep progress and latency smooth.
         std::size_t chunk = p.exact ? std::clamp<std::size_t>((std::size_t(1) << 27) / std::max<std::uint32_t>(point_count_, 1),
                                                              4096, 65536)
-                                    : 65536;
+                                    : gpu::default_chunk(*ctx_);
         return (chunk + wg - 1) / wg * wg;
     }
 
@@ -133,10 +134,20 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     job.in_bytes = 16;
     job.out_bytes = out_floats * 4;
     job.chunk = chunk_size ? chunk_size : default_chunk(p);
+    // An explicit list goes to the device in Morton order, so that the lanes of a subgroup walk
+    // the kd-tree of nearby queries and read the same points (a grid's nodes come in C order,
+    // already runs of neighbours); results go back in the caller's order.
+    std::vector<std::uint32_t> order;
+    if (q.is_list() && q.size() > 1 && q.size() < (std::size_t(1) << 32) && detail::sort_queries_for_device())
+        order = detail::morton_order(q.list());
+    auto index = [&](std::size_t i) { return order.empty() ? i : std::size_t(order[i]); };
+    // Gathers and scatters through the order run in parallel (random accesses: a thread waits
+    // on memory for most of each).
     job.fill = [&](std::size_t first, std::size_t n, void* dst) {
         float* up = static_cast<float*>(dst);
+#pragma omp parallel for schedule(static) if (n > 4096)
         for (std::size_t m = 0; m < n; ++m) {
-            const Eigen::Vector3d x = q.at(first + m);
+            const Eigen::Vector3d x = q.at(index(first + m));
             up[4 * m] = float(x.x());
             up[4 * m + 1] = float(x.y());
             up[4 * m + 2] = float(x.z());
@@ -151,10 +162,12 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     };
     job.drain = [&](std::size_t first, std::size_t n, const void* src) {
         const float* r = static_cast<const float*>(src);
+#pragma omp parallel for schedule(static) if (n > 4096)
         for (std::size_t m = 0; m < n; ++m) {
-            out.phi[first + m] = r[out_floats * m];
+            const std::size_t i = index(first + m);
+            out.phi[i] = r[out_floats * m];
             if (out.gradient)
-                for (int a = 0; a < 3; ++a) out.gradient[3 * (first + m) + std::size_t(a)] = r[4 * m + 1 + std::size_t(a)];
+                for (int a = 0; a < 3; ++a) out.gradient[3 * i + std::size_t(a)] = r[4 * m + 1 + std::size_t(a)];
         }
     };
     gpu::stream(c, job, progress);

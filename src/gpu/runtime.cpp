@@ -140,6 +140,7 @@ DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, st
     if (p.apiVersion < VK_API_VERSION_1_1) d.why_not = "needs Vulkan 1.1";
     else if (!find_compute_queue(fn, dev, family)) d.why_not = "no compute queue";
     else if (!has_extension(fn, dev, VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME)) d.why_not = "no VK_KHR_push_descriptor";
+    else if (!d.subgroup_vote) d.why_not = "no subgroup vote in compute shaders (the tree walks vote per node)";
     d.usable = d.why_not.empty();
     return d;
 }
@@ -440,11 +441,24 @@ void Context::init_common() {
     // $GSD_MAX_GROUPS_X lowers the per-dimension group limit so tests can exercise the split of
     // large dispatches over y on small problems.
     s.max_groups_x = s.props.limits.maxComputeWorkGroupCount[0];
+    if (const char* v = std::getenv("GSD_GPU_PROFILE"); v && v[0] == '1' && s.props.limits.timestampPeriod > 0) {
+        std::uint32_t n = 0;
+        s.instance.vkGetPhysicalDeviceQueueFamilyProperties(s.physical, &n, nullptr);
+        std::vector<VkQueueFamilyProperties> families(n);
+        s.instance.vkGetPhysicalDeviceQueueFamilyProperties(s.physical, &n, families.data());
+        s.profile = s.queue_family < n && families[s.queue_family].timestampValidBits > 0;
+        s.timestamp_ns = s.props.limits.timestampPeriod;
+    }
     if (const char* v = std::getenv("GSD_MAX_GROUPS_X"); v && std::atoi(v) > 0)
         s.max_groups_x = std::min<std::uint32_t>(s.max_groups_x, std::uint32_t(std::atoi(v)));
 }
 
 Context::State::~State() {
+    if (profile && !device_ns.empty()) {
+        std::fprintf(stderr, "gsd: device time on %s (GSD_GPU_PROFILE):\n", info.name.c_str());
+        for (const auto& [name, t] : device_ns)
+            std::fprintf(stderr, "gsd:   %-16s %10.3f ms in %zu\n", name.c_str(), t.first * 1e-6, t.second);
+    }
     if (!device) return;
     if (!vk.vkDestroyPipelineCache) {  // the device's commands failed to load: only it to free
         auto destroy = reinterpret_cast<PFN_vkDestroyDevice>(instance.vkGetDeviceProcAddr(device, "vkDestroyDevice"));
@@ -622,6 +636,7 @@ Recorder::Recorder(Context& ctx) : ctx_(ctx) {
 
 Recorder::~Recorder() {
     try { wait(); } catch (...) {}
+    if (queries_) ctx_.vk().vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
     ctx_.vk().vkDestroyFence(ctx_.device(), fence_, nullptr);
     ctx_.vk().vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
 }
@@ -632,12 +647,52 @@ void Recorder::begin() {
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
     check(ctx_.vk().vkBeginCommandBuffer(cmd_, &bi), "vkBeginCommandBuffer");
+    timed_.clear();
+    if (ctx_.state().profile) {
+        if (!queries_) {
+            VkQueryPoolCreateInfo qi{VK_STRUCTURE_TYPE_QUERY_POOL_CREATE_INFO};
+            qi.queryType = VK_QUERY_TYPE_TIMESTAMP;
+            qi.queryCount = 2 * kTimedCommands;
+            check(ctx_.vk().vkCreateQueryPool(ctx_.device(), &qi, nullptr, &queries_), "vkCreateQueryPool");
+        }
+        ctx_.vk().vkCmdResetQueryPool(cmd_, queries_, 0, 2 * kTimedCommands);
+    }
+}
+
+void Recorder::time_start() {
+    if (!queries_ || timed_.size() >= kTimedCommands) return;
+    // Written once everything before it has finished: the command's own start, barriers or not.
+    ctx_.vk().vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, std::uint32_t(2 * timed_.size()));
+}
+
+void Recorder::time_end(const std::string& label) {
+    if (!queries_ || timed_.size() >= kTimedCommands) return;
+    ctx_.vk().vkCmdWriteTimestamp(cmd_, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT, queries_, std::uint32_t(2 * timed_.size() + 1));
+    timed_.push_back(label);
+}
+
+void Recorder::collect_times() {
+    if (!queries_ || timed_.empty()) return;
+    std::vector<std::uint64_t> ticks(2 * timed_.size());
+    check(ctx_.vk().vkGetQueryPoolResults(ctx_.device(), queries_, 0, std::uint32_t(ticks.size()), ticks.size() * 8, ticks.data(), 8,
+                                          VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT),
+          "vkGetQueryPoolResults");
+    Context::State& s = ctx_.state();
+    std::lock_guard<std::mutex> lock(s.profile_mutex);
+    for (std::size_t i = 0; i < timed_.size(); ++i) {
+        auto& t = s.device_ns[timed_[i]];
+        t.first += double(ticks[2 * i + 1] - ticks[2 * i]) * s.timestamp_ns;
+        ++t.second;
+    }
+    timed_.clear();
 }
 
 void Recorder::copy(const Buffer& src, VkDeviceSize so, const Buffer& dst, VkDeviceSize d, VkDeviceSize bytes) {
     if (bytes == 0) return;
     VkBufferCopy region{so, d, bytes};
+    time_start();
     ctx_.vk().vkCmdCopyBuffer(cmd_, src.handle(), dst.handle(), 1, &region);
+    time_end("(copy)");
 }
 
 void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
@@ -662,7 +717,9 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
     const std::uint32_t max_x = ctx_.max_groups_x();
     const std::uint32_t x = std::min(groups, max_x);
     const std::uint32_t y = (groups + x - 1) / x;
+    time_start();
     ctx_.vk().vkCmdDispatch(cmd_, x, y, 1);
+    time_end(k.name);
 }
 
 void Recorder::fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes) {
@@ -747,6 +804,7 @@ void Recorder::wait() {
     pending_ = false;
     check(ctx_.vk().vkWaitForFences(ctx_.device(), 1, &fence_, VK_TRUE, UINT64_MAX), "vkWaitForFences");
     check(ctx_.vk().vkResetFences(ctx_.device(), 1, &fence_), "vkResetFences");
+    collect_times();
 }
 
 Buffer upload(Context& ctx, const void* data, std::size_t bytes) {

@@ -88,7 +88,9 @@ struct Binding {
     X(vkDestroyFence) X(vkDestroyPipeline) X(vkDestroyPipelineCache) X(vkDestroyPipelineLayout)      \
     X(vkDestroyShaderModule) X(vkDeviceWaitIdle) X(vkEndCommandBuffer) X(vkFreeMemory)               \
     X(vkGetBufferMemoryRequirements) X(vkGetDeviceQueue) X(vkGetFenceStatus) X(vkMapMemory)          \
-    X(vkQueueSubmit) X(vkResetCommandBuffer) X(vkResetFences) X(vkUnmapMemory) X(vkWaitForFences)
+    X(vkQueueSubmit) X(vkResetCommandBuffer) X(vkResetFences) X(vkUnmapMemory) X(vkWaitForFences)     \
+    X(vkCreateQueryPool) X(vkDestroyQueryPool) X(vkCmdResetQueryPool) X(vkCmdWriteTimestamp)         \
+    X(vkGetQueryPoolResults)
 
 // The instance-level commands a Context needs about its physical device.
 #define GSD_INSTANCE_COMMANDS(X)                                                                     \
@@ -132,6 +134,12 @@ struct Context::State {
     std::mutex kernels_mutex, queue_mutex;
     std::map<std::string, std::unique_ptr<Kernel>> kernels;
     std::map<std::string, VkShaderModule> modules;
+    /// $GSD_GPU_PROFILE=1 (and the queue has timestamps): every dispatch and copy is timed on
+    /// the device, summed per kernel, and printed when the context ends (docs/gpu.md).
+    bool profile = false;
+    double timestamp_ns = 1;  ///< nanoseconds per timestamp tick
+    std::mutex profile_mutex;
+    std::map<std::string, std::pair<double, std::size_t>> device_ns;  ///< kernel → (ns, count)
     ~State();
 };
 
@@ -140,6 +148,7 @@ DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, st
 
 /// One command buffer and its fence: record, submit, wait; reusable.
 class Recorder {
+    static constexpr std::uint32_t kTimedCommands = 256;  ///< timed per submission (profiling)
 public:
     explicit Recorder(Context& ctx);
     ~Recorder();
@@ -174,11 +183,17 @@ public:
     bool pending() const { return pending_; }
 
 private:
+    /// Profiling: a timestamp before and after a command, labeled (State::profile).
+    void time_start();
+    void time_end(const std::string& label);
+    void collect_times();
     Context& ctx_;
     VkCommandPool pool_ = VK_NULL_HANDLE;
     VkCommandBuffer cmd_ = VK_NULL_HANDLE;
     VkFence fence_ = VK_NULL_HANDLE;
     bool pending_ = false;
+    VkQueryPool queries_ = VK_NULL_HANDLE;
+    std::vector<std::string> timed_;  ///< labels of the timestamp pairs recorded since begin()
 };
 
 /// Copies host data into a new device-local buffer (through a temporary staging buffer; waits).

@@ -219,10 +219,6 @@ private:
     bool triangles_ = false;
 };
 
-/// The indices of the points in Morton (Z-curve) order on a 2^10 grid over their box: neighbors
-/// in the order walk the same tree nodes (sums/winding.cpp).
-std::vector<std::uint32_t> morton_order(PointsView q);
-
 namespace sums {
 
 /// The most splits one (query, element) pair's refinement makes (SumTree::screened_triangle and

@@ -1,4 +1,5 @@
 // Uploading the SumTree and the winding-number kernel (shaders/sums_winding.comp).
+#include "spatial/morton.hpp"
 #include "sums/sums_gpu.hpp"
 
 #include "gpu/device_tree.hpp"
@@ -92,9 +93,7 @@ DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree) {
 namespace {
 
 struct WindingPush {
-    std::uint32_t count, first_leaf;
-    float beta, reach_scale;
-    std::uint32_t group_cap;
+    std::uint32_t count, first_leaf, group_cap;
 };
 
 /// The tree as sums_winding.comp walks it: 8 vec4 per node (the float32 walk's test and
@@ -106,7 +105,7 @@ struct DeviceWindingTree {
     std::uint32_t first_leaf = 0, widest_leaf = 0;
 };
 
-DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree) {
+DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree, float beta, float reach_scale) {
     const auto& nodes = tree.nodes();
     const auto* tests = tree.winding_tests_f();
     const auto* expansions = tree.winding_nodes_f();
@@ -116,9 +115,10 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree)
     for (std::size_t i = 0; i < nodes.size(); ++i) {
         float* r = &nd[32 * i];
         const auto& t = tests[i];
-        r[0] = t.c[0], r[1] = t.c[1], r[2] = t.c[2], r[3] = t.rho, r[4] = t.q;
-        std::memcpy(&r[5], &nodes[i].begin, 4);
-        std::memcpy(&r[6], &nodes[i].end, 4);
+        r[0] = t.c[0], r[1] = t.c[1], r[2] = t.c[2];
+        r[3] = detail::sums::winding_reach2(t.rho, t.q, beta, reach_scale);
+        std::memcpy(&r[4], &nodes[i].begin, 4);
+        std::memcpy(&r[5], &nodes[i].end, 4);
         std::memcpy(&r[8], &expansions[i], sizeof(expansions[i]));
         if (i >= tree.first_leaf()) d.widest_leaf = std::max(d.widest_leaf, nodes[i].end - nodes[i].begin);
     }
@@ -145,11 +145,8 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
                  const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
     why_not = gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return false;
-    if (!ctx->info().subgroup_vote) {
-        why_not = ctx->info().name + " has no subgroup vote in compute shaders; the winding numbers run on the CPU";
-        return false;
-    }
-    const DeviceWindingTree d = upload_winding(*ctx, tree);
+    const DeviceWindingTree d =
+        upload_winding(*ctx, tree, float(opt.beta), float(detail::sums::winding_reach_scale(opt.tolerance)));
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
     const bool software = ctx->info().is_software();
@@ -158,13 +155,19 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     const std::uint32_t cap = software ? 65535u - 64u - d.widest_leaf : 0u;
     const auto n = std::size_t(queries.rows());
     // Morton order, so that a subgroup's queries are neighbours; results go back in input order.
-    const std::vector<std::uint32_t> order = detail::morton_order(queries);
+    std::vector<std::uint32_t> order;
+    if (detail::sort_queries_for_device()) order = detail::morton_order(queries);
+    else {
+        order.resize(n);
+        for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
+    }
     const double* origin = tree.winding_origin();
     const double scale = tree.winding_scale();
     // Queries so far out that float32's expansion terms could overflow, and those the loop
     // limit cut short, are summed on the CPU (which walks far queries in double).
     constexpr double kDeviceReach = 1e6;  // root radii
     std::vector<char> redo(n, 0);
+    bool any_redo = false, far_queries = false;
     std::size_t terms = 0;
     gpu::StreamJob job;
     job.count = n;
@@ -172,8 +175,12 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     job.out_bytes = 8;
     job.stage = "winding";
     job.chunk = opt.chunk_size ? opt.chunk_size : gpu::default_chunk(*ctx);
+    // Fill and drain gather and scatter through the order, in parallel: one thread waits on
+    // memory for most of a random access, and at 10⁷ queries that was most of a run.
     job.fill = [&](std::size_t first, std::size_t m, void* dst) {
         float* up = static_cast<float*>(dst);
+        std::size_t far_count = 0;
+#pragma omp parallel for schedule(static) reduction(+ : far_count)
         for (std::size_t i = 0; i < m; ++i) {
             const auto q = Eigen::Index(order[first + i]);
             double far = 0;
@@ -185,32 +192,44 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
             up[4 * i + 3] = 0;
             if (far > kDeviceReach) {
                 redo[std::size_t(q)] = 1;
+                ++far_count;
                 for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = 0;  // a cheap stand-in
             }
         }
+        far_queries = far_queries || far_count > 0;
     };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
-        const WindingPush push{std::uint32_t(m), d.first_leaf, float(opt.beta), float(detail::sums::winding_reach_scale(opt.tolerance)), cap};
+        const WindingPush push{std::uint32_t(m), d.first_leaf, cap};
         rec.dispatch(k, {{&d.nodes}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
                      std::uint32_t((m + k.workgroup - 1) / k.workgroup));
     };
     job.drain = [&](std::size_t first, std::size_t m, const void* src) {
         const float* r = static_cast<const float*>(src);
+        std::size_t chunk_terms = 0, cut = 0;
+#pragma omp parallel for schedule(static) reduction(+ : chunk_terms, cut)
         for (std::size_t i = 0; i < m; ++i) {
             const std::uint32_t q = order[first + i];
             out.w[q] = r[2 * i];
-            if (r[2 * i + 1] < 0) redo[q] = 1;
-            else if (!redo[q]) terms += std::size_t(r[2 * i + 1]);
+            if (r[2 * i + 1] < 0) redo[q] = 1, ++cut;
+            else if (!redo[q]) chunk_terms += std::size_t(r[2 * i + 1]);
         }
+        terms += chunk_terms;
+        any_redo = any_redo || cut > 0;
     };
     gpu::stream(*ctx, job, progress);
-    std::size_t redone = 0;
-#pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms, redone)
-    for (std::size_t q = 0; q < n; ++q)
-        if (redo[q]) {
-            out.w[q] = tree.winding(queries.row(Eigen::Index(q)).transpose(), opt.beta, opt.tolerance, terms);
-            ++redone;
-        }
+    any_redo = any_redo || far_queries;
+    // The queries to sum on the CPU, listed first (a dynamic schedule over all 10⁷ indices
+    // cost more than the device's whole walk).
+    std::vector<std::uint32_t> again;
+    if (any_redo)
+        for (std::size_t q = 0; q < n; ++q)
+            if (redo[q]) again.push_back(std::uint32_t(q));
+    const std::size_t redone = again.size();
+#pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms)
+    for (std::size_t i = 0; i < again.size(); ++i) {
+        const auto q = Eigen::Index(again[i]);
+        out.w[std::size_t(q)] = tree.winding(queries.row(q).transpose(), opt.beta, opt.tolerance, terms);
+    }
     if (redone) log_once("winding: " + std::to_string(redone) + " queries far outside the source or past " + ctx->info().name +
                          "'s loop limit were summed on the CPU");
     out.terms = terms;

@@ -1,0 +1,264 @@
+// gsd-gpu-bench: one table of every query-heavy stage, the CPU path against a device, measured
+// side by side in one run — PAT evaluation, fast winding numbers, a sphere-traced picture of a
+// PAT field, the volumetric Signed Heat Method (step 1 and step 3) and the TorusNet fit.
+// Each device figure excludes a first, small run of the same stage (pipeline compile, driver
+// start); where a CPU-path run at full size would take minutes, the CPU runs a stated share of
+// the work and its rate (items per second) is what the ratio compares. `scripts/bench.sh gpu`
+// runs it; docs/gpu.md says how to run it on a machine without gsd's build dependencies.
+//
+//   gsd-gpu-bench [--full] [--device D] [--stages pat,winding,render,shm,net]
+//
+// Sizes: small ones by default (a software device such as lavapipe), the full ones with
+// --full (a real GPU: PAT of 10⁵ and 10⁶ points, winding numbers of 10⁶ queries on 10⁵ faces, a
+// 1920×1080 picture of a 10⁶-point PAT field, SHM on a 256³ grid, TorusNet on 10⁶ points).
+#include <gsd/gpu.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/render.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/shm.hpp>
+#include <gsd/sums.hpp>
+
+#include <omp.h>
+
+#include <chrono>
+#include <cstdio>
+#include <functional>
+#include <random>
+#include <set>
+#include <sstream>
+#include <string>
+
+using namespace gsd;
+
+namespace {
+
+double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
+
+double seconds(const std::function<void()>& f) {
+    const double t0 = now();
+    f();
+    return now() - t0;
+}
+
+struct Row {
+    std::string stage, size, unit;
+    double cpu_rate = 0, device_rate = 0, device_seconds = 0;
+    double difference = -1;  ///< largest |device − CPU| over what both computed (−1: not compared)
+};
+
+void print_row(const Row& r) {
+    char diff[32] = "";
+    if (r.difference >= 0) std::snprintf(diff, sizeof(diff), "%9.2g", r.difference);
+    std::printf("%-24s %-34s %11.3g %11.3g %8.2fx %9.3f s %9s  (%s)\n", r.stage.c_str(), r.size.c_str(), r.cpu_rate,
+                r.device_rate, r.device_rate / r.cpu_rate, r.device_seconds, diff, r.unit.c_str());
+    std::fflush(stdout);
+}
+
+double max_difference(const std::vector<float>& a, const std::vector<float>& b) {
+    double m = 0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) m = std::max(m, double(std::abs(a[i] - b[i])));
+    return m;
+}
+double max_difference(const std::vector<double>& a, const std::vector<double>& b) {
+    double m = 0;
+    for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) m = std::max(m, std::abs(a[i] - b[i]));
+    return m;
+}
+
+// Half the queries near the surface (where sums cost most), half uniform in [−1, 1]³.
+Points queries_near(const shapes::Shape& shape, std::size_t m, std::uint64_t seed) {
+    const PointCloud near = shape.sample(m / 2, seed);
+    std::mt19937_64 rng(seed + 1);
+    std::normal_distribution<double> noise(0, 0.02);
+    std::uniform_real_distribution<double> u(-1, 1);
+    Points q(Eigen::Index(m), 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) q(i, a) = i < near.size() ? near.points(i, a) + noise(rng) : u(rng);
+    return q;
+}
+
+std::string count(double n) {
+    char b[32];
+    std::snprintf(b, sizeof(b), "%.0e", n);
+    std::string s = b;  // 1e+06 → 1e6
+    const auto plus = s.find("e+0");
+    if (plus != std::string::npos) s.replace(plus, 3, "e");
+    return s;
+}
+
+Row bench_pat(const shapes::Shape& torus, std::size_t points, std::size_t queries, double cpu_share, const std::string& device) {
+    const FittedTori tori = JetFitter().fit(torus.sample(points, 1));
+    const Points q = queries_near(torus, queries, 7);
+    const Points q_cpu = q.topRows(Eigen::Index(double(queries) * cpu_share));
+    Row r{"PAT evaluation", count(double(points)) + " pts, " + count(double(queries)) + " queries", "queries/s"};
+    std::vector<float> ref;
+    for (const std::string& d : {std::string("cpu"), device}) {
+        BlendOptions o;
+        o.device = d;
+        const TorusField field(tori, o);
+        field.evaluate(q.topRows(256));  // setup: tree, upload, pipelines
+        const Points& use = d == "cpu" ? q_cpu : q;
+        FieldValues v;
+        const double t = seconds([&] { v = field.evaluate(use); });
+        if (d == "cpu") ref = v.phi;
+        else r.difference = max_difference(ref, v.phi);
+        (d == "cpu" ? r.cpu_rate : r.device_rate) = double(use.rows()) / t;
+        if (d != "cpu") r.device_seconds = t;
+    }
+    return r;
+}
+
+Row bench_winding(int resolution, std::size_t queries, double cpu_share, const std::string& device) {
+    PolygonMesh mesh = shapes::double_torus_mesh(resolution);
+    shapes::MeshCorruption c;
+    c.holes = 3;
+    c.hole_area = 0.1;
+    c.flip_fraction = 0.05;
+    mesh = shapes::corrupt(mesh, c, 3);
+    const OrientedElements elements = OrientedElements::from_mesh(mesh);
+    const Box b = bounding_box(elements.corners);
+    std::mt19937_64 rng(5);
+    Points q(Eigen::Index(queries), 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) q(i, a) = std::uniform_real_distribution<double>(b.lo[a] - 0.1, b.hi[a] + 0.1)(rng);
+    const Points q_cpu = q.topRows(Eigen::Index(double(queries) * cpu_share));
+    Row r{"winding numbers", count(double(elements.size())) + " faces (broken), " + count(double(queries)) + " queries", "queries/s"};
+    std::vector<double> ref;
+    for (const std::string& d : {std::string("cpu"), device}) {
+        WindingOptions o;
+        o.device = d;
+        const WindingField field(elements, o);
+        field.winding_numbers(q.topRows(256));  // setup: tree, pipelines
+        const Points& use = d == "cpu" ? q_cpu : q;
+        WindingResult w;
+        const double t = seconds([&] { w = field.winding_numbers(use); });
+        if (d == "cpu") ref = w.w;
+        else r.difference = max_difference(ref, w.w);
+        (d == "cpu" ? r.cpu_rate : r.device_rate) = double(use.rows()) / t;
+        if (d != "cpu") r.device_seconds = t;
+    }
+    return r;
+}
+
+Row bench_render(const shapes::Shape& torus, std::size_t points, int width, int height, int cpu_divisor, const std::string& device) {
+    const FittedTori tori = JetFitter().fit(torus.sample(points, 1));
+    const Box box{{-1, -1, -1}, {1, 1, 1}};
+    Row r{"render (PAT)", count(double(points)) + " pts, " + std::to_string(width) + "x" + std::to_string(height), "pixels/s"};
+    for (const std::string& d : {std::string("cpu"), device}) {
+        BlendOptions bo;
+        bo.device = d;
+        const TorusField field(tori, bo);
+        FieldRenderOptions o;
+        o.device = d;
+        o.width = 64, o.height = 36;
+        render_field(field, box, o);  // setup
+        const int div = d == "cpu" ? cpu_divisor : 1;
+        o.width = width / div, o.height = height / div;
+        const double t = seconds([&] { render_field(field, box, o); });
+        (d == "cpu" ? r.cpu_rate : r.device_rate) = double(o.width) * o.height / t;
+        if (d != "cpu") r.device_seconds = t;
+    }
+    return r;
+}
+
+// Step 1 and step 3 as two rows (their own times, from ShmResult), in nodes per second.
+void bench_shm(const shapes::Shape& torus, std::size_t points, int n, const std::string& device) {
+    const ShmSource src = shm_source(torus.sample(points, 1));
+    const GridSpec grid = GridSpec::cube(n, Box{{-1, -1, -1}, {1, 1, 1}});
+    Row s1{"SHM step 1 (diffuse)", count(double(points)) + " pts, " + std::to_string(n) + "^3", "nodes/s"};
+    Row s3{"SHM step 3 (solve)", count(double(points)) + " pts, " + std::to_string(n) + "^3", "nodes/s"};
+    const double nodes = double(grid.node_count());
+    std::vector<float> ref;
+    for (const std::string& d : {std::string("cpu"), device}) {
+        ShmOptions o;
+        o.device = d;
+        if (d != "cpu") SignedHeatGrid(src, GridSpec::cube(17, grid.box), o).solve();  // setup
+        const ShmResult res = SignedHeatGrid(src, grid, o).solve();
+        if (d == "cpu") ref = res.phi;
+        else s3.difference = max_difference(ref, res.phi) / grid.box.diagonal();  // φ, relative to the diagonal
+        (d == "cpu" ? s1.cpu_rate : s1.device_rate) = nodes / res.seconds_diffuse;
+        (d == "cpu" ? s3.cpu_rate : s3.device_rate) = nodes / res.seconds_solve;
+        if (d != "cpu") s1.device_seconds = res.seconds_diffuse, s3.device_seconds = res.seconds_solve;
+    }
+    print_row(s1);
+    print_row(s3);
+}
+
+Row bench_net(const shapes::Shape& torus, std::size_t points, double cpu_share, const std::string& device) {
+    const PointCloud cloud = torus.sample(points, 1);
+    PointCloud part;
+    const auto m = Eigen::Index(std::max(256.0, double(points) * cpu_share));
+    part.points = cloud.points.topRows(m);
+    part.normals = cloud.normals.topRows(m);
+    Row r{"TorusNet fit", count(double(points)) + " pts", "points/s"};
+    for (const std::string& d : {std::string("cpu"), device}) {
+        TorusNetOptions o;
+        o.device = d;
+        const TorusNet net(o);
+        net.fit(torus.sample(256, 2));  // setup: weights, pipelines
+        const PointCloud& use = d == "cpu" ? part : cloud;
+        const double t = seconds([&] { net.fit(use); });
+        (d == "cpu" ? r.cpu_rate : r.device_rate) = double(use.size()) / t;
+        if (d != "cpu") r.device_seconds = t;
+    }
+    return r;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+    bool full = false;
+    std::string device = "gpu";
+    std::set<std::string> stages{"pat", "winding", "render", "shm", "net"};
+    for (int i = 1; i < argc; ++i) {
+        const std::string a = argv[i];
+        if (a == "--full") full = true;
+        else if (a == "--device" && i + 1 < argc) device = argv[++i];
+        else if (a == "--stages" && i + 1 < argc) {
+            stages.clear();
+            std::stringstream ss(argv[++i]);
+            for (std::string s; std::getline(ss, s, ',');) stages.insert(s);
+        } else {
+            std::fprintf(stderr, "usage: gsd-gpu-bench [--full] [--device D] [--stages pat,winding,render,shm,net]\n");
+            return 2;
+        }
+    }
+    set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
+    const gpu::Selection sel = gpu::select(device);
+    if (!sel.context) {
+        std::fprintf(stderr, "gsd-gpu-bench: no device for '%s' (%s)\n", device.c_str(), sel.note.c_str());
+        return 1;
+    }
+    std::printf("gsd-gpu-bench (%s sizes): device = %s; CPU path = %d threads\n", full ? "full" : "small", sel.device_name.c_str(),
+                omp_get_max_threads());
+    std::printf("%-24s %-34s %11s %11s %9s %11s %9s\n", "stage", "size", "CPU path", "device", "ratio", "device time", "max |Δ|");
+    const auto torus = shapes::by_name("torus");
+    try {
+        if (stages.count("pat")) {
+            if (full) {
+                print_row(bench_pat(*torus, 100000, 10000000, 0.1, device));
+                print_row(bench_pat(*torus, 1000000, 10000000, 0.1, device));
+            } else {
+                print_row(bench_pat(*torus, 100000, 200000, 1.0, device));
+            }
+        }
+        if (stages.count("winding")) {
+            // double_torus_mesh(n): about 8.4 n² triangles (n 110: 10⁵).
+            if (full) print_row(bench_winding(110, 10000000, 0.1, device));
+            else print_row(bench_winding(72, 300000, 1.0, device));
+        }
+        if (stages.count("render")) {
+            if (full) print_row(bench_render(*torus, 1000000, 1920, 1080, 4, device));
+            else print_row(bench_render(*torus, 20000, 320, 240, 1, device));
+        }
+        if (stages.count("shm")) bench_shm(*torus, full ? 100000 : 20000, full ? 256 : 128, device);
+        if (stages.count("net")) {
+            if (full) print_row(bench_net(*torus, 1000000, 0.05, device));
+            else print_row(bench_net(*torus, 10000, 1.0, device));
+        }
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "gsd-gpu-bench: %s\n", e.what());
+        return 1;
+    }
+    return 0;
+}
