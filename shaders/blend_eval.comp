@@ -88,8 +88,7 @@ void main() {
             barrier();
         }
     } else {
-        if (!valid) return;
-        blend_accelerated(x, grad, a, rho, rho_varies, far_p);
+        blend_accelerated(x, valid, grad, a, rho, rho_varies, far_p);  // every lane: the walks are shared
     }
     if (!valid) return;
     vec3 g;

@@ -76,13 +76,16 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
 // neighbours and their balls open nearly the same nodes; no lane waits on another's branch, and
 // no stack is needed: the tree is complete, so the next node in depth-first order comes from the
 // node's index (climb while it is a right child, then step to its sibling).
-uint sum_ball(vec3 x, inout Acc a, bool grad) {
+// Call it from uniform control flow (every lane of the subgroup), with live = false on lanes
+// that have nothing to evaluate: subgroup votes in divergent control flow are where llvmpipe
+// (Mesa 22.3) went wrong, and a walk taken together needs every lane anyway.
+uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     float r2 = pc.r_eval * pc.r_eval;
     float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
     uint found = 0;
     uint node = 0u;
     while (true) {
-        bool near = node_distance2(x, node) <= r2;
+        bool near = live && node_distance2(x, node) <= r2;
         if (subgroupAny(near)) {
             if (node < pc.first_leaf) {
                 node = 2u * node + 1u;
@@ -105,19 +108,22 @@ uint sum_ball(vec3 x, inout Acc a, bool grad) {
     return found;
 }
 
-// The accelerated sum at x (the ball of radius r_eval, else the k nearest): fills the sums,
-// ρ, and, when ρ depends on x, the point that sets it.
-void blend_accelerated(vec3 x, bool grad, out Acc a, out float rho, out bool rho_varies, out vec3 far_p) {
+// Uniform control flow (sum_ball); a lane with live = false gets sums of nothing.
+void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, out bool rho_varies, out vec3 far_p) {
     a = acc_zero();
     rho = pc.r_eval;
     rho_varies = false;
     far_p = vec3(0.0);
-    if (sum_ball(x, a, grad) >= pc.k_fallback) return;
-    // Fewer than k points within r_eval: the k nearest, ρ = d_k.
-    a = acc_zero();
+    uint found = sum_ball(x, live, a, grad);
+    if (!live || found >= pc.k_fallback) return;
+    // Fewer than k points within r_eval: the k nearest, ρ = d_k. Each lane walks on its own,
+    // best first from its own position: a walk taken together in one order (the subgroup's
+    // first lane's) cost lanes whose nearest points lay elsewhere most of the tree, and on
+    // llvmpipe that ran past its loop limit.
     float kd[K_MAX];
     uint ki[K_MAX];
     knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);
+    a = acc_zero();
     uint k = pc.k_fallback;
     rho = max(kd[k - 1], 1e-30);
     rho_varies = true;
@@ -147,12 +153,12 @@ float blend_finish(Acc a, vec3 x, float rho, bool rho_varies, vec3 far_p, bool g
     return phi;
 }
 
-// The accelerated field at x.
-float blend_field(vec3 x, bool grad, out vec3 g) {
+// The accelerated field at x; uniform control flow, live = false on lanes with nothing to do.
+float blend_field(vec3 x, bool live, bool grad, out vec3 g) {
     Acc a;
     float rho;
     bool rho_varies;
     vec3 far_p;
-    blend_accelerated(x, grad, a, rho, rho_varies, far_p);
+    blend_accelerated(x, live, grad, a, rho, rho_varies, far_p);
     return blend_finish(a, x, rho, rho_varies, far_p, grad, g);
 }

@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_vote : require
 // Sphere-traces a grid of φ (trilinear between nodes) per pixel: the renderer's GPU path for
 // grids (src/render/render_gpu.cpp).
 layout(local_size_x_id = 0) in;
@@ -17,7 +18,7 @@ layout(push_constant) uniform Push {
 float node(int i, int j, int k) { return values[(uint(i) * pc.ny + uint(j)) * pc.nz + uint(k)]; }
 
 // Trilinear φ and its gradient (the derivative of the trilinear interpolant in its cell).
-float field_phi(vec3 x, bool grad, out vec3 g) {
+float field_phi(vec3 x, bool live, bool grad, out vec3 g) {
     vec3 h = vec3(pc.hx, pc.hy, pc.hz);
     vec3 s = (x - vec3(pc.x0, pc.y0, pc.z0)) / h;
     ivec3 n = ivec3(pc.nx, pc.ny, pc.nz);

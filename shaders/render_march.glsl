@@ -2,7 +2,8 @@
 // tests hold this to). The including shader defines, before including this,
 //   float field_phi(vec3 x, bool grad, out vec3 g)   the field, and ∇φ when `grad`,
 // and RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below.
-// One invocation per pixel: its ray from the eye is clipped to the box, then advanced by
+// One invocation per pixel (march() says how a subgroup keeps its lanes together): its ray from
+// the eye is clipped to the box, then advanced by
 // step_scale·|φ| (at least min_step) until |φ| < hit_eps, or φ changes sign between two steps
 // (then bisected), or it leaves the box or runs out of steps.
 
@@ -43,46 +44,73 @@ bool clip_to_box(vec3 o, vec3 d, out float t0, out float t1) {
     return t0 <= t1;
 }
 
-vec4 march(vec3 eye, vec3 d) {
-    float t0, t1;
-    if (!clip_to_box(eye, d, t0, t1)) return vec4(-1.0, 0.0, 0.0, 0.0);
+// The march as a state machine per lane — first sample, marching, bisecting, done — in a loop
+// that runs while any lane of the subgroup has work: every lane calls field_phi at every turn
+// (live = false once its ray is done), so the field is always evaluated in uniform control
+// flow and its tree walks are taken by the subgroup together. Each lane does the arithmetic the
+// plain loop did (render.cpp's march_ray): the same samples, the same hits.
+vec4 march(vec3 eye, vec3 d, bool valid) {
+    const uint FIRST = 0u, MARCH = 1u, BISECT = 2u, DONE = 3u;
+    float t0 = 0.0, t1 = 0.0;
+    bool inside = valid && clip_to_box(eye, d, t0, t1);
     // March from where the ray enters the box, so t stays small and float steps stay exact
     // however far the camera is; t0 is added back at the end.
     vec3 o = eye + t0 * d;
     float span = t1 - t0;
     vec3 g;
-    float t = 0.0;
-    float phi = field_phi(o, false, g);
-    float hit = -1.0;
-    if (abs(phi) < rp.march.y) hit = t;
-    for (uint s = 0; hit < 0.0 && s < rp.size.z; ++s) {
-        float tn = t + max(rp.march.x * abs(phi), rp.march.z);
-        if (tn > span) break;
-        float pn = field_phi(o + tn * d, false, g);
-        if ((pn < 0.0) != (phi < 0.0)) {
-            // Crossed the surface within the step: bisect [t, tn].
-            float a = t, b = tn, pa = phi;
-            for (uint k = 0; k < rp.size.w; ++k) {
-                float m = 0.5 * (a + b);
-                float pm = field_phi(o + m * d, false, g);
-                if ((pm < 0.0) == (pa < 0.0)) { a = m; pa = pm; } else { b = m; }
+    uint phase = inside ? FIRST : DONE;
+    float t = 0.0, phi = 0.0, tn = 0.0, a = 0.0, b = 0.0, pa = 0.0, hit = -1.0;
+    uint s = 0u, k = 0u;
+    while (subgroupAny(phase != DONE)) {
+        float at = phase == FIRST ? 0.0 : (phase == MARCH ? tn : 0.5 * (a + b));
+        float p = field_phi(o + at * d, phase != DONE, false, g);
+        if (phase == FIRST || phase == MARCH) {
+            bool next = false;  // take another step from (t, phi)
+            if (phase == FIRST) {
+                phi = p;
+                if (abs(phi) < rp.march.y) hit = 0.0;
+                else next = true;
+            } else if ((p < 0.0) != (phi < 0.0)) {
+                // Crossed the surface within the step: bisect [t, tn].
+                a = t;
+                b = tn;
+                pa = phi;
+                k = 0u;
+                if (rp.size.w == 0u) hit = 0.5 * (a + b);
+                else phase = BISECT;
+            } else if (abs(p) < rp.march.y) {
+                hit = tn;
+            } else {
+                t = tn;
+                phi = p;
+                ++s;
+                next = true;
             }
-            hit = 0.5 * (a + b);
-        } else if (abs(pn) < rp.march.y) {
-            hit = tn;
+            if (next) {
+                tn = t + max(rp.march.x * abs(phi), rp.march.z);
+                phase = (s < rp.size.z && tn <= span) ? MARCH : DONE;
+            } else if (phase != BISECT) {
+                phase = DONE;
+            }
+        } else if (phase == BISECT) {
+            if ((p < 0.0) == (pa < 0.0)) { a = 0.5 * (a + b); pa = p; } else { b = 0.5 * (a + b); }
+            if (++k >= rp.size.w) {
+                hit = 0.5 * (a + b);
+                phase = DONE;
+            }
         }
-        t = tn;
-        phi = pn;
     }
-    if (hit < 0.0) return vec4(-1.0, 0.0, 0.0, 0.0);
-    field_phi(o + hit * d, true, g);
+    bool got = hit >= 0.0;
+    field_phi(o + max(hit, 0.0) * d, got, true, g);  // ∇φ at the hit, again by every lane
+    if (!got) return vec4(-1.0, 0.0, 0.0, 0.0);
     return vec4(t0 + hit, g);
 }
 
 void render_main(uint first_pixel, uint pixel_count) {
     uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
-    if (i >= pixel_count) return;
-    uint p = first_pixel + i;
+    bool valid = i < pixel_count;  // lanes past the end take part in the walks, idle
+    uint p = first_pixel + min(i, pixel_count - 1u);
     uint px = p % rp.size.x, py = p / rp.size.x;
-    hits[i] = march(rp.eye.xyz, pixel_ray(px, py));
+    vec4 h = march(rp.eye.xyz, pixel_ray(px, py), valid);
+    if (valid) hits[i] = h;
 }

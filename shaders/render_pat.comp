@@ -27,7 +27,7 @@ layout(push_constant) uniform Push {
 
 #include "blend_field.glsl"
 
-float field_phi(vec3 x, bool grad, out vec3 g) { return blend_field(x, grad, g); }
+float field_phi(vec3 x, bool live, bool grad, out vec3 g) { return blend_field(x, live, grad, g); }
 
 #define RENDER_PARAMS_BINDING 3
 #define RENDER_OUT_BINDING 4

@@ -140,7 +140,8 @@ DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, st
     if (p.apiVersion < VK_API_VERSION_1_1) d.why_not = "needs Vulkan 1.1";
     else if (!find_compute_queue(fn, dev, family)) d.why_not = "no compute queue";
     else if (!has_extension(fn, dev, VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME)) d.why_not = "no VK_KHR_push_descriptor";
-    else if (!d.subgroup_vote) d.why_not = "no subgroup vote in compute shaders (the tree walks vote per node)";
+    else if (!d.subgroup_vote || !d.subgroup_ballot)
+        d.why_not = "no subgroup vote and ballot in compute shaders (the tree walks vote per node)";
     d.usable = d.why_not.empty();
     return d;
 }

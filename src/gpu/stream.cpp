@@ -1,6 +1,8 @@
 #include "gpu/stream.hpp"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <array>
 #include <memory>
 
@@ -29,10 +31,19 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
         s.rec = std::make_unique<Recorder>(c);
     }
     std::size_t done = 0;
+    // Host time spent filling, waiting and draining (printed with GSD_GPU_PROFILE=1): where a
+    // call's time goes when the kernels are not what bounds it.
+    const bool profile = c.state().profile;
+    double t_fill = 0, t_wait = 0, t_drain = 0;
+    auto clock = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
     auto drain = [&](Slot& s) {
         if (!s.rec || !s.rec->pending()) return;
+        double t0 = clock();
         s.rec->wait();
+        const double t1 = clock();
+        t_wait += t1 - t0;
         job.drain(s.first, s.count, s.down.mapped());
+        t_drain += clock() - t1;
         done += s.count;
         if (progress) progress(job.stage, double(done) / double(job.count));
     };
@@ -42,7 +53,9 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
         drain(s);
         s.first = first;
         s.count = std::min(chunk, job.count - first);
+        const double t0 = clock();
         job.fill(first, s.count, s.up.mapped());
+        t_fill += clock() - t0;
         s.rec->begin();
         s.rec->copy(s.up, 0, s.in, 0, s.count * job.in_bytes);
         s.rec->barrier();
@@ -53,6 +66,9 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
         s.rec->submit();
     }
     for (std::size_t m = 0; m < used; ++m) drain(slots[(index + m) % used]);
+    if (profile)
+        std::fprintf(stderr, "gsd: %s: %zu items in %zu chunks; host fill %.1f ms, waiting %.1f ms, drain %.1f ms\n", job.stage,
+                     job.count, index, 1e3 * t_fill, 1e3 * t_wait, 1e3 * t_drain);
 }
 
 std::size_t default_chunk(const Context& ctx) { return ctx.info().is_software() ? 65536 : std::size_t(1) << 20; }

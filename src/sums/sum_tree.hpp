@@ -126,6 +126,10 @@ public:
                       double tolerance, double* w, std::size_t& terms) const;
     /// The exact sum over every element (the reference).
     double winding_exact(const Eigen::Vector3d& x) const;
+    /// A slot for the tree's copy on a device (sums_gpu.cpp keeps its uploaded records here, so
+    /// that repeated calls on one field upload them once), and the lock that guards it.
+    std::shared_ptr<void>& device_copy() const { return device_copy_; }
+    std::mutex& device_copy_mutex() const { return once_->device; }
     /// The float32 walk's records, one per node (what the GPU walk uploads), and its
     /// coordinates: x ↦ (x − winding_origin())·winding_scale().
     const WindingTestT<float>* winding_tests_f() const { return wtests_f_.data(); }
@@ -184,8 +188,10 @@ private:
     mutable std::vector<Hot> hot_;  // hot(): made on first use
     struct Once {
         std::once_flag hot, twice;
+        std::mutex device;  // device_copy
     };
     std::unique_ptr<Once> once_ = std::make_unique<Once>();  // a pointer: SumTree stays movable
+    mutable std::shared_ptr<void> device_copy_;
     const std::vector<Hot>& hot() const;
     /// Makes wnodes_ and wtests_ (the double walk's records) if they are not there yet.
     void double_walk_data() const;

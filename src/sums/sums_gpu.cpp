@@ -6,7 +6,9 @@
 #include "gpu/stream.hpp"
 #include "sums/sum_tree.hpp"
 
+#include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 
 namespace gsd::sums_detail {
@@ -101,6 +103,10 @@ struct WindingPush {
 /// walk's normalized coordinates (vector areas scaled by scale², so that a point's dipole
 /// v·y/|y|³ is unchanged).
 struct DeviceWindingTree {
+    // What the records were made for: the device (first, so that it outlives the buffers), β and
+    // the reach scale (reach² depends on them).
+    std::shared_ptr<gpu::Context> ctx;
+    float beta = 0, reach_scale = 0;
     gpu::Buffer nodes, elements;
     std::uint32_t first_leaf = 0, widest_leaf = 0;
 };
@@ -136,7 +142,23 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree,
     d.nodes = gpu::upload(ctx, nd.data(), nd.size() * 4);
     d.elements = gpu::upload(ctx, el.data(), el.size() * 4);
     d.first_leaf = tree.first_leaf();
+    d.beta = beta;
+    d.reach_scale = reach_scale;
     return d;
+}
+
+/// The tree's records on this device for (β, reach scale): uploaded once per tree and kept with
+/// it (SumTree::device_copy), so that a field evaluated again (chunks of a render, a grid in
+/// slabs, the bench's repeated calls) does not upload again.
+std::shared_ptr<const DeviceWindingTree> device_tree(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree,
+                                                     float beta, float reach_scale) {
+    std::lock_guard<std::mutex> lock(tree.device_copy_mutex());
+    auto cached = std::static_pointer_cast<DeviceWindingTree>(tree.device_copy());
+    if (cached && cached->ctx == ctx && cached->beta == beta && cached->reach_scale == reach_scale) return cached;
+    auto made = std::make_shared<DeviceWindingTree>(upload_winding(*ctx, tree, beta, reach_scale));
+    made->ctx = ctx;
+    tree.device_copy() = made;
+    return made;
 }
 
 }  // namespace
@@ -145,8 +167,12 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
                  const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
     why_not = gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return false;
-    const DeviceWindingTree d =
-        upload_winding(*ctx, tree, float(opt.beta), float(detail::sums::winding_reach_scale(opt.tolerance)));
+    auto clock = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
+    const double t_start = clock();
+    const std::shared_ptr<const DeviceWindingTree> kept =
+        device_tree(ctx, tree, float(opt.beta), float(detail::sums::winding_reach_scale(opt.tolerance)));
+    const DeviceWindingTree& d = *kept;
+    const double t_uploaded = clock();
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
     const bool software = ctx->info().is_software();
@@ -161,6 +187,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
         order.resize(n);
         for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
     }
+    const double t_sorted = clock();
     const double* origin = tree.winding_origin();
     const double scale = tree.winding_scale();
     // Queries so far out that float32's expansion terms could overflow, and those the loop
@@ -217,6 +244,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
         any_redo = any_redo || cut > 0;
     };
     gpu::stream(*ctx, job, progress);
+    const double t_streamed = clock();
     any_redo = any_redo || far_queries;
     // The queries to sum on the CPU, listed first (a dynamic schedule over all 10⁷ indices
     // cost more than the device's whole walk).
@@ -230,6 +258,10 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
         const auto q = Eigen::Index(again[i]);
         out.w[std::size_t(q)] = tree.winding(queries.row(q).transpose(), opt.beta, opt.tolerance, terms);
     }
+    if (ctx->state().profile)
+        std::fprintf(stderr, "gsd: winding host: tree upload %.1f ms, order %.1f ms, stream %.1f ms, CPU redo %.1f ms (%zu queries)\n",
+                     1e3 * (t_uploaded - t_start), 1e3 * (t_sorted - t_uploaded), 1e3 * (t_streamed - t_sorted),
+                     1e3 * (clock() - t_streamed), redone);
     if (redone) log_once("winding: " + std::to_string(redone) + " queries far outside the source or past " + ctx->info().name +
                          "'s loop limit were summed on the CPU");
     out.terms = terms;

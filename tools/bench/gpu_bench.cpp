@@ -144,6 +144,7 @@ Row bench_render(const shapes::Shape& torus, std::size_t points, int width, int 
     const FittedTori tori = JetFitter().fit(torus.sample(points, 1));
     const Box box{{-1, -1, -1}, {1, 1, 1}};
     Row r{"render (PAT)", count(double(points)) + " pts, " + std::to_string(width) + "x" + std::to_string(height), "pixels/s"};
+    std::vector<float> ref;  // the CPU's depths, compared when both rendered the same pixels
     for (const std::string& d : {std::string("cpu"), device}) {
         BlendOptions bo;
         bo.device = d;
@@ -154,7 +155,15 @@ Row bench_render(const shapes::Shape& torus, std::size_t points, int width, int 
         render_field(field, box, o);  // setup
         const int div = d == "cpu" ? cpu_divisor : 1;
         o.width = width / div, o.height = height / div;
-        const double t = seconds([&] { render_field(field, box, o); });
+        RenderedField picture;
+        const double t = seconds([&] { picture = render_field(field, box, o); });
+        if (d == "cpu" && div == 1) ref = picture.depth;
+        if (d != "cpu" && ref.size() == picture.depth.size()) {
+            // The share of pixels where one hit and the other missed (the test holds it to 0).
+            std::size_t differ = 0;
+            for (std::size_t i = 0; i < ref.size(); ++i) differ += (ref[i] < 0) != (picture.depth[i] < 0);
+            r.difference = double(differ) / double(ref.size());
+        }
         (d == "cpu" ? r.cpu_rate : r.device_rate) = double(o.width) * o.height / t;
         if (d != "cpu") r.device_seconds = t;
     }
