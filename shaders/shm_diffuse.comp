@@ -84,52 +84,6 @@ vec3 node_expansion(uint i, vec3 d, float r_min) {
     return X;
 }
 
-// One triangle a, a + ab, a + ac (vector area v, covariance diagonal cd and off-diagonal co,
-// radius ρ0 about its centroid), refined until its pieces pass (SumTree::screened_triangle).
-vec3 refine_triangle(vec3 x, vec3 a, vec3 ab, vec3 ac, vec3 v, vec3 cd, vec3 co, float rho0, float rmin, float R,
-                     inout uint terms) {
-    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
-    vec3 X = vec3(0.0);
-    float area = length(v);
-    int np = 0, splits = 0;
-    pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
-    while (np > 0) {
-        vec4 pq = pieces[--np];
-        ++iters;
-        float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
-        // Every piece is similar to the element: radius h·ρ0.
-        vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
-        float rho = rho0 * pq.z;
-        vec3 dg = x - g;
-        float dist = length(dg);
-        if (dist - rho > R) continue;
-        float share = pq.z * pq.z;
-        vec3 m0 = v * share;
-        if (accept(rho, dist, area * share, rmin)) {
-            // A piece about its own centroid: M1 = 0, M2_a = m0_a · share · C.
-            vec3 u = dg / dist;
-            vec3 f = radial(dist, rmin);
-            float A = f.z - f.y / dist, B = f.y / dist;
-            float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
-                       2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
-            float ct = cd.x + cd.y + cd.z;
-            X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
-        } else if (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS) {
-            X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
-        } else {
-            float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
-            ++splits;
-            pieces[np++] = vec4(pq.x, pq.y, h, w);
-            pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
-            pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
-            pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
-            continue;
-        }
-        ++terms;
-    }
-    return X;
-}
-
 // Covariance of the triangle a, a + ab, a + ac: (1/12) Σ (p − g)(p − g)ᵀ as its diagonal cd
 // and off-diagonal co (xy xz yz); its radius about the centroid.
 void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
@@ -140,59 +94,6 @@ void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
     rho = max(length(qa), max(length(qb), length(qc)));
 }
 
-// A triangle wider than the reach R: its part in the cube of half-side R about x, fanned into
-// triangles, each refined as an element of its own (SumTree::screened_element: the work is
-// bounded by the reach, not by the element's extent). Its own function, so that the common
-// case never touches the polygon's arrays (private arrays live in memory on llvmpipe).
-vec3 clipped_term(vec3 x, vec3 pa, vec3 pb, vec3 pc3, vec3 v, float rmin, float R, inout uint terms) {
-    vec3 poly[9], next[9];
-    poly[0] = pa; poly[1] = pb; poly[2] = pc3;
-    int n = 3;
-    float whole = length(cross(pb - pa, pc3 - pa));
-    for (int axis = 0; axis < 3 && n > 0; ++axis) {
-        for (int side = 0; side < 2 && n > 0; ++side) {
-            float plane = side == 1 ? x[axis] + R : x[axis] - R;
-            int m = 0;
-            for (int i = 0; i < n; ++i) {
-                ++iters;
-                vec3 p = poly[i], q = poly[(i + 1) % n];
-                float dp = side == 1 ? plane - p[axis] : p[axis] - plane;
-                float dq = side == 1 ? plane - q[axis] : q[axis] - plane;
-                if (dp >= 0.0 && m < 9) next[m++] = p;
-                if ((dp >= 0.0) != (dq >= 0.0) && m < 9) {
-                    vec3 e = dp >= 0.0 ? p : q, f = dp >= 0.0 ? q : p;
-                    float din = abs(dp >= 0.0 ? dp : dq), dout = abs(dp >= 0.0 ? dq : dp);
-                    vec3 c = e + (f - e) * (din / (din + dout));
-                    c[axis] = plane;
-                    next[m++] = c;
-                }
-            }
-            for (int i = 0; i < m; ++i) poly[i] = next[i];
-            n = m;
-        }
-    }
-    vec3 X = vec3(0.0);
-    for (int i = 1; i + 1 < n; ++i) {
-        vec3 a = poly[0], ab = poly[i] - a, ac = poly[i + 1] - a;
-        float share = length(cross(ab, ac)) / whole;
-        if (!(share > 0.0)) continue;
-        vec3 cd, co;
-        float rho;
-        triangle_shape(ab, ac, cd, co, rho);
-        X += refine_triangle(x, a, ab, ac, v * share, cd, co, rho, rmin, R, terms);
-    }
-    return X;
-}
-
-// An element's term: the whole triangle refined, or, wider than the reach, its part within it.
-vec3 element_term(vec3 x, vec3 pa, vec3 pb, vec3 pc3, vec3 v, float rmin, float R, inout uint terms) {
-    vec3 ab = pb - pa, ac = pc3 - pa, cd, co;
-    float rho0;
-    triangle_shape(ab, ac, cd, co, rho0);
-    if (rho0 > R) return clipped_term(x, pa, pb, pc3, v, rmin, R, terms);
-    return refine_triangle(x, pa, ab, ac, v, cd, co, rho0, rmin, R, terms);
-}
-
 void main() {
     uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
     if (q >= pc.count) return;
@@ -201,7 +102,9 @@ void main() {
     float R = rmin + pc.cutoff / pc.lambda;
     vec3 X = vec3(0.0);
     uint terms = 0u;
+    bool wide = false;  // met an element wider than the reach: the host redoes this query
     uint stack[STACK];
+    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
     int top = 0;
     stack[top++] = 0u;
     while (top > 0) {
@@ -222,10 +125,57 @@ void main() {
         for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
             ++iters;
             vec4 ea = elems[3u * j], eb = elems[3u * j + 1u], ec = elems[3u * j + 2u];
-            X += element_term(x, ea.xyz, eb.xyz, ec.xyz, vec3(ea.w, eb.w, ec.w), rmin, R, terms);
+            vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w), cd, co;
+            float rho0;
+            triangle_shape(ab, ac, cd, co, rho0);
+            // Wider than the reach (a face with a far corner, a needle): only its part within the
+            // reach counts, cut out on the CPU (SumTree::screened_element), which redoes this query.
+            // Not here: llvmpipe runs an if's body under a lane mask whether a lane takes it or
+            // not, and the clipping, run so for every element, made step 1 2.5× slower there.
+            if (rho0 > R) {
+                wide = true;
+                continue;
+            }
+            float area = length(v);
+            int np = 0, splits = 0;
+            pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
+            while (np > 0) {
+                vec4 pq = pieces[--np];
+                ++iters;
+                float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
+                vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
+                float rho = rho0 * pq.z;
+                vec3 dg = x - g;
+                float dist = length(dg);
+                if (dist - rho > R) continue;
+                float share = pq.z * pq.z;
+                vec3 m0 = v * share;
+                if (accept(rho, dist, area * share, rmin)) {
+                    vec3 u = dg / dist;
+                    vec3 f = radial(dist, rmin);
+                    float A = f.z - f.y / dist, B = f.y / dist;
+                    float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
+                               2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
+                    float ct = cd.x + cd.y + cd.z;
+                    X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
+                } else if (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS) {
+                    X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+                } else {
+                    float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
+                    ++splits;
+                    pieces[np++] = vec4(pq.x, pq.y, h, w);
+                    pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
+                    pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
+                    pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
+                    continue;
+                }
+                ++terms;
+            }
         }
     }
     float len = length(X);
     outv[2u * q] = vec4(len > 0.0 ? X / len : vec3(0.0), rmin);
-    outv[2u * q + 1u] = vec4(float(terms), pc.lane_cap > 0u && iters >= pc.lane_cap ? 1.0 : 0.0, 0.0, 0.0);
+    // y: redo on the CPU — the loop limit may have cut the walk short, or an element was wider
+    // than the reach.
+    outv[2u * q + 1u] = vec4(float(terms), (pc.lane_cap > 0u && iters >= pc.lane_cap) || wide ? 1.0 : 0.0, 0.0, 0.0);
 }

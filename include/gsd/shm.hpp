@@ -106,6 +106,9 @@ struct ShmResult {
     std::vector<double> residual_history;  ///< relative residual after each cycle/iteration
     std::vector<double> fit_history;       ///< the same for the zero-set fit (empty without one)
     double seconds_diffuse = 0, seconds_solve = 0;
+    /// Parts of seconds_solve: the Poisson solve itself (with the divergence and the mean
+    /// shift), the zero-set fit and the outside veto (both on the CPU).
+    double seconds_poisson = 0, seconds_fit = 0, seconds_veto = 0;
     std::size_t exact_nodes = 0;           ///< nodes where step 1 summed the kernel (the rest interpolated)
     std::size_t kernel_terms = 0;          ///< source terms summed in step 1 (its cost)
     std::size_t vetoed_nodes = 0;          ///< nodes the outside veto turned from inside to outside

@@ -54,18 +54,23 @@ public:
             }
         };
         gpu::stream(*ctx_, job, progress);
-        // Queries a software device may have cut short: the CPU reference, in double.
+        // Queries a software device may have cut short, and queries that met an element wider
+        // than their reach (shm_diffuse.comp leaves those to the CPU's clipping): the CPU
+        // reference, in double, from a list (a dynamic schedule over every node cost more).
+        std::vector<std::uint32_t> again;
+        for (std::size_t q = 0; q < n; ++q)
+            if (redo[q]) again.push_back(std::uint32_t(q));
         const detail::SumTree::Screened s = screened_params(k_);
-        std::size_t redone = 0;
-#pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms, redone)
-        for (std::size_t q = 0; q < n; ++q) {
-            if (!redo[q]) continue;
+#pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms)
+        for (std::size_t i = 0; i < again.size(); ++i) {
+            const std::size_t q = again[i];
             const Eigen::Vector3d X = host_.screened(x.row(Eigen::Index(q)).transpose(), s, r_min[q], terms);
             const double len = X.norm();
             for (int a = 0; a < 3; ++a) y[3 * q + std::size_t(a)] = len > 0 ? float(X[a] / len) : 0.0f;
-            ++redone;
         }
-        if (redone) log_once("step 1: queries that " + ctx_->info().name + "'s loop limit may have cut short were redone on the CPU");
+        if (!again.empty())
+            log_once("step 1: nodes past " + ctx_->info().name +
+                     "'s loop limit, or near an element wider than their reach, were summed on the CPU");
         return terms;
     }
 

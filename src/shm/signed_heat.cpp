@@ -306,8 +306,13 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     std::vector<double> phi = poisson.solve(b, m.opt.tolerance, m.max_iterations(), &out.residual_history, m.opt.f_cycle, progress);
     const double shift = m.mean_on_source(phi);
     for (double& v : phi) v -= shift;
+    out.seconds_poisson = seconds_since(t0);
+    auto t1 = std::chrono::steady_clock::now();
     if (m.opt.fit_zero_set > 0) phi = m.fit_zero_set(phi, out.fit_history);  // on the CPU: a small grid
+    out.seconds_fit = seconds_since(t1);
+    t1 = std::chrono::steady_clock::now();
     if (m.opt.veto_winding > 0) out.vetoed_nodes = m.veto_outside(phi);      // on the CPU: a few nodes' sums
+    out.seconds_veto = seconds_since(t1);
     out.seconds_solve = seconds_since(t0);
     const std::string solve_device = poisson.device();
     out.device = diffuse_device == solve_device ? diffuse_device : diffuse_device + " (step 1), " + solve_device + " (step 3)";

@@ -436,8 +436,8 @@ double SignedHeatSurface::Impl::source_mean(const std::vector<double>& phi, cons
 }
 
 SignedHeatSurface::SignedHeatSurface(SurfaceMesh mesh, SurfaceShmSetup setup) {
-    // Measured: ~4.4 KiB per vertex (operators, their factorizations, the solves); docs/io.md.
-    check_memory(6144.0 * double(mesh.vertex_count()), "mesh",
+    // Measured: 4.2–4.3 KiB per vertex at 10⁶ (operators, their factorizations, the solves); docs/io.md.
+    check_memory(5632.0 * double(mesh.vertex_count()), "mesh",
                  "the surface Signed Heat Method on " + std::to_string(mesh.vertex_count()) + " vertices");
     impl_ = std::make_unique<Impl>(std::move(mesh), setup);
 }

@@ -211,15 +211,12 @@ Box bounds_from(const std::vector<double>& v, const std::string& option) {
 
 Box default_bounds(const Box& b) { return padded_cube(b); }
 
-void check_grid_memory(const GridSpec& g) {
-    // Node positions (24 B), values and gradients in double while computing and in float32 to
-    // write (56 B), and the solvers' work arrays (the SHM multigrid keeps about 8 doubles per
-    // node over its levels): 160 bytes per node covers every grid command.
-    const double bytes = 160.0 * double(g.node_count());
+void check_grid_memory(const GridSpec& g, double bytes_per_node) {
+    const double bytes = bytes_per_node * double(g.node_count());
     check_memory(bytes, "--grid", "a " + std::to_string(g.nx) + "³ grid");
 }
 
-GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
+GridSpec Domain::grid_spec(const std::optional<Box>& fallback, double bytes_per_node) const {
     Box box;
     if (!bounds.empty()) box = bounds_from(bounds, "--bounds");
     else if (fallback) {
@@ -229,7 +226,7 @@ GridSpec Domain::grid_spec(const std::optional<Box>& fallback) const {
     else throw Error("--bounds", "a grid needs --bounds");
     GridSpec g = GridSpec::cube(grid, box);
     g.validate();
-    check_grid_memory(g);
+    check_grid_memory(g, bytes_per_node);
     return g;
 }
 

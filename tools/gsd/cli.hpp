@@ -53,12 +53,18 @@ struct Domain {
     std::string queries;
     void add_to(CLI::App& app, bool bounds_optional);
     bool is_grid() const { return grid > 0; }
-    /// The grid on the given bounds, or on `fallback` (the input's bounding cube + 10%).
-    GridSpec grid_spec(const std::optional<Box>& fallback) const;
+    /// The grid on the given bounds, or on `fallback` (the input's bounding cube + 10%), checked
+    /// against the memory budget at `bytes_per_node` (check_grid_memory).
+    GridSpec grid_spec(const std::optional<Box>& fallback, double bytes_per_node) const;
 };
 
-/// Refuses (gsd::Error naming --grid) a grid whose estimated memory passes memory_budget().
-void check_grid_memory(const GridSpec& g);
+/// Refuses (gsd::Error naming --grid) a grid whose estimated memory — bytes_per_node, the
+/// command's own measured peak per node with room (docs/io.md, "Memory budget") — passes
+/// memory_budget().
+void check_grid_memory(const GridSpec& g, double bytes_per_node);
+/// Peak bytes per grid node of each grid command (measured at 128³ and 256³, about 1.2× room).
+constexpr double kShmGridBytesPerNode = 96, kWindingGridBytesPerNode = 64, kBlendGridBytesPerNode = 12,
+                 kBlendGradientBytesPerNode = 20;
 
 /// The input's bounding cube, centered on its box, enlarged by 10%.
 Box default_bounds(const Box& b);

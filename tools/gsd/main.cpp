@@ -142,11 +142,11 @@ struct OutlierArgs {
 template <class EvalPoints, class EvalGrid>
 void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
                         const std::string& gradient_out, EvalPoints eval_points, EvalGrid eval_grid,
-                        const std::string& what, const std::string& method) {
+                        const std::string& what, const std::string& method, double grid_bytes_per_node) {
     check_grid_output(out, domain.is_grid());  // before the work
     GridSpec grid;
     Points queries;
-    if (domain.is_grid()) grid = domain.grid_spec(input_box);
+    if (domain.is_grid()) grid = domain.grid_spec(input_box, grid_bytes_per_node);
     else queries = io::read_queries(domain.queries);
     const std::size_t count = domain.is_grid() ? grid.node_count() : std::size_t(queries.rows());
     Progress progress(what);
@@ -239,7 +239,7 @@ void add_pat(CLI::App& app) {
                 *domain, box, *output, *gradient,
                 [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, want_gradient, p); },
                 [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, want_gradient, p); },
-                "pat eval", "pat");
+                "pat eval", "pat", kBlendGridBytesPerNode + (want_gradient ? kBlendGradientBytesPerNode : 0));
             if (!outliers->confidence.empty()) {
                 try {
                     OutlierArgs::write(outliers->confidence, field.confidence());
@@ -273,7 +273,8 @@ void add_baseline(CLI::App& app) {
         evaluate_and_write(
             *domain, bounding_box(cloud.points), *output, "",
             [&](const Points& q, const ProgressFn& p) { return field.evaluate(q, false, p); },
-            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, false, p); }, "baseline " + *kind, *kind);
+            [&](const GridSpec& g, const ProgressFn& p) { return field.evaluate(g, false, p); }, "baseline " + *kind, *kind,
+            kBlendGridBytesPerNode);
     });
 }
 
@@ -421,7 +422,7 @@ void add_shm(CLI::App& app) {
         }
         const GridSpec g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
         g.validate();
-        check_grid_memory(g);
+        check_grid_memory(g, kShmGridBytesPerNode);
         if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
         bool first = true;
         std::size_t which = 0;
@@ -461,6 +462,8 @@ void add_shm(CLI::App& app) {
                       fmt("%.2e", r.fit_history.back());
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
                  " iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()) + fit);
+            note("step 3's parts: Poisson " + fmt("%.2f s", r.seconds_poisson) + ", zero-set fit " + fmt("%.2f s", r.seconds_fit) +
+                 ", outside veto " + fmt("%.2f s", r.seconds_veto));
             if (opt->veto_winding > 0) note("outside veto: " + std::to_string(r.vetoed_nodes) + " nodes turned outside");
             note("peak memory: " + peak_memory());
         }
@@ -561,7 +564,8 @@ void add_winding(CLI::App& app) {
         };
         evaluate_and_write(
             *domain, bounding_box(elements.corners), *output, "", eval,
-            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding", "winding");
+            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding", "winding",
+            kWindingGridBytesPerNode);
     });
 }
 
