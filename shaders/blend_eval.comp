@@ -1,6 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_ballot : require
 // The blend engine on the GPU (mirrors src/blend/blend_cpu.cpp): for each query, choose the
 // summed set (all points, the ball of radius r_eval, or the k nearest), then blend the
 // per-point terms of PAT (tori), SSPD (tangent planes) or signed Hopf–Cole (screened dipoles).
@@ -12,6 +13,7 @@ layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const int KIND = 0;      // 0 PAT, 1 SSPD, 2 SHC
 layout(constant_id = 2) const int EXACT = 0;     // 1: sum over every point
 layout(constant_id = 3) const int GRADIENT = 0;  // 1: write (φ, ∇φ) per query
+layout(constant_id = 4) const int SHARED_KNN = 0;  // 1: the k-nearest fallback walked per subgroup (blend_field.glsl)
 
 const int TILE = 256;     // shared-memory tile for the exact sum (≥ workgroup size)
 

@@ -2,8 +2,8 @@
 // and the renderer (render_pat.comp). The including shader declares, before including this:
 // the KIND specialization constant (0 PAT, 1 SSPD, 2 SHC), the buffers `pts` (tree order),
 // `terms` (PAT: 3 per point; else (n, area)) and `nodes`, and the push constants `pc`
-// (point_count, first_leaf, k_fallback, r_eval, C, dmin), and enables
-// GL_KHR_shader_subgroup_vote.
+// (point_count, first_leaf, k_fallback, r_eval, C, dmin) and the SHARED_KNN specialization
+// constant, and enables GL_KHR_shader_subgroup_vote and GL_KHR_shader_subgroup_ballot.
 const int K_MAX = 32;     // largest fallback_k the kernel supports
 const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
 const float PI = 3.14159265358979;
@@ -108,6 +108,45 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     return found;
 }
 
+// The k ≤ K_MAX nearest points to x (distances kd, tree-order indices ki, nearest first) for
+// the fallback, the subgroup walking together (SHARED_KNN = 1, hardware GPUs): a node is opened
+// when any lane's current k-th distance reaches it, children in the order most of the lanes
+// that search prefer, and each lane keeps its own list (a node a lane's list has passed holds
+// nothing nearer for it: the boxes nest). Each lane ends with its own k nearest; only points
+// tied at the k-th distance may differ from box_tree_knn.glsl's, and those weigh T(1) ≈ 1e-9.
+// Not on software devices: lanes far apart walk the union of their searches, which on
+// llvmpipe can pass its loop limit of 65 535 iterations. Uniform control flow, as sum_ball.
+void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MAX]) {
+    for (int m = 0; m < K_MAX; ++m) { kd[m] = 3.0e38; ki[m] = 0u; }
+    uint stack[STACK];
+    int top = 0;
+    stack[top++] = 0u;
+    while (top > 0) {
+        uint i = stack[--top];
+        float worst = kd[k - 1u];
+        bool need = live && node_distance2(x, i) <= worst * worst;
+        if (!subgroupAny(need)) continue;
+        if (i >= pc.first_leaf) {
+            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+                float d = distance(x, pts[j].xyz);
+                if (!need || d >= kd[k - 1u]) continue;
+                int m = int(k) - 1;
+                while (m > 0 && kd[m - 1] > d) { kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
+                kd[m] = d;
+                ki[m] = j;
+            }
+        } else {
+            uint l = 2u * i + 1u, r = 2u * i + 2u;
+            bool prefers_left = node_distance2(x, l) <= node_distance2(x, r);
+            uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
+            uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
+            bool left_first = left >= right;
+            stack[top++] = left_first ? r : l;  // the nearer child is popped first
+            stack[top++] = left_first ? l : r;
+        }
+    }
+}
+
 // Uniform control flow (sum_ball); a lane with live = false gets sums of nothing.
 void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, out bool rho_varies, out vec3 far_p) {
     a = acc_zero();
@@ -115,14 +154,19 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     rho_varies = false;
     far_p = vec3(0.0);
     uint found = sum_ball(x, live, a, grad);
-    if (!live || found >= pc.k_fallback) return;
-    // Fewer than k points within r_eval: the k nearest, ρ = d_k. Each lane walks on its own,
-    // best first from its own position: a walk taken together in one order (the subgroup's
-    // first lane's) cost lanes whose nearest points lay elsewhere most of the tree, and on
-    // llvmpipe that ran past its loop limit.
+    bool fallback = live && found < pc.k_fallback;
+    // Fewer than k points within r_eval: the k nearest, ρ = d_k.
     float kd[K_MAX];
     uint ki[K_MAX];
-    knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);
+    if (SHARED_KNN == 1) {
+        if (!subgroupAny(fallback)) return;
+        knn_together(x, fallback, pc.k_fallback, kd, ki);
+        if (!fallback) return;
+    } else {
+        // Each lane on its own, best first from its own position.
+        if (!fallback) return;
+        knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);
+    }
     a = acc_zero();
     uint k = pc.k_fallback;
     rho = max(kd[k - 1], 1e-30);

@@ -1,6 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_ballot : require
 // Sphere-traces a blended field (PAT, SSPD, SHC; the accelerated sum) per pixel: the renderer's
 // GPU path (src/render/render_gpu.cpp). Bindings 0–2 and the first push constants are those of
 // blend_eval.comp, so the field's device data serves both.
@@ -9,6 +10,7 @@
 
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const int KIND = 0;  // 0 PAT, 1 SSPD, 2 SHC
+layout(constant_id = 2) const int SHARED_KNN = 0;  // 1: the k-nearest fallback walked per subgroup (blend_field.glsl)
 
 layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };
 layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };

@@ -13,10 +13,24 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <numeric>
 
 namespace gsd::blend {
+
+namespace {
+
+/// Whether the k-nearest fallback is walked per subgroup (blend_field.glsl, knn_together): on
+/// hardware GPUs, where a lane's own walk keeps its stack and list in slow memory and waits on
+/// its neighbours' branches; not on software devices (their loop limit). $GSD_SHARED_KNN=0|1
+/// overrides, to measure it.
+int shared_knn(const gpu::Context& c) {
+    if (const char* v = std::getenv("GSD_SHARED_KNN"); v && (v[0] == '0' || v[0] == '1')) return v[0] - '0';
+    return c.info().is_software() ? 0 : 1;
+}
+
+}  // namespace
 
 namespace {
 
@@ -128,7 +142,7 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     gpu::Context& c = *ctx_;
     const std::size_t out_floats = p.gradient ? 4 : 1;
     const gpu::Kernel& k = c.kernel("blend_eval", 5, sizeof(BlendPush),
-                                    {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0});
+                                    {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(c)});
     gpu::StreamJob job;
     job.count = q.size();
     job.in_bytes = 16;
@@ -187,7 +201,8 @@ void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, con
     if (job.count >= (1ull << 31)) throw Error("DeviceQueries::count", "at most 2^31 − 1 queries per call");
     gpu::Context& c = *ctx_;
     const VkDeviceSize out_bytes = p.gradient ? 16 : 4;
-    const gpu::Kernel& k = c.kernel("blend_eval", 5, sizeof(BlendPush), {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0});
+    const gpu::Kernel& k =
+        c.kernel("blend_eval", 5, sizeof(BlendPush), {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(c)});
     // Dispatches of whole multiples of 256 queries, so every later binding offset stays a
     // multiple of any storage-buffer alignment a device may ask for (at most 256 bytes).
     const std::uint64_t by_range = c.max_binding_bytes() / 16 / 256 * 256;
@@ -221,7 +236,7 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
         BlendPush blend;
         std::uint32_t pixel_count;
     };
-    const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush), {int(kind_)});
+    const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush), {int(kind_), shared_knn(*ctx_)});
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
                           pixel_count};
