@@ -34,5 +34,7 @@ export XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
 rm -rf build-san/cli-findings
 args=(--count 0 --counts "$CI_COUNTS" --seed 1)
 [ $# -gt 0 ] && args=("$@")
+# One run per core: nproc without OMP_NUM_THREADS, which it honours (scripts/fuzz.sh sets it to 1).
+jobs=$(env -u OMP_NUM_THREADS -u OMP_THREAD_LIMIT nproc)
 exec python3 tools/fuzz/mutate_cli.py --gsd build-san/bin/gsd --regressions tests/data/cli-regressions \
-  --jobs "$(nproc)" --cpu-timeout 20 --timeout 60 --keep-findings build-san/cli-findings "${args[@]}"
+  --jobs "$jobs" --cpu-timeout 20 --timeout 60 --keep-findings build-san/cli-findings "${args[@]}"

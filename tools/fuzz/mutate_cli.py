@@ -547,6 +547,8 @@ def ply_fields(data):
                     if off + struct.calcsize(fmt) > len(data):
                         return fields
                     n = struct.unpack_from(fmt, data, off)[0]
+                    if not isinstance(n, int):  # a float list count (a mutated header)
+                        return fields
                     fields.append((off, fmt, name, "#count", row))
                     off += struct.calcsize(fmt)
                 for _ in range(max(0, min(n, 1 << 16))):
@@ -1054,8 +1056,13 @@ def op_st_value(rng, data, ctx):
 def op_st_tensor(rng, header, body, data):
     """Still a valid file, other weights: a tensor scaled (0, -1, 1e3, ...) or two
     same-sized tensors' data swapped."""
-    spans = [tuple(header[k]["data_offsets"]) for k in _st_tensors(header)
-             if header[k].get("dtype") == "F32" and len(header[k].get("data_offsets", [])) == 2]
+    def span(t):  # a tensor's (begin, end) when it is F32 data inside the body, else None
+        o = t.get("data_offsets")
+        ok = (t.get("dtype") == "F32" and isinstance(o, list) and len(o) == 2
+              and all(type(x) is int for x in o) and 0 <= o[0] <= o[1] <= len(body)
+              and (o[1] - o[0]) % 4 == 0)
+        return tuple(o) if ok else None
+    spans = [sp for sp in (span(header[k]) for k in _st_tensors(header)) if sp]
     if not spans:
         return data
     a, b = rng.choice(spans)
@@ -1093,6 +1100,10 @@ MUTATORS = {
 }
 
 
+MUTATOR_ERRORS = Counter()
+MUTATOR_LOCK = threading.Lock()
+
+
 def mutate(seed_data, kind, ctx, rng):
     """One to three mutations; returns (data, names of the operators applied)."""
     ops = MUTATORS[kind]
@@ -1101,7 +1112,12 @@ def mutate(seed_data, kind, ctx, rng):
     for _ in range(rng.choices([1, 2, 3], [0.6, 0.25, 0.15])[0]):
         for _attempt in range(8):  # retry operators that do not apply to this data
             op = rng.choices([f for _, f in ops], weights)[0]
-            new = op(rng, data, ctx)[:MAX_MUTANT]
+            try:
+                new = op(rng, data, ctx)[:MAX_MUTANT]
+            except Exception as e:  # an operator's bug on odd data: skipped, counted, reported
+                with MUTATOR_LOCK:
+                    MUTATOR_ERRORS[f"{op.__name__}: {type(e).__name__}: {e}"[:160]] += 1
+                continue
             if new != data:
                 data = new
                 names.append(op.__name__[3:])
@@ -1706,6 +1722,26 @@ def keep_finding(r, keep, seeds):
     return dst, argv
 
 
+def command_name(argv):
+    sub = argv[1:3] if len(argv) > 2 and argv[1] in ("shm", "pat", "baseline") else argv[1:2]
+    dev = next((argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--device"), "auto")
+    return " ".join(sub) + ("" if dev == "cpu" else f" (--device {dev})")
+
+
+def print_slowest(results):
+    """The slowest run of each command (by CPU time): the time budget adversarial inputs need."""
+    worst = {}
+    for r in results:
+        name = command_name(r.argv)
+        if name not in worst or r.cpu > worst[name].cpu:
+            worst[name] = r
+    if not worst:
+        return
+    print("\nSlowest run per command (CPU time; wall time; the run):")
+    for name, r in sorted(worst.items(), key=lambda kv: -kv[1].cpu):
+        print(f"  {name:<28} {r.cpu:6.2f} s  {r.seconds:6.2f} s  {r.fmt} #{r.index} ({r.kind})")
+
+
 def report(results, formats, args, seeds):
     print()
     if any(r.fmt == "regressions" for r in results):
@@ -1715,6 +1751,11 @@ def report(results, formats, args, seeds):
         if rs:
             print(summary_line(f.name, rs))
     print(summary_line("TOTAL", results))
+    print_slowest(results)
+    if MUTATOR_ERRORS:
+        print("\nnote: mutation operators that raised (skipped; a bug in this tool, not in gsd):")
+        for what, n in MUTATOR_ERRORS.most_common():
+            print(f"  {n:4d} x  {what}")
     findings = [r for r in results if r.kind == "finding"]
     if not findings:
         return
