@@ -1722,10 +1722,16 @@ def keep_finding(r, keep, seeds):
     return dst, argv
 
 
+# Subcommands that take --device (without it they run with --device auto).
+DEVICE_COMMANDS = ("pat", "baseline", "shm grid", "winding", "render")
+
+
 def command_name(argv):
-    sub = argv[1:3] if len(argv) > 2 and argv[1] in ("shm", "pat", "baseline") else argv[1:2]
+    sub = " ".join(argv[1:3] if len(argv) > 2 and argv[1] in ("shm", "pat", "baseline") else argv[1:2])
+    if not any(sub == c or sub.startswith(c + " ") for c in DEVICE_COMMANDS):
+        return sub
     dev = next((argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--device"), "auto")
-    return " ".join(sub) + ("" if dev == "cpu" else f" (--device {dev})")
+    return sub + ("" if dev == "cpu" else f" (--device {dev})")
 
 
 def print_slowest(results):
