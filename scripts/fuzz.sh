@@ -241,7 +241,8 @@ echo
 echo "fuzz: summary ($what per target)"
 printf '  %s\n' "${summary[@]}"
 if [ ${#failed[@]} -gt 0 ]; then
-  echo "fuzz: findings in: ${failed[*]} (inputs under $build/artifacts/<target>/; reproduce with $build/bin/fuzz_<target> FILE)"
+  echo "fuzz: findings in: ${failed[*]} (inputs under $build/artifacts/<target>/; reproduce with $build/bin/fuzz_<target> FILE;" \
+       "cli: the reproduce lines in $build/logs/cli.log, inputs under $build/cli-findings/)"
   exit 1
 fi
 echo "fuzz: no findings"

@@ -1726,6 +1726,10 @@ def keep_finding(r, keep, seeds):
 DEVICE_COMMANDS = ("pat", "baseline", "shm grid", "winding", "render")
 
 
+def label(r):
+    return f"cases.txt:{r.index}" if r.fmt == "regressions" else f"{r.fmt} #{r.index}"
+
+
 def command_name(argv):
     sub = " ".join(argv[1:3] if len(argv) > 2 and argv[1] in ("shm", "pat", "baseline") else argv[1:2])
     if not any(sub == c or sub.startswith(c + " ") for c in DEVICE_COMMANDS):
@@ -1745,7 +1749,7 @@ def print_slowest(results):
         return
     print("\nSlowest run per command (CPU time; wall time; the run):")
     for name, r in sorted(worst.items(), key=lambda kv: -kv[1].cpu):
-        print(f"  {name:<28} {r.cpu:6.2f} s  {r.seconds:6.2f} s  {r.fmt} #{r.index} ({r.kind})")
+        print(f"  {name:<28} {r.cpu:6.2f} s  {r.seconds:6.2f} s  {label(r)} ({r.kind})")
 
 
 def report(results, formats, args, seeds):
@@ -1773,7 +1777,7 @@ def report(results, formats, args, seeds):
     for r in findings:
         mutant, argv = keep_finding(r, keep, seeds) if keep and r.fmt != "regressions" \
             else (r.mutant, r.argv)
-        print(f"- [{r.fmt} #{r.index}] exit {r.rc} after {r.seconds:.1f} s: {'; '.join(r.reasons)}")
+        print(f"- [{label(r)}] exit {r.rc} after {r.seconds:.1f} s: {'; '.join(r.reasons)}")
         print(f"    input:     {mutant}  (mutations: {', '.join(r.ops)})")
         print(f"    command:   {shlex.join(argv)}   (run in an empty directory; this run's: {r.run_dir})")
         print(f"    line:      {r.line}")
