@@ -9,6 +9,15 @@
 #   scripts/fuzz.sh [SECONDS]        FUZZ_TARGETS="mesh npy" scripts/fuzz.sh 30   (a subset)
 #
 # Reproduce a finding: build-san/bin/fuzz_<target> <crash file>. docs/io.md ("Fuzzing").
+#
+# The target `cli` (not in the default list: scripts/sanitize.sh runs CI's own campaign) is the
+# CLI mutation campaign (tools/fuzz/mutate_cli.py through scripts/cli-campaign.sh): the regression
+# inputs, then rounds of mutants of every format for SECONDS (or FUZZ_RUNS mutants per format),
+# seed FUZZ_CLI_SEED (default 1; CI uses 1: pick another to try mutants CI never ran), extra
+# mutate_cli.py options in FUZZ_CLI_ARGS; log in build-san/logs/cli.log, findings (with their
+# reproducers) copied to build-san/cli-findings/.
+#
+#   FUZZ_TARGETS=cli FUZZ_CLI_SEED=9001 scripts/fuzz.sh 900     15 minutes, held-out seed
 set -euo pipefail
 script=$(realpath "$0")
 cd "$(dirname "$script")/.."
@@ -17,11 +26,18 @@ seconds=${1:-60}
 [[ $seconds =~ ^[0-9]+$ ]] || { echo "usage: scripts/fuzz.sh [SECONDS]" >&2; exit 2; }
 all_targets=(point_cloud mesh npy tori safetensors curve grid_metadata)
 read -r -a targets <<< "${FUZZ_TARGETS:-${all_targets[*]}}"
+for t in "${targets[@]}"; do
+  [[ " ${all_targets[*]} cli " == *" $t "* ]] || { echo "fuzz: unknown target $t (${all_targets[*]} cli)" >&2; exit 2; }
+done
 build=build-san
 
 # ---- build: the library, the CLI (for seeds) and the targets, all instrumented ---------------
 # One sanitizer build serves the fuzzers and the sanitizer test suite (scripts/sanitize.sh).
-bash scripts/sanitizer-build.sh gsd_cli "${all_targets[@]/#/fuzz_}"
+fuzz_bins=()
+for t in "${targets[@]}"; do
+  if [ "$t" != cli ]; then fuzz_bins+=("fuzz_$t"); fi
+done
+bash scripts/sanitizer-build.sh gsd_cli "${fuzz_bins[@]}"
 
 # Sanitizer settings for everything below. Leak checking stays on: the readers never touch
 # Vulkan (the build has none), so a leak is a real one. One OpenMP thread: reproducible runs.
@@ -171,6 +187,26 @@ failed=()
 summary=()
 mkdir -p $build/logs
 for t in "${targets[@]}"; do
+  if [ "$t" = cli ]; then
+    read -r -a cli_args <<< "${FUZZ_CLI_ARGS:-}"
+    cli_args=(--seed "${FUZZ_CLI_SEED:-1}" "${cli_args[@]}")
+    if [ -n "${FUZZ_RUNS:-}" ]; then cli_args=(--count "$FUZZ_RUNS" "${cli_args[@]}")
+    else cli_args=(--minutes "$(awk "BEGIN { print $seconds / 60 }")" "${cli_args[@]}"); fi
+    echo "fuzz: cli for $what (scripts/cli-campaign.sh ${cli_args[*]})"
+    rc=0
+    bash scripts/cli-campaign.sh "${cli_args[@]}" > $build/logs/cli.log 2>&1 || rc=$?
+    total=$(grep -m1 '^TOTAL' $build/logs/cli.log | sed 's/^TOTAL *//' || true)
+    line=$(printf '%-12s %s' cli "${total:-no summary}")
+    if [ $rc -ne 0 ]; then
+      failed+=(cli)
+      line+="  FAILED (exit $rc; log $build/logs/cli.log)"
+      found=$(sed -n '/finding(s):$/,$p' $build/logs/cli.log | grep -E '^- |reproduce:' | head -20 || true)
+      line+=$'\n'"${found:-$(tail -5 $build/logs/cli.log)}"
+    fi
+    summary+=("$line")
+    echo "$line"
+    continue
+  fi
   corpus=$build/corpus/$t artifacts=$build/artifacts/$t
   mkdir -p "$corpus" "$artifacts"
   cp -n fuzz/corpus/"$t"/* "$corpus"/ 2>/dev/null || true
@@ -205,7 +241,8 @@ echo
 echo "fuzz: summary ($what per target)"
 printf '  %s\n' "${summary[@]}"
 if [ ${#failed[@]} -gt 0 ]; then
-  echo "fuzz: findings in: ${failed[*]} (inputs under $build/artifacts/<target>/; reproduce with $build/bin/fuzz_<target> FILE)"
+  echo "fuzz: findings in: ${failed[*]} (inputs under $build/artifacts/<target>/; reproduce with $build/bin/fuzz_<target> FILE;" \
+       "cli: the reproduce lines in $build/logs/cli.log, inputs under $build/cli-findings/)"
   exit 1
 fi
 echo "fuzz: no findings"

@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
 # The test suite under AddressSanitizer + UndefinedBehaviorSanitizer (clang), then a short,
-# reproducible fuzz run over every reader. scripts/test.sh runs it after the Release suite.
+# reproducible fuzz run over every reader, then the CLI mutation campaign (the regression inputs
+# of tests/data/cli-regressions/ and ~4,000 seeded mutants through every command that reads a
+# file: scripts/cli-campaign.sh). scripts/test.sh runs it after the Release suite.
 #
 #   scripts/sanitize.sh [FUZZ_RUNS]      inputs per fuzz target (default 20000; 0: no fuzz run)
 #   scripts/sanitize.sh 0 -R test_io     extra arguments go to ctest
+#   GSD_CLI_CAMPAIGN=0 scripts/sanitize.sh    without the CLI campaign
 #
 # Build: build-san/ (scripts/sanitizer-build.sh). Leak checking is on everywhere. Lavapipe, the
 # CPU Vulkan driver, is unloaded at exit before LeakSanitizer looks, which would make a block it
@@ -33,4 +36,10 @@ if [ "$runs" -gt 0 ]; then
   start=$SECONDS
   FUZZ_RUNS=$runs bash scripts/fuzz.sh
   echo "sanitize: fuzz run took $((SECONDS - start)) s"
+fi
+
+if [ "${GSD_CLI_CAMPAIGN:-1}" != 0 ]; then
+  start=$SECONDS
+  bash scripts/cli-campaign.sh
+  echo "sanitize: CLI campaign took $((SECONDS - start)) s"
 fi

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds gsd (Release, warnings as errors) and runs every test; then the
-# same suite under AddressSanitizer + UBSan (clang) and a short reproducible fuzz run over every
-# reader (scripts/sanitize.sh; GSD_SANITIZE=0 skips that part). Arguments go to the Release ctest.
+# same suite under AddressSanitizer + UBSan (clang), a short reproducible fuzz run over every
+# reader and the CLI mutation campaign (scripts/sanitize.sh; GSD_SANITIZE=0 skips that part).
+# Arguments go to the Release ctest.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup-deps.sh

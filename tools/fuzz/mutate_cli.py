@@ -2,19 +2,26 @@
 """Mutation campaign against the gsd command line (hardening; standard library only).
 
 What it does
+  0. With --regressions DIR, first replays DIR/cases.txt (checked-in inputs that once hung or
+     crashed, each with its command; tests/data/cli-regressions/), judged as mutants are.
   1. Makes valid seed inputs with the gsd CLI itself (and a few by hand) in WORK/seeds: point
      clouds (.ply binary / ascii / big endian, .xyz, .pc, .obj, .npy), meshes (.obj, .off,
-     .stl binary / ascii, .ply), (M,3) query .npy, (N,N,N) grid .npy, .tori, the TorusNet
-     .safetensors weights (models/torusnet.safetensors) and surface curves (.txt, .obj `l`).
+     .stl binary / ascii, .ply), (M,3) query .npy, (N,N,N) grid .npy and its .npy.json
+     sidecar, .tori, the TorusNet .safetensors weights (models/torusnet.safetensors), surface
+     curves (.txt, .obj `l`) and isolated surface points (.txt).
   2. Checks that every command of the table below succeeds on its unmutated seed.
   3. For every format, writes --count mutants (seeded, reproducible: mutant i of format F
      depends only on --seed, F and i), each with one to three mutations chosen from the
      format's mutator (byte flips/sets, inserted/deleted/duplicated runs, truncation, special
-     number tokens, header counts, npy descr/shape/order, STL triangle count, .tori header
-     fields, safetensors header length / JSON offsets / dtypes / shapes, out-of-range indices),
-     and runs one of the format's commands on it (commands alternate), in a fresh empty
-     directory, with a time limit.
-  4. A run is a FINDING when it: timed out (the process group is killed); died of a signal or
+     number tokens, far coordinates (1e30, 1e200, 4294967295, 4e9, ...) on a vertex or point,
+     header counts, npy descr/shape/order, STL triangle count, .tori header fields,
+     safetensors header length / JSON offsets / dtypes / shapes, out-of-range indices), and
+     runs one of the format's commands on it (commands alternate; a share of the runs gets
+     --device auto, and commands with BOX get a --bounds box: the unit box, or a tiny
+     (1e-3 ... 1e-30), huge, far or thin one), in a fresh empty directory, with a time limit.
+     With --minutes, rounds of --block mutants of every format run until the time is up.
+  4. A run is a FINDING when it: ran past the time limit (wall clock, or CPU time with
+     --cpu-timeout; the process group is killed); died of a signal or
      exited with a status outside gsd's documented set (0 ok, 1 data error, 2 usage error;
      2 is also a finding here because the arguments are always valid); printed a sanitizer
      report / "terminate called" / "Segmentation" / "Aborted"; failed (exit 1) without a
@@ -24,14 +31,21 @@ What it does
      peak RSS above --max-rss-mb (ru_maxrss from os.wait4, which includes the RSS of the
      forking Python, ~20 MiB, as a floor; the child is also killed as soon as /proc shows it
      above the limit).
-  5. Prints one summary line per format and a total, then every finding (mutant file,
-     command, exit status, reason, first sanitizer / error line) and the distinct findings.
+  5. Prints one summary line per format and a total (runs, outcomes, peak RSS, slowest run,
+     children's CPU time), then every finding (mutant file, command, exit status, reason, first
+     sanitizer / error line, and the command line that regenerates and reruns that one mutant)
+     and the distinct findings.
      Exit status: 0 no finding, 1 findings, 2 setup error (a seed or a clean run failed).
 
 Run
   python3 tools/fuzz/mutate_cli.py --gsd build-san/bin/gsd --count 200 --jobs 2 \
       --keep-findings /tmp/gsd-findings
-  Options: --count N (mutants per format, 200), --timeout S (20), --seed K (1), --jobs J (1),
+  Options: --count N (mutants per format, 200), --counts NAME=N,... (per format, names or
+  prefixes; overrides --count), --minutes M (rounds of --block B mutants per format, 10, until
+  M minutes are up), --index I (only mutant I of each format: reproduce a finding; keeps its
+  files), --regressions DIR (replay DIR/cases.txt first; --count 0 replays only),
+  --timeout S (wall clock, 20), --cpu-timeout S (CPU time; 0: none, else --timeout is only a
+  backstop for runs that wait), --seed K (1), --jobs J (1),
   --work DIR (new or empty; default a fresh temp dir, removed when there is no finding),
   --formats a,b (names or prefixes, e.g. cloud,tori; --list-formats shows them),
   --keep-findings DIR (copies each finding's mutant, the seeds and a repro .sh there),
@@ -44,7 +58,10 @@ Run
   UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1, OMP_NUM_THREADS=1, XDG_RUNTIME_DIR=/tmp,
   and LD_PRELOAD=$GSD_KEEP_LOADED when that is set (keeps the Vulkan driver mapped so
   LeakSanitizer does not misreport at exit).
-  A finding is reproduced by the printed command, run in an empty directory.
+  A finding is reproduced by the printed command, run in an empty directory, or by the
+  printed `--index` command line, which regenerates the mutant from its seed.
+  CI runs scripts/cli-campaign.sh (seed 1, a fixed count per format); docs/io.md, "Mutation
+  campaigns".
 """
 
 import argparse
@@ -82,6 +99,7 @@ SPECIAL_NUMBERS = [
     "NaN", "nan", "inf", "-inf", "Infinity", "1e308", "-1e308", "1e309", "1e200", "-1e200",
     "1e-320", "1e-45", "0", "-0", "-1", "1", "2147483647", "2147483648", "-2147483649",
     "4294967295", "4294967296", "99999999999", "18446744073709551616", "1e19", "", "-", "+",
+    "1e30", "-1e30", "1E+30", "4e9", "-4e9", "4294967295.0", "1e300",
     ".", "1e", "0x1p3", "1,5", "1.5.5", "--1", "3.", ".5", "1" * 400, "abc",
 ]
 # Replacements for an index (faces, curve records, header counts): n is the size at hand.
@@ -95,9 +113,23 @@ NPY_DESCRS = ["<f4", ">f4", "<f8", ">f8", "<f2", "<i4", "<i8", "|b1", "|u1", "<U
 ST_DTYPES = ["F32", "F16", "BF16", "F64", "I32", "I64", "U8", "BOOL", "F8_E4M3", "f32", "",
              5, None, ["F32"]]
 FLOAT_SPECIALS = [math.nan, math.inf, -math.inf, 3.4e38, -3.4e38, 1e30, -0.0, 0.0, 1e-45,
-                  1e-38, 1e20, -1e20]
+                  1e-38, 1e20, -1e20, -1e30, 4294967295.0, 4e9]
 DOUBLE_SPECIALS = [math.nan, math.inf, -math.inf, 1e308, -1e308, 1e200, 0.0, -0.0, 5e-324,
-                   1e-320, -1.0, 1e20, 1e-7]
+                   1e-320, -1.0, 1e20, 1e-7, 1e30, -1e30, 4294967295.0, 4e9]
+# Far but finite coordinates (issue 32: one far vertex made `shm grid --bounds` hang): at the
+# ±1e30 gsd accepts, beyond it, 2^32 - 1 (a uint32's maximum read as a coordinate), 4e9.
+EXTREME_COORDS = [1e30, -1e30, 1e200, -1e200, 4294967295.0, -4294967295.0, 4e9, 1e15, 1e-30,
+                  3.4e38]
+EXTREME_FLOAT32 = [x for x in EXTREME_COORDS if abs(x) <= 3.4e38]
+EXTREME_TOKENS = [b"1e30", b"-1e30", b"1.0E30", b"1e200", b"-1e200", b"4294967295",
+                  b"-4294967295", b"4294967295.0", b"4e9", b"4000000000", b"1e15", b"1e-30",
+                  b"1e31", b"9.99e29"]
+# --bounds for commands that take one (BOX in a template, or BOX? where it is optional): the
+# unit box most often, else tiny boxes (cells down to 1e-31), huge ones, far ones, thin ones.
+BOXES = ["0 0 0 1e-3 1e-3 1e-3", "0 0 0 1e-9 1e-9 1e-9", "-1e-30 -1e-30 -1e-30 1e-30 1e-30 1e-30",
+         "-1e30 -1e30 -1e30 1e30 1e30 1e30", "4e9 4e9 4e9 4.001e9 4.001e9 4.001e9",
+         "-1 -1 -1 1 1 4294967295", "0.1 0.1 0.1 0.1000001 0.1000001 0.1000001",
+         "-1e200 -1 -1 1e200 1 1"]
 
 
 # ----------------------------------------------------------------------------- mutations
@@ -280,8 +312,40 @@ def op_perturb_number(rng, data, ctx):
         return _replace_span(data, m, new)
     x = float(tok)
     new = rng.choice([0.0, -x, x * (1 + 1e-9), x + 1e-12, x * 1e6, x * 1e-6, 1e29, -1e29, 1e-30,
-                      1e15, 1e31, float(rng.choice(matches).group())])
+                      1e15, 1e31, float(rng.choice(matches).group()), rng.choice(EXTREME_COORDS)])
     return _replace_span(data, m, repr(new).encode())
+
+
+def _is_number(tok):
+    try:
+        float(tok)
+        return True
+    except ValueError:
+        return False
+
+
+def op_extreme_coordinate(rng, data, ctx):
+    """One vertex (or point) moved far away, or all three of its coordinates: a `v`/`vertex`
+    line's x y z, or the first three values of a line of numbers with a decimal point (a cloud
+    row, an OFF or ascii PLY vertex)."""
+    lines = _lines(data)
+    cand = []
+    for i, ln in enumerate(lines):
+        toks = ln.split()
+        if len(toks) >= 4 and toks[0] in (b"v", b"vertex") and all(map(_is_number, toks[1:4])):
+            cand.append((i, 1))
+        elif len(toks) >= 3 and all(map(_is_number, toks[:3])) and any(
+                c in t for t in toks[:3] for c in (b".", b"e", b"E")):
+            cand.append((i, 0))
+    if not cand:
+        return data
+    i, first = rng.choice(cand)
+    toks = lines[i].split()
+    which = [first + rng.randrange(3)] if rng.random() < 0.8 else [first, first + 1, first + 2]
+    for j in which:
+        toks[j] = rng.choice(EXTREME_TOKENS)
+    lines[i] = b" ".join(toks)
+    return b"\n".join(lines)
 
 
 def op_copy_line(rng, data, ctx):
@@ -319,7 +383,7 @@ def op_degenerate_face(rng, data, ctx):
     return b"\n".join(lines)
 
 
-TEXT_OPS = [(6, op_special_number), (4, op_perturb_number), (2, op_copy_line),
+TEXT_OPS = [(6, op_special_number), (4, op_perturb_number), (3, op_extreme_coordinate), (2, op_copy_line),
             (2, op_degenerate_face), (3, op_index), (3, op_line_edit), (2, op_token_count),
             (1, op_line_endings)]
 
@@ -483,6 +547,8 @@ def ply_fields(data):
                     if off + struct.calcsize(fmt) > len(data):
                         return fields
                     n = struct.unpack_from(fmt, data, off)[0]
+                    if not isinstance(n, int):  # a float list count (a mutated header)
+                        return fields
                     fields.append((off, fmt, name, "#count", row))
                     off += struct.calcsize(fmt)
                 for _ in range(max(0, min(n, 1 << 16))):
@@ -496,6 +562,8 @@ def ply_fields(data):
 
 def _pack_value(fmt, value):
     """struct.pack, wrapping integers into the type's range (so 2**40 still makes bytes)."""
+    if fmt[-1] == "f" and math.isfinite(value) and abs(value) > 3.4028234e38:
+        value = math.copysign(3.4028234e38, value)  # scaled past float32: its largest value
     if fmt[-1] in "fd":
         return struct.pack(fmt, float(value))
     bits = 8 * struct.calcsize(fmt)
@@ -521,8 +589,10 @@ def op_ply_field(rng, data, ctx):
         elif fmt[-1] in "fd":
             same = [f[0] for f in values if f[2] == elem and f[3] == prop]
             other = struct.unpack_from(fmt, b, rng.choice(same))[0]
+            far = EXTREME_FLOAT32 if fmt[-1] == "f" else EXTREME_COORDS
             new = rng.choice([other, other, 0.0, -old, old * (1 + 1e-7), 1e-30, 1e3 * old,
-                              rng.choice([1e29, -1e29, 1e6 * old])] + ([rng.choice(FLOAT_SPECIALS)] if rng.random() < 0.2 else []))
+                              rng.choice([1e29, -1e29, 1e6 * old]), rng.choice(far)]
+                             + ([rng.choice(FLOAT_SPECIALS)] if rng.random() < 0.2 else []))
         else:  # an index: mostly another valid one (a degenerate or rewired face)
             row_vals = [struct.unpack_from(f[1], b, f[0])[0] for f in values
                         if f[2] == elem and f[4] == row and f[3] == prop]
@@ -585,6 +655,21 @@ def op_stl_value(rng, data, ctx):
     return bytes(b)
 
 
+def op_stl_far_vertex(rng, data, ctx):
+    """One corner's coordinate (or all three) set to a far value; the same corner of every
+    triangle that shares it moves too, so the mesh stays connected through a far vertex."""
+    n = (len(data) - 84) // 50
+    if n < 1:
+        return data
+    t, c = 84 + 50 * rng.randrange(n), rng.randrange(3)
+    corner = data[t + 12 + 12 * c:t + 24 + 12 * c]
+    xyz = list(struct.unpack("<3f", corner))
+    for k in ([rng.randrange(3)] if rng.random() < 0.8 else [0, 1, 2]):
+        xyz[k] = rng.choice(EXTREME_FLOAT32)
+    return data.replace(corner, struct.pack("<3f", *xyz)) if rng.random() < 0.7 else \
+        data[:t + 12 + 12 * c] + struct.pack("<3f", *xyz) + data[t + 24 + 12 * c:]
+
+
 def op_stl_truncate(rng, data, ctx):
     n = max(1, (len(data) - 84) // 50)
     cut = 84 + 50 * rng.randrange(n) + rng.choice([0, 0, 1, 12, 49])
@@ -605,7 +690,8 @@ def op_stl_collapse(rng, data, ctx):
     return data[:t] + data[u:u + 50] + data[t + 50:]
 
 
-STL_OPS = [(4, op_stl_collapse), (4, op_stl_count), (1, op_stl_header), (3, op_stl_value), (2, op_stl_truncate)]
+STL_OPS = [(4, op_stl_collapse), (4, op_stl_count), (1, op_stl_header), (3, op_stl_value),
+           (3, op_stl_far_vertex), (2, op_stl_truncate)]
 
 
 # --- NPY
@@ -970,8 +1056,13 @@ def op_st_value(rng, data, ctx):
 def op_st_tensor(rng, header, body, data):
     """Still a valid file, other weights: a tensor scaled (0, -1, 1e3, ...) or two
     same-sized tensors' data swapped."""
-    spans = [tuple(header[k]["data_offsets"]) for k in _st_tensors(header)
-             if header[k].get("dtype") == "F32" and len(header[k].get("data_offsets", [])) == 2]
+    def span(t):  # a tensor's (begin, end) when it is F32 data inside the body, else None
+        o = t.get("data_offsets")
+        ok = (t.get("dtype") == "F32" and isinstance(o, list) and len(o) == 2
+              and all(type(x) is int for x in o) and 0 <= o[0] <= o[1] <= len(body)
+              and (o[1] - o[0]) % 4 == 0)
+        return tuple(o) if ok else None
+    spans = [sp for sp in (span(header[k]) for k in _st_tensors(header)) if sp]
     if not spans:
         return data
     a, b = rng.choice(spans)
@@ -1009,6 +1100,10 @@ MUTATORS = {
 }
 
 
+MUTATOR_ERRORS = Counter()
+MUTATOR_LOCK = threading.Lock()
+
+
 def mutate(seed_data, kind, ctx, rng):
     """One to three mutations; returns (data, names of the operators applied)."""
     ops = MUTATORS[kind]
@@ -1017,7 +1112,12 @@ def mutate(seed_data, kind, ctx, rng):
     for _ in range(rng.choices([1, 2, 3], [0.6, 0.25, 0.15])[0]):
         for _attempt in range(8):  # retry operators that do not apply to this data
             op = rng.choices([f for _, f in ops], weights)[0]
-            new = op(rng, data, ctx)[:MAX_MUTANT]
+            try:
+                new = op(rng, data, ctx)[:MAX_MUTANT]
+            except Exception as e:  # an operator's bug on odd data: skipped, counted, reported
+                with MUTATOR_LOCK:
+                    MUTATOR_ERRORS[f"{op.__name__}: {type(e).__name__}: {e}"[:160]] += 1
+                continue
             if new != data:
                 data = new
                 names.append(op.__name__[3:])
@@ -1120,6 +1220,9 @@ def write_hand_seeds(s, ctx):
     recs += [f"l {' '.join(map(str, poly + [1]))}", "n",
              f"f {tri + 1} 0.2 0.2", f"f {tri + 1} 0.5 0.3", f"l {len(poly) + 1} {len(poly) + 2}"]
     (s / "ring.txt").write_text("\n".join(recs) + "\n")
+    # Isolated points for `shm surface --points`: the same v/e/f records, no `l` or `n`.
+    (s / "points.txt").write_text("\n".join(r for r in recs if r[:2] in ("v ", "e ", "f ", "# "))
+                                  + "\n")
     # ... and the mesh .obj with `l` lines (one with negative indices) and a `p` line.
     ring_b = vertex_ring(faces, b)
     lines = (s / "m.obj").read_text().rstrip("\n").split("\n")
@@ -1148,9 +1251,13 @@ def make_seeds(gsd, s):
 
 # ----------------------------------------------------------------------------- formats
 # A command is (argv template, expected outputs). In a template, {in} is the mutant, {S} the
-# seed directory, and "DEV" stands for `--device cpu` (or nothing, for a share of the runs).
+# seed directory, {grid} the .npy beside a mutated sidecar, "DEV" stands for `--device cpu` (or
+# nothing, for a share of the runs), "BOX" for `--bounds` and a box (mostly the unit box, else
+# one of BOXES) and "BOX?" for the same or, half the time, nothing.
 Command = namedtuple("Command", "argv outputs")
-Format = namedtuple("Format", "name seed mutator commands")
+# companion: a seed file copied beside each mutant before its run: "sidecar" copies SEED.json
+# to MUTANT.json (a grid with its bounds), "grid" copies the grid a mutated sidecar describes.
+Format = namedtuple("Format", "name seed mutator commands companion", defaults=(None,))
 
 
 def C(template, *outputs):
@@ -1160,26 +1267,32 @@ def C(template, *outputs):
     return Command(template.split(), outputs)
 
 
-CLOUD_CMDS = [
-    C("pat fit {in} -o out.tori DEV", "out.tori"),
-    C("shm grid {in} --grid 8 -o out.npy DEV", "out.npy"),
-    C("pat eval {in} --fitter jet --grid 8 -o out.npy DEV", "out.npy"),
-    C("winding {in} --grid 8 -o out.npy DEV", "out.npy"),
-    C("baseline sspd {in} --grid 8 -o out.npy DEV", "out.npy"),
-    C("pat eval {in} --fitter jet --grid 8 -o out.vdb DEV", "out.vdb"),
-    C("render {in} --fitter jet --size 16 12 --supersample 1 --max-steps 64 -o out.png DEV", "out.png"),
-]
+def cloud_cmds(render=True):
+    cmds = [
+        C("pat fit {in} -o out.tori DEV", "out.tori"),
+        C("shm grid {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("pat eval {in} --fitter jet --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("winding {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("baseline sspd {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("pat eval {in} --fitter jet --grid 8 -o out.vdb DEV", "out.vdb"),
+    ]
+    # (`gsd render X.npy` reads X.npy as a grid, never as a cloud)
+    if render:
+        cmds.append(C("render {in} --fitter jet --size 16 12 --supersample 1 --max-steps 64 BOX? "
+                      "-o out.png DEV", "out.png"))
+    return cmds
 
 
 def mesh_cmds(seed):
     curve = "{S}/loop-%s.txt" % seed
     return [
-        C("shm grid {in} --grid 8 -o out.npy DEV", "out.npy"),
-        C("winding {in} --grid 8 -o out.npy DEV", "out.npy"),
-        C("shm grid {in} --grid 8 -o out.vdb DEV", "out.vdb"),
+        C("shm grid {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("winding {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("shm grid {in} --grid 8 BOX? -o out.vdb DEV", "out.vdb"),
         C("swn {in} --curves %s -o labels.npy" % curve, "labels.npy"),
         C("shm surface {in} --curves %s -o phi.npy" % curve, "phi.npy"),
         C("curve {in} --plane 0 1 0 0 -o loop.txt", "loop.txt"),
+        C("mesh --from {in} --holes 1 --flip 0.2 --noise 0.01 --seed 3 -o out.obj", "out.obj"),
     ]
 
 
@@ -1193,15 +1306,22 @@ CURVE_CMDS = [
     C("swn {S}/m.obj --curves {in} --method shm -o labels.npy", "labels.npy"),
 ]
 
-BOX = " ".join(BOUNDS)
+GRID_CMDS = [
+    C("slice {grid} BOX --at 0 --width 64 -o out.png", "out.png"),
+    C("contour {grid} BOX? -o out.obj", "out.obj"),
+    C("slice {grid} BOX? --axis x --at 0.3 --width 48 -o out.png", "out.png"),
+    C("contour {grid} BOX --iso 0.05 -o out.ply", "out.ply"),
+    C("render {grid} BOX? --size 16 12 --supersample 1 -o out.png DEV", "out.png"),
+]
+
 FORMATS = [
-    Format("cloud-ply-bin", "c.ply", "ply-binary", CLOUD_CMDS),
-    Format("cloud-ply-ascii", "c_ascii.ply", "ply-text", CLOUD_CMDS),
-    Format("cloud-ply-be", "c_be.ply", "ply-binary", CLOUD_CMDS),
-    Format("cloud-xyz", "c.xyz", "text", CLOUD_CMDS),
-    Format("cloud-pc", "c.pc", "text", CLOUD_CMDS),
-    Format("cloud-obj", "c.obj", "text", CLOUD_CMDS),
-    Format("cloud-npy", "c.npy", "npy", CLOUD_CMDS),
+    Format("cloud-ply-bin", "c.ply", "ply-binary", cloud_cmds()),
+    Format("cloud-ply-ascii", "c_ascii.ply", "ply-text", cloud_cmds()),
+    Format("cloud-ply-be", "c_be.ply", "ply-binary", cloud_cmds()),
+    Format("cloud-xyz", "c.xyz", "text", cloud_cmds()),
+    Format("cloud-pc", "c.pc", "text", cloud_cmds()),
+    Format("cloud-obj", "c.obj", "text", cloud_cmds()),
+    Format("cloud-npy", "c.npy", "npy", cloud_cmds(render=False)),
     mesh_format("mesh-obj", "m.obj", "text"),
     mesh_format("mesh-off", "m.off", "off"),
     mesh_format("mesh-stl-bin", "m.stl", "stl"),
@@ -1214,18 +1334,20 @@ FORMATS = [
         C("pat eval --tori {S}/t.tori --queries {in} -o out.npy --gradient grad.npy DEV",
           "out.npy", "grad.npy"),
     ]),
-    Format("grid-npy", "g.npy", "npy", [
-        C("slice {in} --bounds %s --at 0 --width 64 -o out.png" % BOX, "out.png"),
-        C("contour {in} --bounds %s -o out.obj" % BOX, "out.obj"),
-        C("slice {in} --bounds %s --axis x --at 0.3 --width 48 -o out.png" % BOX, "out.png"),
-        C("contour {in} --bounds %s --iso 0.05 -o out.ply" % BOX, "out.ply"),
-        C("render {in} --bounds %s --size 16 12 --supersample 1 -o out.png DEV" % BOX, "out.png"),
-    ]),
+    # The mutated grid comes with the seed's sidecar (its bounds, unless BOX gives others).
+    Format("grid-npy", "g.npy", "npy", GRID_CMDS + [
+        C("render {S}/g.npy --color {in} --size 16 12 --supersample 1 -o out.png DEV", "out.png"),
+    ], companion="sidecar"),
+    # The sidecar mutated (text), beside the seed grid.
+    Format("grid-sidecar", "g.npy.json", "text", GRID_CMDS + [
+        C("render {S}/g.npy --color {grid} --size 16 12 --supersample 1 -o out.png DEV", "out.png"),
+    ], companion="grid"),
     Format("tori", "t.tori", "tori", [
-        C("pat eval --tori {in} --grid 8 -o out.npy DEV", "out.npy"),
+        C("pat eval --tori {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
         C("pat eval --tori {in} --queries {S}/q.npy -o out.npy DEV", "out.npy"),
         C("pat eval --tori {in} --grid 8 --exact -o out.npy DEV", "out.npy"),
-        C("render --tori {in} --size 16 12 --supersample 1 --max-steps 64 -o out.png DEV", "out.png"),
+        C("render --tori {in} --size 16 12 --supersample 1 --max-steps 64 BOX? -o out.png DEV",
+          "out.png"),
     ]),
     Format("safetensors", "torusnet.safetensors", "safetensors", [
         C("pat fit {S}/c.ply --model {in} -o out.tori DEV", "out.tori"),
@@ -1233,6 +1355,10 @@ FORMATS = [
     ]),
     Format("curve-txt", "loop-m.obj.txt", "curve", CURVE_CMDS),
     Format("curve-txt-1based", "ring.txt", "curve", CURVE_CMDS),
+    Format("points-txt", "points.txt", "curve", [
+        C("shm surface {S}/m.obj --points {in} -o phi.npy", "phi.npy"),
+        C("shm surface {S}/m.obj --points {in} --curves {S}/ring.txt -o phi.npy", "phi.npy"),
+    ]),
     Format("curve-obj", "loop.obj", "curve", CURVE_CMDS + [
         C("swn {in} -o labels.npy", "labels.npy"),
         C("shm surface {in} -o phi.npy", "phi.npy"),
@@ -1240,14 +1366,48 @@ FORMATS = [
 ]
 
 
-def render(cmd, gsd, inp, seeds, device_cpu):
+def pick_box(rng):
+    """The box for BOX / BOX? in this run: None (BOX? left out, BOX the unit box) half the time."""
+    r = rng.random()
+    return None if r < 0.5 else " ".join(BOUNDS) if r < 0.7 else rng.choice(BOXES)
+
+
+def render(cmd, gsd, inp, seeds, device_cpu, box=None, grid=None, no_vdb=False):
     argv = [gsd]
     for tok in cmd.argv:
         if tok == "DEV":
             argv += ["--device", "cpu"] if device_cpu else []
+        elif tok in ("BOX", "BOX?"):
+            if box or tok == "BOX":
+                argv += ["--bounds", *(box or " ".join(BOUNDS)).split()]
+        elif no_vdb and tok.endswith(".vdb"):
+            argv.append(tok[:-4] + ".npy")
         else:
-            argv.append(tok.replace("{in}", str(inp)).replace("{S}", str(seeds)))
+            argv.append(tok.replace("{in}", str(inp)).replace("{S}", str(seeds))
+                        .replace("{grid}", str(grid or inp)))
     return argv
+
+
+def outputs_of(cmd, no_vdb=False):
+    if not no_vdb:
+        return cmd.outputs
+    outs = []
+    for o in cmd.outputs:
+        outs += [o[:-4] + ".npy", o[:-4] + ".npy.json"] if o.endswith(".vdb") else [o]
+    return tuple(outs)
+
+
+def companion_files(fmt, mutant, seeds):
+    """Copies the format's companion beside the mutant; returns (grid path, files made)."""
+    if fmt.companion == "sidecar":
+        side = Path(str(mutant) + ".json")
+        shutil.copy(seeds / (fmt.seed + ".json"), side)
+        return mutant, [side]
+    if fmt.companion == "grid":
+        grid = Path(str(mutant)[:-len(".json")])
+        shutil.copy(seeds / fmt.seed[:-len(".json")], grid)
+        return grid, [grid]
+    return mutant, []
 
 
 # ----------------------------------------------------------------------------- running
@@ -1272,12 +1432,27 @@ def rss_kib(pid):
         return 0
 
 
-Outcome = namedtuple("Outcome", "rc timed_out rss_killed peak_kib output seconds")
+Outcome = namedtuple("Outcome", "rc timed_out rss_killed peak_kib output seconds cpu")
 STOP = threading.Event()  # set on Ctrl-C: running children are killed, queued runs skipped
 
 
-def execute(argv, cwd, env, timeout, max_rss_kib):
-    """Runs argv in its own session; kills the group on timeout or RSS above the limit."""
+CLOCK_TICK = os.sysconf("SC_CLK_TCK")
+
+
+def cpu_seconds(pid):
+    """User + system CPU time of a running process (all its threads), from /proc."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / CLOCK_TICK
+    except (OSError, ValueError, IndexError):
+        return 0.0
+
+
+def execute(argv, cwd, env, timeout, max_rss_kib, cpu_timeout=0):
+    """Runs argv in its own session; kills the group past `timeout` seconds of wall time, past
+    `cpu_timeout` seconds of CPU time (when > 0: a limit that a loaded machine does not move),
+    or with its RSS above the limit."""
     with tempfile.TemporaryFile() as out:
         t0 = time.monotonic()
         proc = subprocess.Popen(argv, cwd=cwd, env=env, stdin=subprocess.DEVNULL, stdout=out,
@@ -1291,7 +1466,8 @@ def execute(argv, cwd, env, timeout, max_rss_kib):
             killed = None
             if STOP.is_set():
                 killed = True
-            elif time.monotonic() - t0 > timeout:
+            elif time.monotonic() - t0 > timeout or (cpu_timeout > 0 and
+                                                     cpu_seconds(proc.pid) > cpu_timeout):
                 timed_out = killed = True
             elif rss_kib(proc.pid) > max_rss_kib:
                 rss_killed = killed = True
@@ -1309,7 +1485,7 @@ def execute(argv, cwd, env, timeout, max_rss_kib):
         seconds = time.monotonic() - t0
         out.seek(0)
         text = out.read().decode("utf-8", "replace")
-    return Outcome(rc, timed_out, rss_killed, ru.ru_maxrss, text, seconds)
+    return Outcome(rc, timed_out, rss_killed, ru.ru_maxrss, text, seconds, ru.ru_utime + ru.ru_stime)
 
 
 def first_line(output, markers):
@@ -1324,7 +1500,8 @@ def classify(o, run_dir, outputs, max_rss_kib):
     reasons = []
     left = sorted(p.name for p in run_dir.iterdir())
     if o.timed_out:
-        reasons.append("hang: timed out (process group killed)")
+        reasons.append(f"hang: killed at the time limit after {o.seconds:.1f} s, {o.cpu:.1f} s of CPU "
+                       "(process group killed)")
     if o.rss_killed or o.peak_kib > max_rss_kib:
         reasons.append(f"peak RSS {o.peak_kib // 1024} MiB above the limit")
     marker = first_line(o.output, SANITIZER_MARKERS)
@@ -1357,13 +1534,18 @@ def classify(o, run_dir, outputs, max_rss_kib):
     return ("ok" if o.rc == 0 else "error"), []
 
 
-Result = namedtuple("Result",
-                    "fmt index kind reasons rc peak_kib seconds mutant argv run_dir line ops")
+Result = namedtuple("Result", "fmt index kind reasons rc peak_kib seconds mutant argv run_dir "
+                               "line ops repro cpu")
+
+
+def first_message(output):
+    return (first_line(output, SANITIZER_MARKERS) or first_line(output, ["gsd: error"])
+            or (output.strip().splitlines() or [""])[-1])[:300]
 
 
 class Campaign:
-    def __init__(self, args, work, seeds, ctx):
-        self.a, self.work, self.seeds, self.ctx = args, work, seeds, ctx
+    def __init__(self, args, work, seeds, ctx, no_vdb=False):
+        self.a, self.work, self.seeds, self.ctx, self.no_vdb = args, work, seeds, ctx, no_vdb
         self.env = child_env(args.memory_limit)
         self.max_rss_kib = args.max_rss_mb * 1024
         self.seed_cache = {}
@@ -1375,31 +1557,42 @@ class Campaign:
                 self.seed_cache[fmt.name] = (self.seeds / fmt.seed).read_bytes()
             return self.seed_cache[fmt.name]
 
-    def run_one(self, fmt, index):
-        if STOP.is_set():
+    def repro(self, fmt, index):
+        """The command line that regenerates and reruns mutant `index` of `fmt`, keeping it."""
+        argv = ["python3", os.path.relpath(__file__), "--gsd", self.a.gsd_given,
+                "--seed", str(self.a.seed), "--formats", fmt.name, "--index", str(index),
+                "--timeout", f"{self.a.timeout:g}", "--cpu-timeout", f"{self.a.cpu_timeout:g}",
+                "--keep-findings", "/tmp/gsd-finding"]
+        if self.a.default_device_share != DEFAULT_DEVICE_SHARE:
+            argv += ["--default-device-share", f"{self.a.default_device_share:g}"]
+        return shlex.join(argv)
+
+    def run_one(self, fmt, index, deadline=None):
+        if STOP.is_set() or (deadline and time.monotonic() > deadline):
             return None
         rng = random.Random(f"{self.a.seed}:{fmt.name}:{index}")
         seed = self.seed_bytes(fmt)
         ctx = dict(self.ctx, curve=fmt.mutator == "curve",
                    off_faces=fmt.mutator == "off", header_end=_header_end(seed))
         data, ops = mutate(seed, fmt.mutator, ctx, rng)
-        ext = fmt.seed.rsplit(".", 1)[1]
+        ext = fmt.seed.split(".", 1)[1]
         mutant = self.work / "mutants" / f"{fmt.name}-{index:05d}.{ext}"
         mutant.write_bytes(data)
+        grid, extras = companion_files(fmt, mutant, self.seeds)
         cmd = fmt.commands[index % len(fmt.commands)]
         device_cpu = rng.random() >= self.a.default_device_share
-        argv = render(cmd, self.a.gsd, mutant, self.seeds, device_cpu)
+        box = pick_box(rng)
+        argv = render(cmd, self.a.gsd, mutant, self.seeds, device_cpu, box, grid, self.no_vdb)
         run_dir = self.work / "runs" / f"{fmt.name}-{index:05d}"
         run_dir.mkdir(parents=True)
-        o = execute(argv, run_dir, self.env, self.a.timeout, self.max_rss_kib)
-        kind, reasons = classify(o, run_dir, cmd.outputs, self.max_rss_kib)
-        line = first_line(o.output, SANITIZER_MARKERS) or first_line(o.output, ["gsd: error"]) \
-            or (o.output.strip().splitlines() or [""])[-1]
-        if kind != "finding":
+        o = execute(argv, run_dir, self.env, self.a.timeout, self.max_rss_kib, self.a.cpu_timeout)
+        kind, reasons = classify(o, run_dir, outputs_of(cmd, self.no_vdb), self.max_rss_kib)
+        if kind != "finding" and not self.a.keep_all:
             shutil.rmtree(run_dir, ignore_errors=True)
-            mutant.unlink()
+            for f in [mutant] + extras:
+                f.unlink()
         return Result(fmt.name, index, kind, reasons, o.rc, o.peak_kib, o.seconds, mutant, argv,
-                      run_dir, line[:300], ops)
+                      run_dir, first_message(o.output), ops, self.repro(fmt, index), o.cpu)
 
 
 def _header_end(seed):
@@ -1410,6 +1603,17 @@ def _header_end(seed):
     return 256
 
 
+def vdb_missing(camp):
+    """True when this gsd cannot write .vdb (no OpenVDB plugin beside it): the campaign then
+    writes those commands' grids as .npy (same computation, same mutants and commands)."""
+    run_dir = camp.work / "runs" / "vdb-probe"
+    run_dir.mkdir(parents=True)
+    o = execute([camp.a.gsd, "-q", "winding", str(camp.seeds / "m.obj"), "--grid", "4", "-o",
+                 "probe.vdb", "--device", "cpu"], run_dir, camp.env, 120, camp.max_rss_kib)
+    shutil.rmtree(run_dir, ignore_errors=True)
+    return o.rc != 0 and "cannot write .vdb" in o.output
+
+
 def check_clean_runs(camp, formats):
     """Every command must succeed on its unmutated seed, or the campaign measures nothing."""
     bad = []
@@ -1417,9 +1621,12 @@ def check_clean_runs(camp, formats):
         for i, cmd in enumerate(fmt.commands):
             run_dir = camp.work / "runs" / f"clean-{fmt.name}-{i}"
             run_dir.mkdir(parents=True)
-            argv = render(cmd, camp.a.gsd, camp.seeds / fmt.seed, camp.seeds, True)
-            o = execute(argv, run_dir, camp.env, camp.a.timeout, camp.max_rss_kib)
-            kind, reasons = classify(o, run_dir, cmd.outputs, camp.max_rss_kib)
+            seed = camp.seeds / fmt.seed
+            grid = seed.with_suffix("") if fmt.companion == "grid" else seed
+            argv = render(cmd, camp.a.gsd, seed, camp.seeds, True, None, grid, camp.no_vdb)
+            o = execute(argv, run_dir, camp.env, camp.a.timeout, camp.max_rss_kib,
+                        camp.a.cpu_timeout)
+            kind, reasons = classify(o, run_dir, outputs_of(cmd, camp.no_vdb), camp.max_rss_kib)
             if kind != "ok":
                 bad.append(f"  [{fmt.name}] {shlex.join(argv)}\n    exit {o.rc}: "
                            f"{'; '.join(reasons) or o.output.strip()[-300:]}")
@@ -1429,14 +1636,72 @@ def check_clean_runs(camp, formats):
         sys.exit(2)
 
 
+# ----------------------------------------------------------------------------- regressions
+# DIR/cases.txt: one case a line, `FILE gsd-arguments...` ({in}: DIR/FILE, {D}: DIR; `#`
+# starts a comment line). Each runs in an empty directory under the campaign's time limit and
+# memory cap, and is judged as a mutant is: exit 0 with every output (the files after -o /
+# --output / --gradient, and a --grid .npy's sidecar), or exit 1 with a `gsd: error:` line and
+# nothing left behind.
+
+Regression = namedtuple("Regression", "name lineno input argv outputs")
+OUTPUT_FLAGS = ("-o", "--output", "--gradient")
+
+
+def load_regressions(d):
+    d = Path(d).resolve()
+    manifest = d / "cases.txt"
+    if not manifest.is_file():
+        sys.exit(f"setup: {manifest} not found")
+    cases = []
+    for n, raw in enumerate(manifest.read_text().splitlines(), 1):
+        if not raw.strip() or raw.lstrip().startswith("#"):
+            continue
+        toks = shlex.split(raw)
+        inp = d / toks[0]
+        if len(toks) < 2 or not inp.is_file():
+            sys.exit(f"setup: {manifest}:{n}: needs an existing FILE and gsd arguments")
+        args = [t.replace("{in}", str(inp)).replace("{D}", str(d)) for t in toks[1:]]
+        outs = tuple(args[i + 1] for i, t in enumerate(args[:-1]) if t in OUTPUT_FLAGS)
+        cases.append(Regression(toks[0], n, inp, args, C(" ".join(args), *outs).outputs))
+    return cases
+
+
+def run_regressions(camp_args, work, cases):
+    env = child_env(camp_args.memory_limit)
+    max_rss_kib = camp_args.max_rss_mb * 1024
+    results = []
+    print(f"regressions: {len(cases)} case(s)", flush=True)
+    for c in cases:
+        if STOP.is_set():
+            break
+        run_dir = work / "regressions" / f"{c.lineno:03d}"
+        run_dir.mkdir(parents=True)
+        argv = [camp_args.gsd] + c.argv
+        o = execute(argv, run_dir, env, camp_args.timeout, max_rss_kib, camp_args.cpu_timeout)
+        kind, reasons = classify(o, run_dir, c.outputs, max_rss_kib)
+        line = first_message(o.output)
+        print(f"  {kind:<7} exit {o.rc:3d} {o.seconds:6.2f} s (cpu {o.cpu:6.2f} s) {o.peak_kib / 1024:5.0f} MiB  "
+              f"{c.name}: {shlex.join(c.argv).replace(str(c.input), '{in}')}"
+              + (f"\n          {line}" if kind != "ok" else ""), flush=True)
+        if kind != "finding":
+            shutil.rmtree(run_dir, ignore_errors=True)
+        repro = f"cd \"$(mktemp -d)\" && {shlex.join(argv)}"
+        results.append(Result("regressions", c.lineno, kind, reasons, o.rc, o.peak_kib, o.seconds,
+                              c.input, argv, run_dir, line, ["cases.txt:%d" % c.lineno], repro,
+                              o.cpu))
+    return results
+
+
 # ----------------------------------------------------------------------------- report
 
 def summary_line(name, rs):
     c = Counter(r.kind for r in rs)
     peak = max((r.peak_kib for r in rs), default=0) / 1024
     slowest = max((r.seconds for r in rs), default=0)
+    cpu = sum(r.cpu for r in rs)
     return (f"{name:<18} runs {len(rs):5d}  clean-errors {c['error']:5d}  successes {c['ok']:5d}"
-            f"  findings {c['finding']:4d}  peak-RSS-max {peak:7.1f} MiB  slowest {slowest:5.2f} s")
+            f"  findings {c['finding']:4d}  peak-RSS-max {peak:6.1f} MiB  slowest {slowest:5.2f} s"
+            f"  cpu {cpu:6.1f} s")
 
 
 def keep_finding(r, keep, seeds):
@@ -1445,7 +1710,10 @@ def keep_finding(r, keep, seeds):
         shutil.copytree(seeds, keep / "seeds")
     dst = keep / r.mutant.name
     shutil.copy(r.mutant, dst)
-    argv = [str(dst) if a == str(r.mutant) else a.replace(str(seeds), str(keep / "seeds"))
+    for extra in (Path(str(r.mutant) + ".json"), Path(str(r.mutant)[:-len(".json")])):
+        if r.mutant.name.endswith(".json") != extra.name.endswith(".json") and extra.exists():
+            shutil.copy(extra, keep / extra.name)  # a format's companion file
+    argv = [a.replace(str(r.mutant.parent), str(keep)).replace(str(seeds), str(keep / "seeds"))
             for a in r.argv]
     script = keep / (r.mutant.stem + ".sh")
     script.write_text("#!/bin/sh\n# %s\ncd \"$(mktemp -d)\" && %s\n"
@@ -1454,12 +1722,50 @@ def keep_finding(r, keep, seeds):
     return dst, argv
 
 
+# Subcommands that take --device (without it they run with --device auto).
+DEVICE_COMMANDS = ("pat", "baseline", "shm grid", "winding", "render")
+
+
+def label(r):
+    return f"cases.txt:{r.index}" if r.fmt == "regressions" else f"{r.fmt} #{r.index}"
+
+
+def command_name(argv):
+    sub = " ".join(argv[1:3] if len(argv) > 2 and argv[1] in ("shm", "pat", "baseline") else argv[1:2])
+    if not any(sub == c or sub.startswith(c + " ") for c in DEVICE_COMMANDS):
+        return sub
+    dev = next((argv[i + 1] for i, a in enumerate(argv[:-1]) if a == "--device"), "auto")
+    return sub + ("" if dev == "cpu" else f" (--device {dev})")
+
+
+def print_slowest(results):
+    """The slowest run of each command (by CPU time): the time budget adversarial inputs need."""
+    worst = {}
+    for r in results:
+        name = command_name(r.argv)
+        if name not in worst or r.cpu > worst[name].cpu:
+            worst[name] = r
+    if not worst:
+        return
+    print("\nSlowest run per command (CPU time; wall time; the run):")
+    for name, r in sorted(worst.items(), key=lambda kv: -kv[1].cpu):
+        print(f"  {name:<28} {r.cpu:6.2f} s  {r.seconds:6.2f} s  {label(r)} ({r.kind})")
+
+
 def report(results, formats, args, seeds):
-    by_fmt = {f.name: [r for r in results if r.fmt == f.name] for f in formats}
     print()
-    for name, rs in by_fmt.items():
-        print(summary_line(name, rs))
+    if any(r.fmt == "regressions" for r in results):
+        print(summary_line("regressions", [r for r in results if r.fmt == "regressions"]))
+    for f in formats:
+        rs = [r for r in results if r.fmt == f.name]
+        if rs:
+            print(summary_line(f.name, rs))
     print(summary_line("TOTAL", results))
+    print_slowest(results)
+    if MUTATOR_ERRORS:
+        print("\nnote: mutation operators that raised (skipped; a bug in this tool, not in gsd):")
+        for what, n in MUTATOR_ERRORS.most_common():
+            print(f"  {n:4d} x  {what}")
     findings = [r for r in results if r.kind == "finding"]
     if not findings:
         return
@@ -1469,11 +1775,13 @@ def report(results, formats, args, seeds):
         keep.mkdir(parents=True, exist_ok=True)
     signatures = Counter()
     for r in findings:
-        mutant, argv = keep_finding(r, keep, seeds) if keep else (r.mutant, r.argv)
-        print(f"- [{r.fmt} #{r.index}] exit {r.rc}: {'; '.join(r.reasons)}")
-        print(f"    mutant:  {mutant}  (mutations: {', '.join(r.ops)})")
-        print(f"    command: {shlex.join(argv)}   (run in an empty directory; this run's: {r.run_dir})")
-        print(f"    line:    {r.line}")
+        mutant, argv = keep_finding(r, keep, seeds) if keep and r.fmt != "regressions" \
+            else (r.mutant, r.argv)
+        print(f"- [{label(r)}] exit {r.rc} after {r.seconds:.1f} s: {'; '.join(r.reasons)}")
+        print(f"    input:     {mutant}  (mutations: {', '.join(r.ops)})")
+        print(f"    command:   {shlex.join(argv)}   (run in an empty directory; this run's: {r.run_dir})")
+        print(f"    line:      {r.line}")
+        print(f"    reproduce: {r.repro}")
         cmd_name = " ".join(a for a in r.argv[1:3] if not a.startswith(("/", "-")))
         key = re.sub(r"\d+", "N", r.reasons[0].split(": ")[0])
         signatures[(key, cmd_name, re.sub(r"\d+", "N", r.line)[:120])] += 1
@@ -1482,12 +1790,25 @@ def report(results, formats, args, seeds):
         print(f"  {n:4d} x  {reason} | gsd {cmd} | {line}")
 
 
+DEFAULT_DEVICE_SHARE = 0.1
+
+
 def parse_args():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--gsd", help="the gsd binary to test")
     p.add_argument("--count", type=int, default=200, help="mutants per format (200)")
-    p.add_argument("--timeout", type=float, default=20, help="seconds per run (20)")
+    p.add_argument("--counts", default="",
+                   help="per-format counts overriding --count: NAME=N,... (names or prefixes)")
+    p.add_argument("--minutes", type=float, default=0,
+                   help="run for this long instead: rounds of --block mutants per format")
+    p.add_argument("--block", type=int, default=10, help="mutants per format and round (10)")
+    p.add_argument("--index", type=int, help="run only mutant INDEX of each format (reproduce)")
+    p.add_argument("--regressions", help="replay DIR/cases.txt before the mutants")
+    p.add_argument("--timeout", type=float, default=20, help="wall-clock seconds per run (20)")
+    p.add_argument("--cpu-timeout", type=float, default=0,
+                   help="CPU seconds per run (0: none); with it, --timeout is a backstop for "
+                        "runs that wait without computing")
     p.add_argument("--seed", type=int, default=1, help="campaign seed (1)")
     p.add_argument("--jobs", type=int, default=1, help="runs in parallel (1)")
     p.add_argument("--work", help="work directory, new or empty (default: a fresh temp dir)")
@@ -1496,7 +1817,7 @@ def parse_args():
     p.add_argument("--max-rss-mb", type=int, default=2048, help="peak RSS limit per run (2048)")
     p.add_argument("--memory-limit", default="1G",
                    help="GSD_MEMORY_LIMIT for the children ('' to leave unset; 1G)")
-    p.add_argument("--default-device-share", type=float, default=0.1,
+    p.add_argument("--default-device-share", type=float, default=DEFAULT_DEVICE_SHARE,
                    help="fraction of runs without --device cpu (--device auto) (0.1)")
     p.add_argument("-v", "--verbose", action="store_true", help="print every run's outcome")
     p.add_argument("--list-formats", action="store_true", help="list the formats and exit")
@@ -1508,9 +1829,11 @@ def parse_args():
         sys.exit(0)
     if not a.gsd:
         p.error("--gsd is required")
+    a.gsd_given = a.gsd
     a.gsd = str(Path(a.gsd).resolve())
     if not os.access(a.gsd, os.X_OK):
         p.error(f"{a.gsd} is not an executable")
+    a.keep_all = a.index is not None  # a reproduction keeps its mutant and run directory
     return a
 
 
@@ -1518,17 +1841,66 @@ def select_formats(spec):
     if not spec:
         return FORMATS
     chosen = []
-    for want in spec.split(","):
-        hits = [f for f in FORMATS if f.name == want or f.name.startswith(want.strip())]
+    for want in (w.strip() for w in spec.split(",")):
+        exact = [f for f in FORMATS if f.name == want]
+        hits = exact or [f for f in FORMATS if f.name.startswith(want)]
         if not hits:
             sys.exit(f"unknown format {want!r}; known: {', '.join(f.name for f in FORMATS)}")
         chosen += [f for f in hits if f not in chosen]
     return chosen
 
 
+def format_counts(args, formats):
+    counts = {f.name: args.count for f in formats}
+    for item in filter(None, (x.strip() for x in args.counts.split(","))):
+        name, _, n = item.partition("=")
+        if not n.isdigit():
+            sys.exit(f"--counts: {item!r} is not NAME=N")
+        for f in select_formats(name):
+            if f.name in counts:
+                counts[f.name] = int(n)
+    return counts
+
+
+def run_campaign(camp, pool, formats, counts, args):
+    results = []
+    if args.index is not None or not args.minutes:
+        for fmt in formats:
+            indices = [args.index] if args.index is not None else range(counts[fmt.name])
+            if not indices:
+                continue
+            t0 = time.monotonic()
+            rs = [r for r in pool.map(lambda i, f=fmt: camp.run_one(f, i), indices) if r]
+            if args.verbose:
+                for r in rs:
+                    print(f"  {r.fmt}#{r.index} {r.kind:<7} exit {r.rc:3d} {r.seconds:5.2f} s cpu {r.cpu:5.2f} s "
+                          f"[{','.join(r.ops)}] {shlex.join(r.argv[1:])}: {r.line[:150]}")
+            results += rs
+            print(summary_line(fmt.name, rs) + f"  (total {time.monotonic() - t0:.0f} s)",
+                  flush=True)
+        return results
+    # --minutes: rounds of --block mutants of every format until the time is up (a run under
+    # way at the deadline finishes; the indices of one round follow the last round's).
+    t0 = time.monotonic()
+    deadline = t0 + 60 * args.minutes
+    rnd = 0
+    while time.monotonic() < deadline and not STOP.is_set():
+        jobs = [(f, i) for f in formats for i in range(rnd * args.block, (rnd + 1) * args.block)]
+        rs = [r for r in pool.map(lambda fi: camp.run_one(fi[0], fi[1], deadline), jobs) if r]
+        results += rs
+        rnd += 1
+        n_find = sum(r.kind == "finding" for r in results)
+        print(f"round {rnd}: indices < {rnd * args.block}, {len(results)} runs, {n_find} findings, "
+              f"{time.monotonic() - t0:.0f} s", flush=True)
+    return results
+
+
 def main():
     args = parse_args()
+    t_start = time.monotonic()
     formats = select_formats(args.formats)
+    counts = format_counts(args, formats)
+    sampling = args.index is not None or args.minutes > 0 or any(counts.values())
     own_work = not args.work
     work = Path(args.work or tempfile.mkdtemp(prefix="gsd-mutate-")).resolve()
     if work.exists() and any(work.iterdir()):
@@ -1536,34 +1908,39 @@ def main():
     seeds = work / "seeds"
     for d in (seeds, work / "mutants", work / "runs"):
         d.mkdir(parents=True, exist_ok=True)
-    print(f"gsd {args.gsd}\nwork {work}\nseed {args.seed}, {args.count} mutants per format, "
-          f"timeout {args.timeout:g} s, jobs {args.jobs}", flush=True)
-    ctx = make_seeds(args.gsd, seeds)
-    camp = Campaign(args, work, seeds, ctx)
-    check_clean_runs(camp, formats)
+    what = (f"mutant {args.index} of each format" if args.index is not None
+            else f"{args.minutes:g} minutes" if args.minutes
+            else ", ".join(f"{n}:{c}" for n, c in counts.items() if c) or "no mutants")
+    limit = f"{args.cpu_timeout:g} s of CPU ({args.timeout:g} s wall)" if args.cpu_timeout \
+        else f"{args.timeout:g} s"
+    print(f"gsd {args.gsd}\nwork {work}\nseed {args.seed}, {what}, "
+          f"time limit {limit}, jobs {args.jobs}", flush=True)
 
     results = []
-    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        for fmt in formats:
-            t0 = time.monotonic()
+    if args.regressions:
+        results += run_regressions(args, work, load_regressions(args.regressions))
+    if sampling:
+        ctx = make_seeds(args.gsd, seeds)
+        camp = Campaign(args, work, seeds, ctx)
+        camp.no_vdb = vdb_missing(camp)
+        if camp.no_vdb:
+            print("note: this gsd cannot write .vdb (no OpenVDB plugin): those commands write .npy")
+        if args.index is None:
+            check_clean_runs(camp, formats)
+        with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, args.jobs)) as pool:
             try:
-                rs = list(pool.map(lambda i, f=fmt: camp.run_one(f, i), range(args.count)))
+                results += run_campaign(camp, pool, formats, counts, args)
             except KeyboardInterrupt:
                 STOP.set()
                 pool.shutdown(cancel_futures=True)
                 sys.exit(f"interrupted; work directory: {work}")
-            if args.verbose:
-                for r in rs:
-                    print(f"  {r.fmt}#{r.index} {r.kind:<7} exit {r.rc:3d} "
-                          f"[{','.join(r.ops)}] {' '.join(r.argv[1:3])}: {r.line[:150]}")
-            results += rs
-            print(summary_line(fmt.name, rs) + f"  (total {time.monotonic() - t0:.0f} s)", flush=True)
     report(results, formats, args, seeds)
+    print(f"\ncampaign took {time.monotonic() - t_start:.0f} s")
     has_findings = any(r.kind == "finding" for r in results)
-    if own_work and not has_findings:
+    if own_work and not has_findings and not args.keep_all:
         shutil.rmtree(work, ignore_errors=True)
-    elif has_findings:
-        print(f"\nwork directory kept: {work}")
+    elif has_findings or args.keep_all:
+        print(f"work directory kept: {work}")
     return 1 if has_findings else 0
 
 
