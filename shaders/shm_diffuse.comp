@@ -11,6 +11,7 @@ layout(local_size_x_id = 0) in;
 const int STACK = 64;
 const int PIECES = 68;
 const int MAX_SPLITS = 4096;  // sums::kMaxSplits
+const float NEEDLE_ASPECT = 768.0;  // sums::kNeedleAspectGpu: below the CPU's 1024, so the GPU never refines what the CPU bisects
 
 layout(std430, binding = 0) readonly buffer Nodes { Node nodes[]; };
 layout(std430, binding = 1) readonly buffer Moments { vec4 moments[]; };
@@ -128,11 +129,14 @@ void main() {
             vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w), cd, co;
             float rho0;
             triangle_shape(ab, ac, cd, co, rho0);
-            // Wider than the reach (a face with a far corner, a needle): only its part within the
-            // reach counts, cut out on the CPU (SumTree::screened_element), which redoes this query.
-            // Not here: llvmpipe runs an if's body under a lane mask whether a lane takes it or
-            // not, and the clipping, run so for every element, made step 1 2.5× slower there.
-            if (rho0 > R) {
+            // Wider than the reach (a face with a far corner): only its part within the reach
+            // counts, cut out on the CPU (SumTree::screened_element), which redoes this query; so
+            // does a needle, which the CPU refines by bisection (the 1→4 split here keeps a
+            // needle's shape and ran to the split cap beside one). Not here: llvmpipe runs an
+            // if's body under a lane mask whether a lane takes it or not, and the clipping, run
+            // so for every element, made step 1 2.5× slower there.
+            float longest2 = max(dot(ab, ab), max(dot(ac, ac), dot(ac - ab, ac - ab)));
+            if (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac))) {
                 wide = true;
                 continue;
             }
@@ -175,7 +179,8 @@ void main() {
     }
     float len = length(X);
     outv[2u * q] = vec4(len > 0.0 ? X / len : vec3(0.0), rmin);
-    // y: redo on the CPU — the loop limit may have cut the walk short, or an element was wider
-    // than the reach.
-    outv[2u * q + 1u] = vec4(float(terms), (pc.lane_cap > 0u && iters >= pc.lane_cap) || wide ? 1.0 : 0.0, 0.0, 0.0);
+    // y: redo on the CPU — 1: the loop limit may have cut the walk short (the host redoes the
+    // query's whole SIMD group, which shares the limit), 2: an element was wider than the reach
+    // or a needle (this query alone).
+    outv[2u * q + 1u] = vec4(float(terms), pc.lane_cap > 0u && iters >= pc.lane_cap ? 1.0 : (wide ? 2.0 : 0.0), 0.0, 0.0);
 }

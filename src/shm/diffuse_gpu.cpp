@@ -31,6 +31,7 @@ public:
         const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush));
         const std::uint32_t cap = sums_detail::lane_cap(*ctx_), lanes = sums_detail::lanes_per_group(*ctx_);
         std::vector<char> redo(n, 0);
+        std::vector<float> device_terms(n, 0.0f);  // summed at the end over the queries not redone
         gpu::StreamJob job;
         job.count = n;
         job.in_bytes = 16;
@@ -49,8 +50,9 @@ public:
             for (std::size_t i = 0; i < m; ++i) {
                 for (int a = 0; a < 3; ++a) y[3 * (first + i) + std::size_t(a)] = r[8 * i + std::size_t(a)];
                 r_min[first + i] = r[8 * i + 3];
-                terms += std::size_t(r[8 * i + 4]);
-                if (r[8 * i + 5] != 0) sums_detail::mark_group(redo, first, first + i, lanes, first + m);
+                device_terms[first + i] = r[8 * i + 4];
+                if (r[8 * i + 5] == 1) sums_detail::mark_group(redo, first, first + i, lanes, first + m);
+                else if (r[8 * i + 5] == 2) redo[first + i] = 1;
             }
         };
         gpu::stream(*ctx_, job, progress);
@@ -58,8 +60,10 @@ public:
         // than their reach (shm_diffuse.comp leaves those to the CPU's clipping): the CPU
         // reference, in double, from a list (a dynamic schedule over every node cost more).
         std::vector<std::uint32_t> again;
-        for (std::size_t q = 0; q < n; ++q)
+        for (std::size_t q = 0; q < n; ++q) {
             if (redo[q]) again.push_back(std::uint32_t(q));
+            else terms += std::size_t(device_terms[q]);
+        }
         const detail::SumTree::Screened s = screened_params(k_);
 #pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms)
         for (std::size_t i = 0; i < again.size(); ++i) {

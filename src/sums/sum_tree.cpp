@@ -780,14 +780,42 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
         for (int a = 0; a < 3; ++a) X[3 * l + a] = sum[a][l];
 }
 
+namespace {
+
+/// (1/12) Σ (p − g)(p − g)ᵀ of a triangle's corners about its centroid, as (xx yy zz xy xz yz),
+/// and its radius about the centroid.
+void triangle_covariance(const Vec3& a, const Vec3& b, const Vec3& c, double (&cov)[6], double& rho) {
+    const Vec3 g = (a + b + c) / 3;
+    const Vec3 da = a - g, db = b - g, dc = c - g;
+    cov[0] = (da[0] * da[0] + db[0] * db[0] + dc[0] * dc[0]) / 12;
+    cov[1] = (da[1] * da[1] + db[1] * db[1] + dc[1] * dc[1]) / 12;
+    cov[2] = (da[2] * da[2] + db[2] * db[2] + dc[2] * dc[2]) / 12;
+    cov[3] = (da[0] * da[1] + db[0] * db[1] + dc[0] * dc[1]) / 12;
+    cov[4] = (da[0] * da[2] + db[0] * db[2] + dc[0] * dc[2]) / 12;
+    cov[5] = (da[1] * da[2] + db[1] * db[2] + dc[1] * dc[2]) / 12;
+    rho = std::max({da.norm(), db.norm(), dc.norm()});
+}
+
+}  // namespace
+
+bool sums::is_needle(const Vec3& a, const Vec3& b, const Vec3& c, double aspect) {
+    const double longest2 = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    return longest2 > aspect * (b - a).cross(c - a).norm();
+}
+
 void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened& k, double r_min, double R, double budget,
                                double* Xp, std::size_t& terms) const {
     const double* p = corners(j);
     const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6);
+    const double* v = vector(j);
     const double rho0 = elem_rho_[j];
     if (rho0 <= R) {
+        if (sums::is_needle(a, b, c, sums::kNeedleAspect)) {
+            screened_needle(a, b, c, v, xp, k, r_min, R, budget, Xp, terms);
+            return;
+        }
         const double decay = decay_lambda_ == k.lambda ? elem_decay_[j] : std::exp(-k.lambda * rho0);
-        screened_triangle(a, b - a, c - a, vector(j), covariance(j), rho0, decay, xp, k, r_min, R, budget, Xp, terms);
+        screened_triangle(a, b - a, c - a, v, covariance(j), rho0, decay, xp, k, r_min, R, budget, Xp, terms);
         return;
     }
     // An element wider than the reach R: only its part within R of x weighs anything, and that
@@ -799,20 +827,70 @@ void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened
     std::array<Vec3, 9> poly;
     const int n = clip_triangle_to_box(a, b, c, x - reach, x + reach, poly);
     const double whole = (b - a).cross(c - a).norm();
-    const double* v = vector(j);
     for (int i = 1; i + 1 < n; ++i) {
         const Vec3 &pa = poly[0], &pb = poly[std::size_t(i)], &pc = poly[std::size_t(i + 1)];
         const double share = (pb - pa).cross(pc - pa).norm() / whole;
         if (!(share > 0)) continue;
         const double vs[3] = {v[0] * share, v[1] * share, v[2] * share};
-        const Vec3 g = (pa + pb + pc) / 3;
-        const Vec3 da = pa - g, db = pb - g, dc = pc - g;
-        const double cov[6] = {(da[0] * da[0] + db[0] * db[0] + dc[0] * dc[0]) / 12, (da[1] * da[1] + db[1] * db[1] + dc[1] * dc[1]) / 12,
-                               (da[2] * da[2] + db[2] * db[2] + dc[2] * dc[2]) / 12, (da[0] * da[1] + db[0] * db[1] + dc[0] * dc[1]) / 12,
-                               (da[0] * da[2] + db[0] * db[2] + dc[0] * dc[2]) / 12, (da[1] * da[2] + db[1] * db[2] + dc[1] * dc[2]) / 12};
-        const double rho = std::max({da.norm(), db.norm(), dc.norm()});
+        if (sums::is_needle(pa, pb, pc, sums::kNeedleAspect)) {
+            screened_needle(pa, pb, pc, vs, xp, k, r_min, R, budget, Xp, terms);
+            continue;
+        }
+        double cov[6], rho;
+        triangle_covariance(pa, pb, pc, cov, rho);
         screened_triangle(pa, pb - pa, pc - pa, vs, cov, rho, std::exp(-k.lambda * rho), xp, k, r_min, R, budget, Xp, terms);
     }
+}
+
+void SumTree::screened_needle(const Vec3& a, const Vec3& b, const Vec3& c, const double* v, const double* xp,
+                              const Screened& k, double r_min, double R, double budget, double* Xp, std::size_t& terms) {
+    // The 1→4 split keeps a needle's shape: each piece is as thin as the needle, so its radius
+    // — half its length — stays large next to its distance, and a node beside a long needle
+    // refined thousands of pieces (a face with one corner moved 10³ edges away cost 1.2·10⁹
+    // terms at 32³). Bisecting at the longest edge makes pieces of bounded shape within a few
+    // levels: the pieces near x are then a handful a level. Each piece carries its own
+    // corners, so its radius, share of the area and covariance come from them.
+    struct Piece {
+        Vec3 p[3];
+        int level;
+    };
+    Piece pieces[2 * kNeedleLevels + 4];
+    const Vec3 x = vec(xp);
+    Vec3 X = vec(Xp);
+    const double whole = (b - a).cross(c - a).norm();
+    if (!(whole > 0)) return;  // no area to share out (elements with none are dropped earlier)
+    const double area = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+    int np = 0, splits = 0;
+    pieces[np++] = {{a, b, c}, 0};
+    while (np > 0) {
+        const Piece q = pieces[--np];
+        double cov[6], rho;
+        triangle_covariance(q.p[0], q.p[1], q.p[2], cov, rho);
+        const Vec3 g = (q.p[0] + q.p[1] + q.p[2]) / 3;
+        const Vec3 dg = x - g;
+        const double dist = dg.norm();
+        if (dist - rho > R) continue;
+        const double share = (q.p[1] - q.p[0]).cross(q.p[2] - q.p[0]).norm() / whole;
+        const double m0[3] = {v[0] * share, v[1] * share, v[2] * share};
+        double E;
+        if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget, std::exp(-k.lambda * rho), E)) {
+            screened_piece_expansion(m0, cov, dg, dist, k, E, X);
+        } else if (rho <= k.r_floor || q.level >= kNeedleLevels || splits >= sums::kMaxSplits) {
+            const double w = std::exp(-k.lambda * (dist - r_min)) / std::max(dist, k.r_floor);
+            for (int i = 0; i < 3; ++i) X[i] += m0[i] * w;
+        } else {
+            // Corners i, i + 1 span the longest edge; the two halves keep the orientation.
+            const double len[3] = {(q.p[1] - q.p[0]).squaredNorm(), (q.p[2] - q.p[1]).squaredNorm(), (q.p[0] - q.p[2]).squaredNorm()};
+            const int i = int(std::max_element(len, len + 3) - len), j = (i + 1) % 3, o = (i + 2) % 3;
+            const Vec3 mid = 0.5 * (q.p[i] + q.p[j]);
+            ++splits;
+            pieces[np++] = {{q.p[i], mid, q.p[o]}, q.level + 1};
+            pieces[np++] = {{mid, q.p[j], q.p[o]}, q.level + 1};
+            continue;
+        }
+        ++terms;
+    }
+    for (int i = 0; i < 3; ++i) Xp[i] = X[i];
 }
 
 void SumTree::screened_triangle(const Vec3& a, const Vec3& ab, const Vec3& ac, const double* v, const double* cov,

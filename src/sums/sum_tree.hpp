@@ -174,6 +174,11 @@ private:
     /// element wider than the reach R, only its part in the cube of half-side R about x.
     void screened_element(std::uint32_t j, const double* x, const Screened& k, double r_min, double R, double budget,
                           double* X, std::size_t& terms) const;
+    /// The refinement of a needle (sums::is_needle): pieces bisected at their longest edge.
+    static constexpr int kNeedleLevels = 60;
+    static void screened_needle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const double* v,
+                                const double* x, const Screened& k, double r_min, double R, double budget, double* X,
+                                std::size_t& terms);
     /// The refinement itself, for a triangle a, a + ab, a + ac with vector area v, covariance
     /// cov, radius ρ0 about its centroid and e^(−λρ0) = decay0.
     static void screened_triangle(const Eigen::Vector3d& a, const Eigen::Vector3d& ab, const Eigen::Vector3d& ac,
@@ -226,6 +231,16 @@ private:
 };
 
 namespace sums {
+
+/// A triangle whose longest edge squared exceeds `aspect` times twice its area (its length over
+/// its height): SHM step 1 refines it by bisection (SumTree::screened_needle), not by 1→4
+/// splits, and the GPU leaves the nodes near one to the CPU (shaders/shm_diffuse.comp tests
+/// against kNeedleAspectGpu, lower, so that it never refines one the CPU would bisect). High
+/// enough that real meshes rarely have one (the shared scans: 0–209 faces of thousands past
+/// 256, 0–8 past 1024, most of them the fans of triangulated polygons), low enough for a stray
+/// vertex's faces (10³–10⁹).
+constexpr double kNeedleAspect = 1024, kNeedleAspectGpu = 768;
+bool is_needle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, double aspect);
 
 /// The most splits one (query, element) pair's refinement makes (SumTree::screened_triangle and
 /// shaders/shm_diffuse.comp alike): past it, pieces count by their centroids. A triangle within

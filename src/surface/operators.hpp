@@ -21,7 +21,8 @@ namespace gsd::surface {
 
 using Complex = std::complex<double>;
 
-/// Face areas, 0 for degenerate faces (area below kDegenerateRelativeArea × longest side²).
+/// Face areas, 0 for degenerate faces (area below kDegenerateRelativeArea × longest side², or a
+/// side longer than kDegenerateSpan typical edges).
 std::vector<double> face_areas(const Triangulation& T);
 
 /// Mean length of the edges of non-degenerate faces (each edge once); 0 if there are none.

@@ -63,5 +63,9 @@ Topology build_topology(PolygonMesh mesh);
 /// to rounding), and relative to the mesh's mean edge length squared (vanishingly small).
 constexpr double kDegenerateRelativeArea = 1e-14;
 constexpr double kDegenerateAbsoluteArea = 1e-12;
+/// A face whose longest side exceeds this many typical edge lengths (the robust mean) counts as
+/// degenerate too: it is a stray vertex's, and kept, its stiffness against its neighbours'
+/// (10¹⁸ apart for a vertex 10⁹ edges away) makes the operators impossible to factor in double.
+constexpr double kDegenerateSpan = 1e6;
 
 }  // namespace gsd::surface
