@@ -9,6 +9,8 @@
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 
+#include "bench_queries.hpp"
+
 #include <chrono>
 #include <cstdio>
 #include <random>
@@ -29,17 +31,6 @@ std::vector<std::string> split(const std::string& s) {
     return out;
 }
 
-// Half the queries near the surface (the expensive case for the accelerated sum), half uniform.
-Points make_queries(const shapes::Shape& shape, std::size_t m, std::uint64_t seed) {
-    const PointCloud near = shape.sample(m / 2, seed);
-    std::mt19937_64 rng(seed + 1);
-    std::normal_distribution<double> noise(0, 0.02);
-    std::uniform_real_distribution<double> u(-1, 1);
-    Points q(Eigen::Index(m), 3);
-    for (Eigen::Index i = 0; i < q.rows(); ++i)
-        for (int a = 0; a < 3; ++a) q(i, a) = i < near.size() ? near.points(i, a) + noise(rng) : u(rng);
-    return q;
-}
 
 // TorusNet fit throughput (points/s) on each device, side by side, with the GPU/CPU ratio.
 int bench_net(const shapes::Shape& shape, const std::vector<std::string>& sizes, const std::vector<std::string>& devices) {
@@ -94,7 +85,7 @@ int main(int argc, char** argv) {
     set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
     auto shape = shapes::by_name("torus");
     if (net) return bench_net(*shape, sizes, devices);
-    const Points q = make_queries(*shape, queries, 99);
+    const Points q = bench::queries_near(*shape, queries, 99);
     std::printf("PAT throughput: torus shape, %zu queries (half near the surface), %s sum\n", queries, exact ? "exact" : "accelerated");
     for (const auto& d : devices) {
         const gpu::Selection s = gpu::select(d);

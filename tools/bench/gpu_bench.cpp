@@ -15,6 +15,8 @@
 #include <gsd/pat.hpp>
 #include <gsd/render.hpp>
 #include <gsd/shapes.hpp>
+
+#include "bench_queries.hpp"
 #include <gsd/shm.hpp>
 #include <gsd/sums.hpp>
 
@@ -65,17 +67,6 @@ double max_difference(const std::vector<double>& a, const std::vector<double>& b
     return m;
 }
 
-// Half the queries near the surface (where sums cost most), half uniform in [−1, 1]³.
-Points queries_near(const shapes::Shape& shape, std::size_t m, std::uint64_t seed) {
-    const PointCloud near = shape.sample(m / 2, seed);
-    std::mt19937_64 rng(seed + 1);
-    std::normal_distribution<double> noise(0, 0.02);
-    std::uniform_real_distribution<double> u(-1, 1);
-    Points q(Eigen::Index(m), 3);
-    for (Eigen::Index i = 0; i < q.rows(); ++i)
-        for (int a = 0; a < 3; ++a) q(i, a) = i < near.size() ? near.points(i, a) + noise(rng) : u(rng);
-    return q;
-}
 
 std::string count(double n) {
     char b[32];
@@ -88,7 +79,7 @@ std::string count(double n) {
 
 Row bench_pat(const shapes::Shape& torus, std::size_t points, std::size_t queries, double cpu_share, const std::string& device) {
     const FittedTori tori = JetFitter().fit(torus.sample(points, 1));
-    const Points q = queries_near(torus, queries, 7);
+    const Points q = bench::queries_near(torus, queries, 7);
     const Points q_cpu = q.topRows(Eigen::Index(double(queries) * cpu_share));
     Row r{"PAT evaluation", count(double(points)) + " pts, " + count(double(queries)) + " queries", "queries/s"};
     std::vector<float> ref;
