@@ -30,9 +30,6 @@ int shared_knn(const gpu::Context& c) {
     return c.info().is_software() ? 0 : 1;
 }
 
-}  // namespace
-
-namespace {
 
 constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 

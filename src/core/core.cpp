@@ -50,9 +50,13 @@ void GridSpec::validate() const {
     for (int a = 0; a < 3; ++a) {
         const double cell = (box.hi[a] - box.lo[a]) / (n[a] - 1);
         const double at = std::max(std::abs(box.lo[a]), std::abs(box.hi[a]));
-        if (!(cell >= 1e-100) || !(cell >= 1e-12 * at))
-            throw Error("GridSpec::box", "grid cells of " + std::to_string(cell) +
-                                             " are too small for the box's coordinates (at least 1e-12 of them, and 1e-100)");
+        if (!(cell >= 1e-100) || !(cell >= 1e-12 * at)) {
+            std::ostringstream s;
+            s.precision(3);
+            s << "grid cells of " << cell << " are too small for the box's coordinates (" << at
+              << "): at least 1e-12 of them, and 1e-100";
+            throw Error("GridSpec::box", s.str());
+        }
     }
 }
 

@@ -782,18 +782,12 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
 
 namespace {
 
-/// (1/12) Σ (p − g)(p − g)ᵀ of a triangle's corners about its centroid, as (xx yy zz xy xz yz),
-/// and its radius about the centroid.
-void triangle_covariance(const Vec3& a, const Vec3& b, const Vec3& c, double (&cov)[6], double& rho) {
+/// A piece's covariance (triangle_covariance) and radius about its centroid, from its corners.
+void piece_shape(const Vec3& a, const Vec3& b, const Vec3& c, double (&cov)[6], double& rho) {
+    const double p[9] = {a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]};
+    triangle_covariance(p, cov);
     const Vec3 g = (a + b + c) / 3;
-    const Vec3 da = a - g, db = b - g, dc = c - g;
-    cov[0] = (da[0] * da[0] + db[0] * db[0] + dc[0] * dc[0]) / 12;
-    cov[1] = (da[1] * da[1] + db[1] * db[1] + dc[1] * dc[1]) / 12;
-    cov[2] = (da[2] * da[2] + db[2] * db[2] + dc[2] * dc[2]) / 12;
-    cov[3] = (da[0] * da[1] + db[0] * db[1] + dc[0] * dc[1]) / 12;
-    cov[4] = (da[0] * da[2] + db[0] * db[2] + dc[0] * dc[2]) / 12;
-    cov[5] = (da[1] * da[2] + db[1] * db[2] + dc[1] * dc[2]) / 12;
-    rho = std::max({da.norm(), db.norm(), dc.norm()});
+    rho = std::max({(a - g).norm(), (b - g).norm(), (c - g).norm()});
 }
 
 }  // namespace
@@ -837,7 +831,7 @@ void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened
             continue;
         }
         double cov[6], rho;
-        triangle_covariance(pa, pb, pc, cov, rho);
+        piece_shape(pa, pb, pc, cov, rho);
         screened_triangle(pa, pb - pa, pc - pa, vs, cov, rho, std::exp(-k.lambda * rho), xp, k, r_min, R, budget, Xp, terms);
     }
 }
@@ -865,7 +859,7 @@ void SumTree::screened_needle(const Vec3& a, const Vec3& b, const Vec3& c, const
     while (np > 0) {
         const Piece q = pieces[--np];
         double cov[6], rho;
-        triangle_covariance(q.p[0], q.p[1], q.p[2], cov, rho);
+        piece_shape(q.p[0], q.p[1], q.p[2], cov, rho);
         const Vec3 g = (q.p[0] + q.p[1] + q.p[2]) / 3;
         const Vec3 dg = x - g;
         const double dist = dg.norm();

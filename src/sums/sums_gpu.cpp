@@ -194,7 +194,6 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     // limit cut short, are summed on the CPU (which walks far queries in double).
     constexpr double kDeviceReach = 1e6;  // root radii
     std::vector<char> redo(n, 0);
-    bool any_redo = false, far_queries = false;
     std::size_t terms = 0;
     gpu::StreamJob job;
     job.count = n;
@@ -206,8 +205,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     // memory for most of a random access, and at 10⁷ queries that was most of a run.
     job.fill = [&](std::size_t first, std::size_t m, void* dst) {
         float* up = static_cast<float*>(dst);
-        std::size_t far_count = 0;
-#pragma omp parallel for schedule(static) reduction(+ : far_count)
+#pragma omp parallel for schedule(static)
         for (std::size_t i = 0; i < m; ++i) {
             const auto q = Eigen::Index(order[first + i]);
             double far = 0;
@@ -219,11 +217,9 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
             up[4 * i + 3] = 0;
             if (far > kDeviceReach) {
                 redo[std::size_t(q)] = 1;
-                ++far_count;
                 for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = 0;  // a cheap stand-in
             }
         }
-        far_queries = far_queries || far_count > 0;
     };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
         const WindingPush push{std::uint32_t(m), d.first_leaf, cap};
@@ -232,26 +228,23 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     };
     job.drain = [&](std::size_t first, std::size_t m, const void* src) {
         const float* r = static_cast<const float*>(src);
-        std::size_t chunk_terms = 0, cut = 0;
-#pragma omp parallel for schedule(static) reduction(+ : chunk_terms, cut)
+        std::size_t chunk_terms = 0;
+#pragma omp parallel for schedule(static) reduction(+ : chunk_terms)
         for (std::size_t i = 0; i < m; ++i) {
             const std::uint32_t q = order[first + i];
             out.w[q] = r[2 * i];
-            if (r[2 * i + 1] < 0) redo[q] = 1, ++cut;
+            if (r[2 * i + 1] < 0) redo[q] = 1;
             else if (!redo[q]) chunk_terms += std::size_t(r[2 * i + 1]);
         }
         terms += chunk_terms;
-        any_redo = any_redo || cut > 0;
     };
     gpu::stream(*ctx, job, progress);
     const double t_streamed = clock();
-    any_redo = any_redo || far_queries;
     // The queries to sum on the CPU, listed first (a dynamic schedule over all 10⁷ indices
     // cost more than the device's whole walk).
     std::vector<std::uint32_t> again;
-    if (any_redo)
-        for (std::size_t q = 0; q < n; ++q)
-            if (redo[q]) again.push_back(std::uint32_t(q));
+    for (std::size_t q = 0; q < n; ++q)
+        if (redo[q]) again.push_back(std::uint32_t(q));
     const std::size_t redone = again.size();
 #pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms)
     for (std::size_t i = 0; i < again.size(); ++i) {
