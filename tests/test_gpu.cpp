@@ -18,6 +18,7 @@
 #include <filesystem>
 
 #include <cmath>
+#include <cstdlib>
 #include <random>
 
 using namespace gsd;
@@ -166,6 +167,36 @@ TEST_CASE("PAT on the device matches the CPU reference (sphere, accelerated and 
         CHECK(dphi.max_abs < 1e-4);
         const Diff dgrad = compare(gpu.gradient, cpu.gradient, 1e-3);
         CHECK(dgrad.max_abs < 1e-3);
+    }
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
+}
+
+TEST_CASE("PAT's k-nearest fallback walked per subgroup (the hardware GPUs' path) matches the CPU reference") {
+    // Hardware GPUs walk the fallback together (blend_field.glsl, knn_together); lavapipe does
+    // not by default, so GSD_SHARED_KNN=1 puts that path under test here. Queries far apart and
+    // in random order too: a subgroup whose lanes want different subtrees.
+    REQUIRE(device());
+    auto s = shapes::by_name("torus");
+    const PointCloud c = s->sample(4096, 5);
+    const FittedTori f = JetFitter().fit(c);
+    Points q = mixed_queries(c, 6);
+    std::mt19937_64 rng(7);
+    std::uniform_real_distribution<double> u(-1.5, 1.5);
+    Points spread(512, 3);
+    for (Eigen::Index i = 0; i < spread.rows(); ++i)
+        for (int a = 0; a < 3; ++a) spread(i, a) = u(rng);
+    const FieldValues cpu = TorusField(f, on("cpu", false)).evaluate(q, true);
+    const FieldValues cpu_spread = TorusField(f, on("cpu", false)).evaluate(spread, true);
+    for (const char* shared : {"0", "1"}) {
+        CAPTURE(shared);
+        ::setenv("GSD_SHARED_KNN", shared, 1);
+        const TorusField field(f, on("gpu", false));
+        const FieldValues gpu = field.evaluate(q, true), gpu_spread = field.evaluate(spread, true);
+        ::unsetenv("GSD_SHARED_KNN");
+        CHECK(compare(gpu.phi, cpu.phi, 1e-4).max_abs < 1e-4);
+        CHECK(compare(gpu.gradient, cpu.gradient, 1e-3).max_abs < 1e-3);
+        CHECK(compare(gpu_spread.phi, cpu_spread.phi, 1e-4).max_abs < 1e-4);
+        CHECK(compare(gpu_spread.gradient, cpu_spread.gradient, 1e-3).max_abs < 1e-3);
     }
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
