@@ -32,10 +32,14 @@ Vec3 vec(const double* p) { return {p[0], p[1], p[2]}; }
 /// Covariance of the uniform density on a triangle: (1/12) Σ_k (p_k − g)(p_k − g)ᵀ, as
 /// (xx yy zz xy xz yz).
 void triangle_covariance(const double* p, double (&cov)[6]) {
-    const Vec3 a = vec(p), b = vec(p + 3), c = vec(p + 6), g = (a + b + c) / 3;
-    Eigen::Matrix3d s = Eigen::Matrix3d::Zero();
-    for (const Vec3& q : {a, b, c}) s += (q - g) * (q - g).transpose();
-    s /= 12;
+    // Scalar on purpose: SHM step 1 calls this for every accepted needle piece, and the Eigen
+    // outer-product form cost two thirds of a run on a mesh with one stray vertex.
+    double d[3][3];
+    for (int a = 0; a < 3; ++a) {
+        const double g = (p[a] + p[3 + a] + p[6 + a]) / 3;
+        for (int q = 0; q < 3; ++q) d[q][a] = p[3 * q + a] - g;
+    }
+    const auto s = [&](int u, int w) { return (d[0][u] * d[0][w] + d[1][u] * d[1][w] + d[2][u] * d[2][w]) / 12; };
     cov[0] = s(0, 0); cov[1] = s(1, 1); cov[2] = s(2, 2);
     cov[3] = s(0, 1); cov[4] = s(0, 2); cov[5] = s(1, 2);
 }
@@ -782,12 +786,15 @@ void SumTree::screened(const double* p, int n, const Screened& k, double* r_min,
 
 namespace {
 
-/// A piece's covariance (triangle_covariance) and radius about its centroid, from its corners.
-void piece_shape(const Vec3& a, const Vec3& b, const Vec3& c, double (&cov)[6], double& rho) {
+/// A piece's covariance (triangle_covariance), from its corners.
+void piece_covariance(const Vec3& a, const Vec3& b, const Vec3& c, double (&cov)[6]) {
     const double p[9] = {a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]};
     triangle_covariance(p, cov);
-    const Vec3 g = (a + b + c) / 3;
-    rho = std::max({(a - g).norm(), (b - g).norm(), (c - g).norm()});
+}
+
+/// A piece's radius about its centroid g.
+double piece_radius(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& g) {
+    return std::sqrt(std::max({(a - g).squaredNorm(), (b - g).squaredNorm(), (c - g).squaredNorm()}));
 }
 
 }  // namespace
@@ -830,8 +837,9 @@ void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened
             screened_needle(pa, pb, pc, vs, xp, k, r_min, R, budget, Xp, terms);
             continue;
         }
-        double cov[6], rho;
-        piece_shape(pa, pb, pc, cov, rho);
+        double cov[6];
+        piece_covariance(pa, pb, pc, cov);
+        const double rho = piece_radius(pa, pb, pc, (pa + pb + pc) / 3);
         screened_triangle(pa, pb - pa, pc - pa, vs, cov, rho, std::exp(-k.lambda * rho), xp, k, r_min, R, budget, Xp, terms);
     }
 }
@@ -858,9 +866,8 @@ void SumTree::screened_needle(const Vec3& a, const Vec3& b, const Vec3& c, const
     pieces[np++] = {{a, b, c}, 0};
     while (np > 0) {
         const Piece q = pieces[--np];
-        double cov[6], rho;
-        piece_shape(q.p[0], q.p[1], q.p[2], cov, rho);
         const Vec3 g = (q.p[0] + q.p[1] + q.p[2]) / 3;
+        const double rho = piece_radius(q.p[0], q.p[1], q.p[2], g);
         const Vec3 dg = x - g;
         const double dist = dg.norm();
         if (dist - rho > R) continue;
@@ -868,6 +875,8 @@ void SumTree::screened_needle(const Vec3& a, const Vec3& b, const Vec3& c, const
         const double m0[3] = {v[0] * share, v[1] * share, v[2] * share};
         double E;
         if (sums::accept_screened(rho, dist, area * share, k.lambda, r_min, budget, std::exp(-k.lambda * rho), E)) {
+            double cov[6];  // only accepted pieces need it: most are split or out of reach
+            piece_covariance(q.p[0], q.p[1], q.p[2], cov);
             screened_piece_expansion(m0, cov, dg, dist, k, E, X);
         } else if (rho <= k.r_floor || q.level >= kNeedleLevels || splits >= sums::kMaxSplits) {
             const double w = std::exp(-k.lambda * (dist - r_min)) / std::max(dist, k.r_floor);
