@@ -243,7 +243,7 @@ TEST_CASE("results do not depend on the chunk size (one chunk vs many)") {
 }
 
 #if GSD_HAVE_SHARED_DATA
-TEST_CASE("real, sparse and corrupted clouds: device agrees with the CPU to 2e-4") {
+TEST_CASE("real, sparse and corrupted clouds: device agrees with the CPU to 2e-4" * doctest::test_suite("slow")) {
     REQUIRE(device());
     for (const char* name : {"pointclouds/holey-bunny.ply", "pointclouds/tooth.ply", "pointclouds/chair.pc",
                              "pointclouds/snail.ply"}) {

@@ -349,7 +349,7 @@ TEST_CASE("outlier scores: clean, noisy, flipped and holey clouds keep every poi
     }
 }
 
-TEST_CASE("PAT with the outlier defence: 5 % strays cost little; blending them (the thesis' PAT) costs a lot") {
+TEST_CASE("PAT with the outlier defence: 5 % strays cost little; blending them (the thesis' PAT) costs a lot" * doctest::test_suite("slow")) {
     const GridSpec g = GridSpec::cube(32, Box{{-1, -1, -1}, {1, 1, 1}});
     const Points nodes = g.nodes();
     BlendOptions opt;

@@ -744,7 +744,7 @@ TEST_CASE("curve files: bad records name the file and line") {
 }
 
 #if GSD_HAVE_SHARED_DATA
-TEST_CASE("every curve in the shared data loads and solves to finite values") {
+TEST_CASE("every curve in the shared data loads and solves to finite values" * doctest::test_suite("slow")) {
     const std::vector<std::pair<std::string, std::string>> pairs{
         {"S.obj", "S.txt"},
         {"annulus.obj", "annulus.txt"},

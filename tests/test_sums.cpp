@@ -124,7 +124,7 @@ TEST_CASE("tree moments: a node's expansion equals the sum of its triangles' exa
             }
 }
 
-TEST_CASE("fast winding numbers: within 1e-3 of the exact sum beyond one edge length, on broken meshes and clouds") {
+TEST_CASE("fast winding numbers: within 1e-3 of the exact sum beyond one edge length, on broken meshes and clouds" * doctest::test_suite("slow")) {
     for (const std::string shape : {"sphere", "torus", "capsule"}) {
         CAPTURE(shape);
         const PolygonMesh m = broken(shape.c_str(), 40, 7);
@@ -330,7 +330,7 @@ TEST_CASE("nearest element: the tree search equals brute force, whatever bound a
     }
 }
 
-TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine quadrature, coarse faces included") {
+TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine quadrature, coarse faces included" * doctest::test_suite("slow")) {
     // A coarse broken mesh (faces several times 1/λ near some queries) and queries from on the
     // surface out to the cutoff.
     const PolygonMesh m = broken("torus", 12, 3);

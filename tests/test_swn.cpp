@@ -250,7 +250,7 @@ TEST_CASE("SWN: a torus with a bounding loop and a loop around the tube, whole a
     }
 }
 
-TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduced programs agree") {
+TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduced programs agree" * doctest::test_suite("slow")) {
     const PolygonMesh m = shapes::double_torus_mesh(40);
     const SurfaceMesh mesh(m, "double torus");
     SurfaceWindingNumbers swn(mesh);
@@ -493,7 +493,7 @@ TEST_CASE("SWN: bad input is a clear error") {
     CHECK_THROWS_WITH_AS(nonmanifold.solve(edge), doctest::Contains("manifold"), Error);
 }
 
-TEST_CASE("SWN: the shared curves on surfaces run; the double torus' loops split into bounding and nonbounding") {
+TEST_CASE("SWN: the shared curves on surfaces run; the double torus' loops split into bounding and nonbounding" * doctest::test_suite("slow")) {
     if (!GSD_HAVE_SHARED_DATA) {
         MESSAGE("../shared/data not found: shared-data cases not run");
         return;
