@@ -131,7 +131,7 @@ TEST_CASE("multigrid: a grid-independent convergence factor per cycle, on any gr
         const GridPoissonSolver solver(g, PoissonSolver::Multigrid, "cpu");
         const std::vector<double> b = solver.divergence(test_field(g));
         std::vector<double> history;
-        const std::vector<double> phi = solver.solve(b, 1e-8, 40, &history);
+        const std::vector<double> phi = solver.solve(b, {1e-8, 40}, &history);
         REQUIRE(history.size() >= 3);
         // Geometric mean of the per-cycle reduction.
         const double factor = std::pow(history.back() / history.front(), 1.0 / double(history.size() - 1));
@@ -152,7 +152,7 @@ TEST_CASE("multigrid, CG and CHOLMOD solve the same system") {
     std::vector<std::vector<double>> sol;
     for (PoissonSolver s : {PoissonSolver::Multigrid, PoissonSolver::CG, PoissonSolver::Direct}) {
         const GridPoissonSolver solver(g, s, "cpu");
-        sol.push_back(solver.solve(solver.divergence(y), 1e-10, 5000));
+        sol.push_back(solver.solve(solver.divergence(y), {1e-10, 5000}));
     }
     const double scale = max_abs(sol[0]);
     for (std::size_t k = 1; k < sol.size(); ++k) {
@@ -167,7 +167,7 @@ TEST_CASE("multigrid, CG and CHOLMOD solve the same system") {
     for (std::size_t i = 0; i < g.node_count(); ++i)
         for (int a = 0; a < 3; ++a) lin[3 * i + std::size_t(a)] = float(u[a]);
     const GridPoissonSolver solver(g, PoissonSolver::Multigrid, "cpu");
-    const std::vector<double> phi = solver.solve(solver.divergence(lin), 1e-10, 50);
+    const std::vector<double> phi = solver.solve(solver.divergence(lin), {1e-10, 50});
     const Points x = g.nodes();
     double worst = 0;
     const double offset = phi[0] - u.dot(x.row(0).transpose());
@@ -184,12 +184,12 @@ TEST_CASE("GPU multigrid: relative residual 1e-6 within 20 cycles at 128^3, φ m
     CHECK(gpu_solver.device() != "cpu");
     const std::vector<double> b = gpu_solver.divergence(y);
     std::vector<double> history;
-    const std::vector<double> phi_gpu = gpu_solver.solve(b, 1e-6, 20, &history);
+    const std::vector<double> phi_gpu = gpu_solver.solve(b, {1e-6, 20}, &history);
     MESSAGE("GPU multigrid 128^3: " << history.size() << " cycles to " << history.back());
     CHECK(history.back() <= 1e-6);
     CHECK(history.size() <= 20);
     const GridPoissonSolver cpu_solver(g, PoissonSolver::Multigrid, "cpu");
-    const std::vector<double> phi_cpu = cpu_solver.solve(b, 1e-6, 20);
+    const std::vector<double> phi_cpu = cpu_solver.solve(b, {1e-6, 20});
     double d = 0;
     for (std::size_t i = 0; i < phi_cpu.size(); ++i) d = std::max(d, std::abs(phi_gpu[i] - phi_cpu[i]));
     MESSAGE("max |φ_gpu − φ_cpu| = " << d << " (diagonal " << g.box.diagonal() << ")");

@@ -20,6 +20,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <cstddef>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -91,6 +92,17 @@ public:
 private:
     std::string choice_;
     std::shared_ptr<gpu::Context> context_;
+};
+
+/// Where a stage runs and in what pieces: the base of every options struct whose work has a GPU
+/// path (BlendOptions, TorusNetOptions, ShmOptions, WindingOptions, FieldRenderOptions).
+struct Execution {
+    /// Where it runs: "auto" | "gpu" | "cpu" | index | name | a gpu::Context; the default
+    /// (empty) is $GSD_DEVICE, else auto.
+    Device device;
+    /// Work items (queries, points, rays) per GPU chunk; 0: chosen from the device's limits.
+    /// Results do not depend on it.
+    std::size_t chunk_size = 0;
 };
 
 namespace gpu {

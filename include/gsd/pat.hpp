@@ -115,15 +115,11 @@ private:
     JetFitterOptions options_;
 };
 
-struct TorusNetOptions {
+/// Where it runs and the points per GPU chunk: Execution (gsd/gpu.hpp).
+struct TorusNetOptions : Execution {
     /// Weights file (.safetensors, docs/torusnet.md); empty: the model shipped in the library
     /// (models/torusnet.safetensors, embedded at build time).
     std::string model;
-    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
-    /// the default (empty) is $GSD_DEVICE, else auto.
-    Device device;
-    /// Points per GPU chunk (0: chosen from device limits). Results do not depend on it.
-    std::size_t chunk_size = 0;
 };
 
 /// TorusNet (thesis §5.1.2, docs/torusnet.md): a small transformer reads each point's k nearest
@@ -201,8 +197,9 @@ GSD_EXPORT PointConfidence point_confidence(const FittedTori& tori, const Outlie
 
 // ---- evaluation ---------------------------------------------------------------------------
 
-/// Options shared by every blended field (PAT and the SSPD / signed Hopf–Cole baselines).
-struct BlendOptions {
+/// Options shared by every blended field (PAT and the SSPD / signed Hopf–Cole baselines); where
+/// it runs and the queries per GPU chunk: Execution (gsd/gpu.hpp).
+struct BlendOptions : Execution {
     /// Sum over all points (eq. 5.6 with σ_x from all of them) instead of the accelerated sum.
     bool exact = false;
     /// Accelerated mode: the points within ρ = max(r_eval, d_k) are summed, d_k being the
@@ -216,11 +213,6 @@ struct BlendOptions {
     int fallback_k = 32;
     /// exp(−C) is the smallest relative weight kept (thesis: C = 64 stays above float32 underflow).
     double C = 64.0;
-    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
-    /// the default (empty) is $GSD_DEVICE, else auto.
-    Device device;
-    /// Queries per GPU chunk (0: chosen from device limits). Results do not depend on it.
-    std::size_t chunk_size = 0;
 };
 
 /// The PAT signed distance field of a set of fitted tori.

@@ -27,7 +27,8 @@ namespace gsd {
 class TorusField;
 class BaselineField;
 
-struct FieldRenderOptions {
+/// Where it runs and the rays per GPU chunk (0: 65536): Execution (gsd/gpu.hpp).
+struct FieldRenderOptions : Execution {
     int width = 800, height = 600;
     /// Direction the camera looks from, toward the center of the surface's box (need not be
     /// unit); the distance is chosen to frame that box.
@@ -51,9 +52,6 @@ struct FieldRenderOptions {
     const GridSpec* color_grid = nullptr;
     const std::vector<float>* color_values = nullptr;
     double color_range = 0;
-    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
-    /// the default (empty) is $GSD_DEVICE, else auto.
-    Device device;
 };
 
 /// The camera a picture was taken with. The ray through pixel (x, y) of a W×H render (the

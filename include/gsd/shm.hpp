@@ -56,7 +56,8 @@ enum class PoissonSolver {
 };
 GSD_EXPORT PoissonSolver poisson_solver_from_name(const std::string& name);  // "mg" | "cg" | "direct"
 
-struct ShmOptions {
+/// Where it runs and the grid nodes per GPU chunk in step 1: Execution (gsd/gpu.hpp).
+struct ShmOptions : Execution {
     /// Diffusion time t = t_coef · h².
     double t_coef = 1.0;
     /// Step 1 drops sources whose kernel weight is below exp(−cutoff) of the nearest source's
@@ -93,11 +94,6 @@ struct ShmOptions {
     double veto_winding = 0.2;
     double veto_slope = 3.0;
     double veto_margin = 0.1;
-    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
-    /// the default (empty) is $GSD_DEVICE, else auto.
-    Device device;
-    /// Points per GPU chunk in step 1 (0: automatic). Results do not depend on it.
-    std::size_t chunk_size = 0;
 };
 
 /// What a solve produced, with its diagnostics.
@@ -141,6 +137,15 @@ GSD_EXPORT Box shm_default_bounds(const ShmSource& source);
 
 // ---- the Poisson solver, usable on its own ----------------------------------------------
 
+/// When GridPoissonSolver::solve stops (the direct solver ignores these: it is exact).
+struct PoissonSolveOptions {
+    /// Stop when ‖b − Lφ‖ ≤ tolerance·‖b‖.
+    double tolerance = 1e-6;
+    /// Cycles (multigrid) or iterations (CG) at most; 0: 50 cycles, 5000 CG iterations.
+    int max_iterations = 0;
+    bool f_cycle = false;  ///< multigrid: F-cycles instead of V-cycles
+};
+
 /// Solves the 7-point least-squares Poisson problem on a grid: find φ minimizing
 /// Σ_edges ((φ_j − φ_i)/Δ − Ȳ·e)², i.e. L φ = b with natural Neumann boundary, L the
 /// (positive semi-definite) 7-point Laplacian. The constant nullspace is removed (mean φ = 0).
@@ -153,10 +158,10 @@ public:
 
     /// Right-hand side of the least-squares problem from a vector field (3 per node).
     std::vector<double> divergence(const std::vector<float>& field) const;
-    /// Solves L φ = b (b must sum to zero). Returns φ (double) with mean zero.
-    std::vector<double> solve(const std::vector<double>& b, double tolerance, int max_iterations,
-                              std::vector<double>* residual_history = nullptr, bool f_cycle = false,
-                              const ProgressFn& progress = {}) const;
+    /// Solves L φ = b (b must sum to zero). Returns φ (double) with mean zero; the relative
+    /// residual after each cycle or iteration goes to `residual_history` if given.
+    std::vector<double> solve(const std::vector<double>& b, const PoissonSolveOptions& options = {},
+                              std::vector<double>* residual_history = nullptr, const ProgressFn& progress = {}) const;
     /// y = L x (for tests and residuals).
     std::vector<double> apply(const std::vector<double>& x) const;
     /// The device that runs the multigrid ("cpu" or a Vulkan device name).

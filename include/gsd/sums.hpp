@@ -44,7 +44,8 @@ struct GSD_EXPORT OrientedElements {
     void validate() const;
 };
 
-struct WindingOptions {
+/// Where it runs and the queries per GPU chunk: Execution (gsd/gpu.hpp).
+struct WindingOptions : Execution {
     /// Sum every element exactly (O(queries × elements)): the reference.
     bool exact = false;
     /// Opening criterion, two parts. A node of radius ρ and area A whose center is at distance
@@ -56,11 +57,6 @@ struct WindingOptions {
     /// for more than that can give: tolerance below 1e-4, or β above 4 with tolerance 0.
     double beta = 1.5;
     double tolerance = 2.5e-3;
-    /// Where it runs (gsd/gpu.hpp): "auto" | "gpu" | "cpu" | index | name | a gpu::Context;
-    /// the default (empty) is $GSD_DEVICE, else auto.
-    Device device;
-    /// Queries per GPU chunk (0: automatic). Results do not depend on it.
-    std::size_t chunk_size = 0;
 };
 
 struct WindingResult {

@@ -1,6 +1,6 @@
 // gsd::TorusNet: loads a model once, then fits clouds on the chosen device (GPU kernels, or
 // the CPU reference of torus_net.cpp).
-#include <gsd/gpu.hpp>
+#include "gpu/on_device.hpp"
 #include <gsd/pat.hpp>
 #include <gsd/spatial.hpp>
 
@@ -55,12 +55,12 @@ FittedTori TorusNet::fit(const PointCloud& cloud, const ProgressFn& progress) co
     out.spacing = mean_spacing(tree);
     out.fitter = "net";
 
-    const gpu::Selection sel = gpu::select(impl_->options.device);
-    if (!sel.note.empty()) log_once(sel.note);
-    if (sel.context)  // a failure here is an error: the caller asked for this device
-        detail::predict_jets_gpu(model, cloud, *sel.context, out.jets, out.tangents, impl_->options.chunk_size,
-                                 progress);
-    else detail::predict_jets_cpu(model, cloud, tree, out.jets, out.tangents, progress);
+    // A failure on the device is an error, not a fallback: the caller asked for this device.
+    const gpu::DeviceRun run = gpu::on_device(impl_->options.device, [&](const auto& ctx, std::string&) {
+        detail::predict_jets_gpu(model, cloud, *ctx, out.jets, out.tangents, impl_->options.chunk_size, progress);
+        return true;
+    });
+    if (!run) detail::predict_jets_cpu(model, cloud, tree, out.jets, out.tangents, progress);
     return out;
 }
 

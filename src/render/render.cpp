@@ -3,7 +3,7 @@
 #include "render/render.hpp"
 
 #include <gsd/baselines.hpp>
-#include <gsd/gpu.hpp>
+#include "gpu/on_device.hpp"
 #include <gsd/pat.hpp>
 
 #include "blend/blend.hpp"
@@ -44,6 +44,7 @@ March make_march(const Box& box, const FieldRenderOptions& o) {
     m.hit_eps = o.hit_tolerance > 0 ? o.hit_tolerance : 1e-4 * box.diagonal();
     m.min_step = m.hit_eps;
     m.bisection = o.bisection_steps;
+    if (o.chunk_size) m.chunk = o.chunk_size;
     return m;
 }
 
@@ -282,19 +283,16 @@ Box grid_subject(const GridSpec& g, const std::vector<float>& values) {
 }
 
 // The march on the chosen device, else (no device, or the field does not fit it) on the CPU,
-// then the shading both share. `on_device` marches on a context and says why it could not.
-using DeviceMarch = std::function<bool(const std::shared_ptr<gpu::Context>&, std::vector<float>&, std::string&)>;
-
-RenderedField march_and_shade(const Frame& f, const FieldRenderOptions& o, const DeviceMarch& on_device,
+// then the shading both share. `march_on(ctx, hits, why_not)` marches on a context and says why
+// it could not (a generic lambda: gpu::on_device).
+template <class DeviceMarch>
+RenderedField march_and_shade(const Frame& f, const FieldRenderOptions& o, const DeviceMarch& march_on,
                               const std::function<Sampler()>& make_sampler, const ProgressFn& progress) {
-    const gpu::Selection sel = gpu::select(o.device);
-    if (!sel.note.empty()) log_once(sel.note);
     std::vector<float> hits;
-    if (sel.context) {
-        std::string why_not;
-        if (on_device(sel.context, hits, why_not)) return shade(hits, f.cam, o, sel.device_name);
-        log_once(why_not + "; rendering on the CPU");
-    }
+    const gpu::DeviceRun run = gpu::on_device(
+        o.device, [&](const auto& ctx, std::string& why_not) { return march_on(ctx, hits, why_not); },
+        "; rendering on the CPU");
+    if (run) return shade(hits, f.cam, o, run.device);
     hits = march_cpu(make_sampler, f.cam, f.march, progress);
     return shade(hits, f.cam, o, "cpu");
 }
@@ -308,7 +306,7 @@ RenderedField render_blend(const blend::Engine& engine, const Box& box, const Fi
     const detail::BoxTree& tree = engine.search_tree();
     return march_and_shade(
         f, o,
-        [&](const std::shared_ptr<gpu::Context>& ctx, std::vector<float>& hits, std::string& why_not) {
+        [&](const auto& ctx, std::vector<float>& hits, std::string& why_not) {
             return march_blend_gpu(engine, ctx, f.cam, f.march, hits, why_not, progress);
         },
         [&] {
@@ -347,7 +345,7 @@ RenderedField render_field(const GridSpec& grid, const std::vector<float>& value
     const render::Frame f = render::frame_for(grid.box, render::grid_subject(grid, values), options);
     return render::march_and_shade(
         f, options,
-        [&](const std::shared_ptr<gpu::Context>& ctx, std::vector<float>& hits, std::string& why_not) {
+        [&](const auto& ctx, std::vector<float>& hits, std::string& why_not) {
             return render::march_grid_gpu(grid, values, ctx, f.cam, f.march, hits, why_not, progress);
         },
         [&] {

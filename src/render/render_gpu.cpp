@@ -40,12 +40,13 @@ gpu::Buffer upload_params(gpu::Context& ctx, const Camera& cam, const March& m) 
     return gpu::upload(ctx, &p, sizeof(p));
 }
 
-// Runs `record(rec, hits, first, count)` over the image in chunks and gathers the hits. Chunks
-// keep each submission short (a long one can trip a display driver's watchdog).
-void march_chunks(gpu::Context& ctx, const Camera& cam, std::vector<float>& hits, const ProgressFn& progress,
+// Runs `record(rec, hits, first, count)` over the image in chunks of m.chunk rays and gathers the
+// hits. Chunks keep each submission short (a long one can trip a display driver's watchdog).
+void march_chunks(gpu::Context& ctx, const Camera& cam, const March& m, std::vector<float>& hits,
+                  const ProgressFn& progress,
                   const std::function<void(gpu::Recorder&, const gpu::Buffer&, std::uint32_t, std::uint32_t)>& record) {
     const std::size_t n = std::size_t(cam.width) * std::size_t(cam.height);
-    const std::size_t chunk = std::min<std::size_t>(n, 1 << 16);
+    const std::size_t chunk = std::clamp<std::size_t>(m.chunk, 1, std::max<std::size_t>(n, 1));
     hits.resize(4 * n);
     gpu::Buffer out(ctx, chunk * 16, gpu::Memory::Device);
     gpu::Buffer down(ctx, chunk * 16, gpu::Memory::Download);
@@ -78,7 +79,7 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
     blend::Params p = engine.params(false);
     p.exact = false;
     const gpu::Buffer params = upload_params(*ctx, cam, m);
-    march_chunks(*ctx, cam, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
+    march_chunks(*ctx, cam, m, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
         blend::record_render(*field, rec, p, params, out, first, count);
     });
     return true;
@@ -101,7 +102,7 @@ bool march_grid_gpu(const GridSpec& grid, const std::vector<float>& values, cons
     const gpu::Buffer params = upload_params(c, cam, m);
     const gpu::Kernel& k = c.kernel("render_grid", 3, sizeof(GridPush));
     const Eigen::Vector3d h = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
-    march_chunks(c, cam, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
+    march_chunks(c, cam, m, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
         const GridPush push{first, count, std::uint32_t(grid.nx), std::uint32_t(grid.ny), std::uint32_t(grid.nz),
                             float(grid.box.lo.x()), float(grid.box.lo.y()), float(grid.box.lo.z()),
                             float(h.x()), float(h.y()), float(h.z())};

@@ -1,7 +1,7 @@
 // GridPoissonSolver: the least-squares Poisson problem of SHM step 3 on a regular grid, with
 // geometric multigrid (CPU here, GPU in poisson_gpu.cpp), Jacobi-preconditioned CG, and a
 // CHOLMOD direct solve — the last two as CPU references.
-#include <gsd/gpu.hpp>
+#include "gpu/on_device.hpp"
 #include <gsd/shm.hpp>
 
 #include "shm/multigrid.hpp"
@@ -248,14 +248,11 @@ struct GridPoissonSolver::Impl {
     shm_detail::GpuMultigrid* gpu_multigrid() const {
         if (!gpu_tried) {
             gpu_tried = true;
-            const gpu::Selection sel = gpu::select(device_choice);
-            if (!sel.note.empty()) log_once(sel.note);
-            if (sel.context) {
-                std::string why_not;
-                gpu = shm_detail::make_gpu_multigrid(sel.context, H, why_not);
-                if (!gpu) log_once(why_not);
-                else device_name = sel.device_name;
-            }
+            const gpu::DeviceRun run = gpu::on_device(device_choice, [&](const auto& ctx, std::string& why_not) {
+                gpu = shm_detail::make_gpu_multigrid(ctx, H, why_not);
+                return gpu != nullptr;
+            });
+            if (run) device_name = run.device;
         }
         return gpu.get();
     }
@@ -383,12 +380,16 @@ std::vector<double> GridPoissonSolver::divergence(const std::vector<float>& Y) c
     return b;
 }
 
-std::vector<double> GridPoissonSolver::solve(const std::vector<double>& b, double tol, int max_it,
-                                             std::vector<double>* history, bool f_cycle, const ProgressFn& progress) const {
+std::vector<double> GridPoissonSolver::solve(const std::vector<double>& b, const PoissonSolveOptions& o,
+                                             std::vector<double>* history, const ProgressFn& progress) const {
     if (b.size() != impl_->grid.node_count()) throw Error("Poisson right-hand side has the wrong size");
+    if (o.max_iterations < 0) throw Error("max_iterations", "must be ≥ 0 (0: the solver's default)");
+    const double tol = o.tolerance;
     switch (impl_->kind) {
-        case PoissonSolver::Multigrid: return impl_->multigrid(b, tol, max_it, history, f_cycle, progress);
-        case PoissonSolver::CG: return impl_->conjugate_gradient(b, tol, max_it, history, progress);
+        case PoissonSolver::Multigrid:
+            return impl_->multigrid(b, tol, o.max_iterations ? o.max_iterations : 50, history, o.f_cycle, progress);
+        case PoissonSolver::CG:
+            return impl_->conjugate_gradient(b, tol, o.max_iterations ? o.max_iterations : 5000, history, progress);
         case PoissonSolver::Direct: {
             std::vector<double> x = impl_->direct(b);
             if (history) {  // one entry: the residual the factorization achieved

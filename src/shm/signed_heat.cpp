@@ -1,6 +1,6 @@
 // SignedHeatGrid: the three steps of the grid Signed Heat Method, the zero-set shift and fit,
 // and the outside veto.
-#include <gsd/gpu.hpp>
+#include "gpu/on_device.hpp"
 #include <gsd/shm.hpp>
 
 #include "shm/diffuse.hpp"
@@ -46,11 +46,6 @@ struct SignedHeatGrid::Impl {
     GridSpec grid;
     ShmOptions opt;
 
-    int max_iterations() const {
-        if (opt.max_iterations > 0) return opt.max_iterations;
-        return opt.solver == PoissonSolver::CG ? 5000 : 50;
-    }
-
     shm_detail::KernelParams kernel() const {
         shm_detail::KernelParams k;
         const double t = opt.t_coef * source.spacing * source.spacing;
@@ -63,13 +58,10 @@ struct SignedHeatGrid::Impl {
 
     std::vector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress) const {
         std::unique_ptr<shm_detail::DirectionEvaluator> eval;
-        const gpu::Selection sel = gpu::select(opt.device);
-        if (!sel.note.empty()) log_once(sel.note);
-        if (sel.context) {
-            std::string why_not;
-            eval = shm_detail::make_gpu_evaluator(sel.context, source, kernel(), opt.chunk_size, why_not);
-            if (!eval) log_once(why_not);
-        }
+        gpu::on_device(opt.device, [&](const auto& ctx, std::string& why_not) {
+            eval = shm_detail::make_gpu_evaluator(ctx, source, kernel(), opt.chunk_size, why_not);
+            return eval != nullptr;
+        });
         if (!eval) eval = shm_detail::make_cpu_evaluator(source, kernel());
         device = eval->device();
         return shm_detail::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
@@ -134,7 +126,7 @@ struct SignedHeatGrid::Impl {
             std::vector<double> r0 = r;
             const double mean = std::accumulate(r.begin(), r.end(), 0.0) / double(r.size());
             for (double& v : r0) v -= mean;
-            std::vector<double> z = mg.solve(r0, 0.0, 1);  // one cycle, mean removed
+            std::vector<double> z = mg.solve(r0, {0.0, 1});  // one cycle, mean removed
             // The constant mode: 1ᵀA1 = μ Σ A_j (trilinear weights sum to one).
             const double mode = std::accumulate(r.begin(), r.end(), 0.0) / (mu * total_area);
             for (double& v : z) v += mode;
@@ -303,7 +295,8 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     t0 = std::chrono::steady_clock::now();
     const GridPoissonSolver poisson(m.grid, m.opt.solver, m.opt.device);
     const std::vector<double> b = poisson.divergence(Y);
-    std::vector<double> phi = poisson.solve(b, m.opt.tolerance, m.max_iterations(), &out.residual_history, m.opt.f_cycle, progress);
+    std::vector<double> phi =
+        poisson.solve(b, {m.opt.tolerance, std::max(0, m.opt.max_iterations), m.opt.f_cycle}, &out.residual_history, progress);
     const double shift = m.mean_on_source(phi);
     for (double& v : phi) v -= shift;
     out.seconds_poisson = seconds_since(t0);

@@ -1,6 +1,6 @@
-// SumTree: the hierarchy behind every fast sum over oriented area elements (src/sums/README
-// in docs/sums.md). Elements are flat triangles of uniform density or points, each carrying a
-// vector area v_j = A_j·N_j. A complete kd-tree over the element centroids (BoxTree's order)
+// SumTree: the hierarchy behind every fast sum over oriented area elements (docs/sums.md has
+// the algorithms and their accuracy). Elements are flat triangles of uniform density or points,
+// each carrying a vector area v_j = A_j·N_j. A complete kd-tree over the element centroids (BoxTree's order)
 // stores, per node, its expansion center c, the radius ρ of the ball around c that holds every
 // corner, and the moments of the area distribution about c up to second order:
 //

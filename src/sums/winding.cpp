@@ -1,5 +1,5 @@
 // Oriented elements and the fast generalized winding number (CPU in double, GPU in float32).
-#include <gsd/gpu.hpp>
+#include "gpu/on_device.hpp"
 #include <gsd/spatial.hpp>
 #include <gsd/sums.hpp>
 
@@ -110,14 +110,10 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
     out.w.resize(std::size_t(queries.rows()));  // every entry is written below
     if (!opt.exact && largest > 1e15) {
         log_once("winding: queries beyond ±1e15 are outside float32's safe range; the sums run on the CPU");
-    } else if (!opt.exact) {
-        const gpu::Selection sel = gpu::select(opt.device);
-        if (!sel.note.empty()) log_once(sel.note);
-        if (sel.context) {
-            std::string why_not;
-            if (sums_detail::gpu_winding(sel.context, tree, queries, opt, out, progress, why_not)) return out;
-            log_once(why_not);
-        }
+    } else if (!opt.exact && gpu::on_device(opt.device, [&](const auto& ctx, std::string& why_not) {
+                   return sums_detail::gpu_winding(ctx, tree, queries, opt, out, progress, why_not);
+               })) {
+        return out;
     }
     out.device = "cpu";
     const auto n = std::size_t(queries.rows());

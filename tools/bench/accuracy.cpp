@@ -1,6 +1,7 @@
 // gsd-accuracy: mean |φ − φ_true| of PAT-jet, SSPD and SHC on the analytic shapes, on a grid
 // over [−1, 1]³ (thesis §5.3 protocol). Prints a table; used for the closing notes and for
 // choosing defaults. Not a test: tests assert fixed bounds, this measures.
+#include <CLI/CLI.hpp>
 #include <gsd/baselines.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
@@ -32,23 +33,20 @@ int main(int argc, char** argv) {
     double sigma = 1.0, nw = 1.0;
     bool exact = false;
     shapes::Corruption bad;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        auto next = [&] { return std::string(argv[++i]); };
-        if (a == "--points") n_points = std::stoi(next());
-        else if (a == "--grid") grid_n = std::stoi(next());
-        else if (a == "--r-spacings") r_spacings = std::stod(next());
-        else if (a == "--device") device = next();
-        else if (a == "--k") k = std::stoi(next());
-        else if (a == "--sigma") sigma = std::stod(next());
-        else if (a == "--normal-weight") nw = std::stod(next());
-        else if (a == "--exact") exact = true;
-        else if (a == "--noise") bad.position_noise = std::stod(next());
-        else if (a == "--normal-noise") bad.normal_noise = std::stod(next());
-        else if (a == "--flip") bad.flip_fraction = std::stod(next());
-        else if (a == "--holes") bad.holes = std::stoi(next());
-        else { std::fprintf(stderr, "usage: gsd-accuracy [--points N] [--grid N] [--r-spacings S] [--k K] [--sigma F] [--normal-weight W] [--exact] [--device D] [--noise S] [--normal-noise S] [--flip F] [--holes H]\n"); return 2; }
-    }
+    CLI::App app{"PAT accuracy on analytic shapes against their exact SDFs (scripts/bench.sh)"};
+    app.add_option("--points", n_points, "points sampled per shape")->check(CLI::Range(16, 100000000));
+    app.add_option("--grid", grid_n, "grid nodes per axis over [-1,1]^3")->check(CLI::Range(2, 1024));
+    app.add_option("--r-spacings", r_spacings, "blend radius in point spacings");
+    app.add_option("--device", device, "cpu | gpu | auto | index | name");
+    app.add_option("--k", k, "jet fit neighbors")->check(CLI::Range(6, 1024));
+    app.add_option("--sigma", sigma, "jet fit weight width (× spacing)");
+    app.add_option("--normal-weight", nw, "jet fit weight of the normals");
+    app.add_flag("--exact", exact, "the exact sum instead of the accelerated one");
+    app.add_option("--noise", bad.position_noise, "position noise (× spacing)");
+    app.add_option("--normal-noise", bad.normal_noise, "normal noise");
+    app.add_option("--flip", bad.flip_fraction, "share of flipped normals");
+    app.add_option("--holes", bad.holes, "holes cut");
+    CLI11_PARSE(app, argc, argv);
     const GridSpec g = GridSpec::cube(grid_n, Box{{-1, -1, -1}, {1, 1, 1}});
     BlendOptions opt;
     opt.device = device;

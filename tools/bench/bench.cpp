@@ -4,6 +4,7 @@
 // timed separately as "setup" and not counted in queries/s.
 // `--net`: TorusNet fitting instead (points/s on each device, the shipped model); a first
 // 256-point fit per device (pipeline compile) is timed as setup.
+#include <CLI/CLI.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
@@ -14,7 +15,6 @@
 #include <chrono>
 #include <cstdio>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -23,13 +23,6 @@ using namespace gsd;
 namespace {
 
 double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
-
-std::vector<std::string> split(const std::string& s) {
-    std::vector<std::string> out;
-    std::stringstream ss(s);
-    for (std::string item; std::getline(ss, item, ',');) out.push_back(item);
-    return out;
-}
 
 
 // TorusNet fit throughput (points/s) on each device, side by side, with the GPU/CPU ratio.
@@ -70,18 +63,13 @@ int main(int argc, char** argv) {
     std::vector<std::string> sizes{"10000", "100000", "1000000"}, devices{"cpu", "gpu"};
     std::size_t queries = 1000000;
     bool exact = false, net = false;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--sizes" && i + 1 < argc) sizes = split(argv[++i]);
-        else if (a == "--devices" && i + 1 < argc) devices = split(argv[++i]);
-        else if (a == "--queries" && i + 1 < argc) queries = std::stoul(argv[++i]);
-        else if (a == "--exact") exact = true;
-        else if (a == "--net") net = true;
-        else {
-            std::fprintf(stderr, "usage: gsd-bench [--sizes N,N,...] [--queries M] [--devices cpu,gpu,...] [--exact] [--net]\n");
-            return 2;
-        }
-    }
+    CLI::App app{"PAT throughput, CPU beside GPU: fit and evaluation rates per cloud size (scripts/bench.sh)"};
+    app.add_option("--sizes", sizes, "cloud sizes")->delimiter(',');
+    app.add_option("--devices", devices, "devices, side by side")->delimiter(',');
+    app.add_option("--queries", queries, "queries per evaluation")->check(CLI::PositiveNumber);
+    app.add_flag("--exact", exact, "the exact sum instead of the accelerated one");
+    app.add_flag("--net", net, "TorusNet fitting instead of evaluation");
+    CLI11_PARSE(app, argc, argv);
     set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
     auto shape = shapes::by_name("torus");
     if (net) return bench_net(*shape, sizes, devices);

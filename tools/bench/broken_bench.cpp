@@ -16,6 +16,7 @@
 // (nx, ny, nz), as `gsd shm grid` writes φ): φ, the truth (the intact mesh's winding number) and
 // the broken mesh's winding number, the last two NaN within two cells of the surface — to see
 // where and why a sign goes wrong.
+#include <CLI/CLI.hpp>
 #include <gsd/io.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
@@ -115,24 +116,22 @@ int main(int argc, char** argv) {
     std::vector<std::pair<std::string, PolygonMesh>> meshes;
     bool only_given = false;
     std::string dump;
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--grid" && i + 1 < argc) n = std::stoi(argv[++i]);
-        else if (a == "--seed" && i + 1 < argc) seed = std::stoull(argv[++i]);
-        else if (a == "--t-coef" && i + 1 < argc) shm.t_coef = std::stod(argv[++i]);
-        else if (a == "--cutoff" && i + 1 < argc) shm.cutoff = std::stod(argv[++i]);
-        else if (a == "--fit-zero-set" && i + 1 < argc) shm.fit_zero_set = std::stod(argv[++i]);
-        else if (a == "--veto-winding" && i + 1 < argc) shm.veto_winding = std::stod(argv[++i]);
-        else if (a == "--veto-margin" && i + 1 < argc) shm.veto_margin = std::stod(argv[++i]);
-        else if (a == "--only-given") only_given = true;
-        else if (a == "--dump" && i + 1 < argc) dump = argv[++i];
-        else if (!a.empty() && a[0] == '-') {
-            std::fprintf(stderr, "usage: gsd-broken-bench [--grid N] [--seed S] [--t-coef T] [--cutoff C] [--fit-zero-set W] [--veto-winding T] [--veto-margin M] [--only-given] [--dump DIR] [MESH.obj ...]\n");
-            return 2;
-        } else {
-            const auto slash = a.find_last_of('/');
-            meshes.push_back({a.substr(slash == std::string::npos ? 0 : slash + 1), io::read_mesh(a)});
-        }
+    std::vector<std::string> given;
+    CLI::App app{"SHM's sign on broken meshes (holes, flips, coarse faces) against the intact meshes' (docs/shm.md)"};
+    app.add_option("meshes", given, "meshes to break besides the analytic ones")->check(CLI::ExistingFile);
+    app.add_option("--grid", n, "grid nodes per axis")->check(CLI::Range(4, 1024));
+    app.add_option("--seed", seed, "damage seed");
+    app.add_option("--t-coef", shm.t_coef, "ShmOptions::t_coef");
+    app.add_option("--cutoff", shm.cutoff, "ShmOptions::cutoff");
+    app.add_option("--fit-zero-set", shm.fit_zero_set, "ShmOptions::fit_zero_set");
+    app.add_option("--veto-winding", shm.veto_winding, "ShmOptions::veto_winding");
+    app.add_option("--veto-margin", shm.veto_margin, "ShmOptions::veto_margin");
+    app.add_flag("--only-given", only_given, "only the meshes given");
+    app.add_option("--dump", dump, "folder for each case's grids");
+    CLI11_PARSE(app, argc, argv);
+    for (const std::string& a : given) {
+        const auto slash = a.find_last_of('/');
+        meshes.push_back({a.substr(slash == std::string::npos ? 0 : slash + 1), io::read_mesh(a)});
     }
     if (!only_given) {
         for (const char* s : {"sphere", "torus", "capsule", "rounded-box"}) meshes.insert(meshes.begin(), {s, shapes::mesh(*shapes::by_name(s), 64)});

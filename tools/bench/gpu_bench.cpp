@@ -11,6 +11,7 @@
 // Sizes: small ones by default (a software device such as lavapipe), the full ones with
 // --full (a real GPU: PAT of 10⁵ and 10⁶ points, winding numbers of 10⁶ queries on 10⁵ faces, a
 // 1920×1080 picture of a 10⁶-point PAT field, SHM on a 256³ grid, TorusNet on 10⁶ points).
+#include <CLI/CLI.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/render.hpp>
@@ -27,7 +28,6 @@
 #include <functional>
 #include <random>
 #include <set>
-#include <sstream>
 #include <string>
 
 using namespace gsd;
@@ -210,19 +210,11 @@ int main(int argc, char** argv) {
     bool full = false;
     std::string device = "gpu";
     std::set<std::string> stages{"pat", "winding", "render", "shm", "net"};
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        if (a == "--full") full = true;
-        else if (a == "--device" && i + 1 < argc) device = argv[++i];
-        else if (a == "--stages" && i + 1 < argc) {
-            stages.clear();
-            std::stringstream ss(argv[++i]);
-            for (std::string s; std::getline(ss, s, ',');) stages.insert(s);
-        } else {
-            std::fprintf(stderr, "usage: gsd-gpu-bench [--full] [--device D] [--stages pat,winding,render,shm,net]\n");
-            return 2;
-        }
-    }
+    CLI::App app{"Every GPU stage beside the CPU path, in one table (scripts/bench.sh gpu; docs/gpu.md)"};
+    app.add_flag("--full", full, "the large sizes (for a GPU)");
+    app.add_option("--device", device, "the device to time against the CPU path");
+    app.add_option("--stages", stages, "stages to run")->delimiter(',')->check(CLI::IsMember({"pat", "winding", "render", "shm", "net"}));
+    CLI11_PARSE(app, argc, argv);
     set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
     const gpu::Selection sel = gpu::select(device);
     if (!sel.context) {

@@ -64,7 +64,10 @@ struct FitArgs {
         FittedTori t;
         std::string what;
         if (fitter == "net") {
-            const TorusNet net(TorusNetOptions{model, device, 0});
+            TorusNetOptions o;
+            o.model = model;
+            o.device = device;
+            const TorusNet net(o);
             what = "net, k=" + std::to_string(net.k());
             if (globals().verbose) note(net.description());
             if (cloud.size() < net.k())  // TorusNet::fit says so too, without naming the file
