@@ -71,6 +71,17 @@ struct GSD_EXPORT PolygonMesh {
     void add_face(const std::uint32_t* f, std::size_t n);
 };
 
+/// Calls f(face, a, b, c) for every triangle of every face, fanned from the face's first corner
+/// (the triangulation every gsd stage gives a polygon), in face order. A face of n corners gives
+/// n − 2 triangles.
+template <class F>
+void for_each_triangle(const PolygonMesh& mesh, F&& f) {
+    for (std::size_t face = 0; face < mesh.face_count(); ++face) {
+        const std::uint32_t* v = mesh.indices.data() + mesh.offsets[face];
+        for (std::size_t k = 1; k + 1 < mesh.face_size(face); ++k) f(face, v[0], v[k], v[k + 1]);
+    }
+}
+
 /// Axis-aligned box.
 struct Box {
     Eigen::Vector3d lo{0, 0, 0};

@@ -11,11 +11,9 @@ std::vector<double> winding_numbers(const PolygonMesh& mesh, const Points& queri
     validate(mesh);
     // Fan every face into triangles once.
     std::vector<std::array<Eigen::Vector3d, 3>> tri;
-    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-        const Eigen::Vector3d a = mesh.vertices.row(mesh.indices[mesh.offsets[f]]).transpose();
-        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1]; ++k)
-            tri.push_back({a, mesh.vertices.row(mesh.indices[k]).transpose(), mesh.vertices.row(mesh.indices[k + 1]).transpose()});
-    }
+    for_each_triangle(mesh, [&](std::size_t, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+        tri.push_back({mesh.vertices.row(a).transpose(), mesh.vertices.row(b).transpose(), mesh.vertices.row(c).transpose()});
+    });
     std::vector<double> w(std::size_t(queries.rows()));
 #pragma omp parallel for schedule(dynamic, 64)
     for (Eigen::Index q = 0; q < queries.rows(); ++q) {

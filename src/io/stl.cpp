@@ -152,17 +152,14 @@ std::string stl_mesh_bytes(const PolygonMesh& mesh) {
     append_le(out, std::uint32_t(triangles));
     out.reserve(kHeaderBytes + triangles * kTriangleBytes);
     auto corner = [&](std::uint32_t v) { return Eigen::Vector3d(mesh.vertices.row(v).transpose()); };
-    for (std::size_t f = 0; f < mesh.face_count(); ++f) {
-        const std::uint32_t* face = mesh.indices.data() + mesh.offsets[f];
-        for (std::size_t k = 1; k + 1 < mesh.face_size(f); ++k) {  // fan from the first corner
-            const Eigen::Vector3d a = corner(face[0]), b = corner(face[k]), c = corner(face[k + 1]);
-            Eigen::Vector3d n = (b - a).cross(c - a);
-            n = n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
-            for (const Eigen::Vector3d& p : {n, a, b, c})
-                for (int i = 0; i < 3; ++i) append_le(out, float(p[i]));
-            append_le(out, std::uint16_t(0));
-        }
-    }
+    for_each_triangle(mesh, [&](std::size_t, std::uint32_t i, std::uint32_t j, std::uint32_t k) {
+        const Eigen::Vector3d a = corner(i), b = corner(j), c = corner(k);
+        Eigen::Vector3d n = (b - a).cross(c - a);
+        n = n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::Zero();
+        for (const Eigen::Vector3d& p : {n, a, b, c})
+            for (int d = 0; d < 3; ++d) append_le(out, float(p[d]));
+        append_le(out, std::uint16_t(0));
+    });
     return out;
 }
 

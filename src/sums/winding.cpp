@@ -20,9 +20,9 @@ namespace gsd {
 OrientedElements OrientedElements::from_mesh(const PolygonMesh& mesh) {
     gsd::validate(mesh);
     std::vector<std::array<Eigen::Index, 3>> tri;
-    for (std::size_t f = 0; f < mesh.face_count(); ++f)
-        for (auto k = mesh.offsets[f] + 1; k + 1 < mesh.offsets[f + 1]; ++k)
-            tri.push_back({Eigen::Index(mesh.indices[mesh.offsets[f]]), Eigen::Index(mesh.indices[k]), Eigen::Index(mesh.indices[k + 1])});
+    for_each_triangle(mesh, [&](std::size_t, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+        tri.push_back({Eigen::Index(a), Eigen::Index(b), Eigen::Index(c)});
+    });
     OrientedElements e;
     e.corners.resize(Eigen::Index(3 * tri.size()), 3);
     e.vectors.resize(Eigen::Index(tri.size()), 3);

@@ -98,13 +98,10 @@ Triangles fan(const PolygonMesh& m) {
         throw Error("mesh", "too many triangles to render");
     t.corners.reserve(count);
     t.face.reserve(count);
-    for (std::size_t f = 0; f < m.face_count(); ++f) {
-        const std::uint32_t* v = &m.indices[m.offsets[f]];
-        for (std::size_t k = 1; k + 1 < m.face_size(f); ++k) {
-            t.corners.push_back({v[0], v[k], v[k + 1]});
-            t.face.push_back(std::uint32_t(f));
-        }
-    }
+    for_each_triangle(m, [&](std::size_t f, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+        t.corners.push_back({a, b, c});
+        t.face.push_back(std::uint32_t(f));
+    });
     return t;
 }
 

@@ -52,15 +52,14 @@ std::string label_summary(const SurfaceMesh& mesh, const std::vector<int>& label
     const auto& polygons = mesh.polygons();
     std::map<int, double> area;
     double total = 0;
+    const auto vertex = [&](std::uint32_t v) -> Eigen::Vector3d { return polygons.vertices.row(v).transpose(); };
+    std::vector<double> face_area(polygons.face_count(), 0.0);
+    for_each_triangle(polygons, [&](std::size_t f, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+        face_area[f] += 0.5 * (vertex(b) - vertex(a)).cross(vertex(c) - vertex(a)).norm();
+    });
     for (std::size_t f = 0; f < labels.size(); ++f) {
-        // Fan area of the polygon.
-        const std::uint32_t* v = polygons.indices.data() + polygons.offsets[f];
-        const Eigen::Vector3d p = polygons.vertices.row(v[0]).transpose();
-        double a = 0;
-        for (std::size_t k = 1; k + 1 < polygons.face_size(f); ++k)
-            a += 0.5 * (polygons.vertices.row(v[k]).transpose() - p).cross(polygons.vertices.row(v[k + 1]).transpose() - p).norm();
-        area[labels[f]] += a;
-        total += a;
+        area[labels[f]] += face_area[f];
+        total += face_area[f];
     }
     std::string s;
     for (const auto& [label, a] : area) {
