@@ -18,9 +18,9 @@
 
 #include <gsd/export.hpp>
 
+#include <cstddef>
 #include <cstdint>
 #include <functional>
-#include <cstddef>
 #include <memory>
 #include <string>
 #include <string_view>

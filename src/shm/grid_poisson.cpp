@@ -384,12 +384,11 @@ std::vector<double> GridPoissonSolver::solve(const std::vector<double>& b, const
                                              std::vector<double>* history, const ProgressFn& progress) const {
     if (b.size() != impl_->grid.node_count()) throw Error("Poisson right-hand side has the wrong size");
     if (o.max_iterations < 0) throw Error("max_iterations", "must be ≥ 0 (0: the solver's default)");
-    const double tol = o.tolerance;
     switch (impl_->kind) {
         case PoissonSolver::Multigrid:
-            return impl_->multigrid(b, tol, o.max_iterations ? o.max_iterations : 50, history, o.f_cycle, progress);
+            return impl_->multigrid(b, o.tolerance, o.max_iterations ? o.max_iterations : 50, history, o.f_cycle, progress);
         case PoissonSolver::CG:
-            return impl_->conjugate_gradient(b, tol, o.max_iterations ? o.max_iterations : 5000, history, progress);
+            return impl_->conjugate_gradient(b, o.tolerance, o.max_iterations ? o.max_iterations : 5000, history, progress);
         case PoissonSolver::Direct: {
             std::vector<double> x = impl_->direct(b);
             if (history) {  // one entry: the residual the factorization achieved
