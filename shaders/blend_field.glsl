@@ -10,6 +10,11 @@ const float PI = 3.14159265358979;
 
 #define KNN_MAX K_MAX
 #include "box_tree_knn.glsl"
+// TICK_UNIFORM(n), if the includer defines it, counts the subgroup's loop iterations in uniform
+// control flow, TICK_LANE(n) a lane's own (render_march.glsl: llvmpipe's loop limit).
+#ifndef TICK_UNIFORM
+#define TICK_UNIFORM(n)
+#endif
 
 // Running sums, as in src/blend/blend_cpu.cpp: w = e·T(d/ρ), q = e·T'(d/ρ), e = A·exp(−λ(d − σ)).
 struct Acc { float W, G, D, GD, QD, QGD, shc; vec3 Gg, U, GU, QU, QGU; };
@@ -85,12 +90,14 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     uint found = 0;
     uint node = 0u;
     while (true) {
+        TICK_UNIFORM(1u);
         bool near = live && node_distance2(x, node) <= r2;
         if (subgroupAny(near)) {
             if (node < pc.first_leaf) {
                 node = 2u * node + 1u;
                 continue;
             }
+            TICK_UNIFORM(nodes[node].end - nodes[node].begin + 1u);
             for (uint j = nodes[node].begin; j < nodes[node].end; ++j) {
                 vec3 dv = x - pts[j].xyz;
                 float d2 = dot(dv, dv);
@@ -122,16 +129,19 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
     int top = 0;
     stack[top++] = 0u;
     while (top > 0) {
+        TICK_UNIFORM(1u);
         uint i = stack[--top];
         float worst = kd[k - 1u];
         bool need = live && node_distance2(x, i) <= worst * worst;
         if (!subgroupAny(need)) continue;
         if (i >= pc.first_leaf) {
+            TICK_UNIFORM(nodes[i].end - nodes[i].begin + 1u);
             for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
                 float d = distance(x, pts[j].xyz);
                 if (!need || d >= kd[k - 1u]) continue;
+                TICK_LANE(1);
                 int m = int(k) - 1;
-                while (m > 0 && kd[m - 1] > d) { kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
+                while (m > 0 && kd[m - 1] > d) { TICK_LANE(1); kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
                 kd[m] = d;
                 ki[m] = j;
             }
@@ -155,6 +165,8 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     far_p = vec3(0.0);
     uint found = sum_ball(x, live, a, grad);
     bool fallback = live && found < pc.k_fallback;
+    // The fallback's loops with a fixed count, once for the subgroup (the list's setup, the sum).
+    if (subgroupAny(fallback)) TICK_UNIFORM(uint(K_MAX) + pc.k_fallback + 2u);
     // Fewer than k points within r_eval: the k nearest, ρ = d_k.
     float kd[K_MAX];
     uint ki[K_MAX];
@@ -165,7 +177,7 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     } else {
         // Each lane on its own, best first from its own position.
         if (!fallback) return;
-        knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);
+        knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);  // (its first loop: counted below)
     }
     a = acc_zero();
     uint k = pc.k_fallback;

@@ -1,7 +1,13 @@
 // Best-first k-nearest search over the kd-tree of box_tree.glsl (mirrors BoxTree::knn).
+// TICK_LANE(n), if the includer defines it, counts this lane's loop iterations (the renderer's
+// guard against llvmpipe's loop limit, render_march.glsl).
 // The including shader defines KNN_MAX (the array size: a constant or a specialization
 // constant) and STACK (tree depth bound), and declares `Node nodes[]` and `vec4 pts[]` (tree
 // order) before including this file.
+
+#ifndef TICK_LANE
+#define TICK_LANE(n)
+#endif
 
 float node_distance2(vec3 x, uint i) { return box_distance2(x, nodes[i].lo, nodes[i].hi); }
 
@@ -16,13 +22,16 @@ void knn(vec3 x, uint k, uint skip, uint first_leaf, inout float kd[KNN_MAX], in
     while (top > 0) {
         uint i = stack[--top];
         float worst = kd[k - 1];
+        TICK_LANE(1);
         if (node_distance2(x, i) > worst * worst) continue;
         if (i >= first_leaf) {
+            TICK_LANE(nodes[i].end - nodes[i].begin + 1u);
             for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
                 float d = distance(x, pts[j].xyz);
                 if (d >= kd[k - 1] || j == skip) continue;
                 int m = int(k) - 1;
-                while (m > 0 && kd[m - 1] > d) { kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
+                TICK_LANE(1);
+                while (m > 0 && kd[m - 1] > d) { TICK_LANE(1); kd[m] = kd[m - 1]; ki[m] = ki[m - 1]; --m; }
                 kd[m] = d;
                 ki[m] = j;
             }

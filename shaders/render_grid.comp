@@ -1,9 +1,15 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 // Sphere-traces a grid of φ (trilinear between nodes) per pixel: the renderer's GPU path for
 // grids (src/render/render_gpu.cpp).
 layout(local_size_x_id = 0) in;
+layout(constant_id = 1) const uint LOOP_CAP = 0u;  // software devices: render_march.glsl's guard; 0: none
+uint lane_ticks = 0u, subgroup_ticks = 0u;  // (the field has no loops of its own)
+#define TICK_LANE(n) if (LOOP_CAP > 0u) lane_ticks += uint(n)
+#define TICK_UNIFORM(n) if (LOOP_CAP > 0u) subgroup_ticks += uint(n)
 
 layout(std430, binding = 0) readonly buffer Values { float values[]; };  // GridSpec order: (i·ny + j)·nz + k
 

@@ -1,9 +1,12 @@
 // Sphere tracing for the field renderer (mirrors src/render/render.cpp's march_ray, which the
 // tests hold this to). The including shader defines, before including this,
 //   float field_phi(vec3 x, bool grad, out vec3 g)   the field, and ∇φ when `grad`,
-// and RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below.
-// One invocation per pixel (march() says how a subgroup keeps its lanes together): its ray from
-// the eye is clipped to the box, then advanced by
+// RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below, the
+// specialization constant LOOP_CAP, the counters lane_ticks and subgroup_ticks and the macros
+// TICK_LANE / TICK_UNIFORM that its field's loops count into (see past_loop_limit), and enables
+// the subgroup vote, ballot and arithmetic extensions.
+// Each ray (render_main() says how the lanes of a subgroup share them) is clipped to the box,
+// then advanced by
 // step_scale·|φ| (at least min_step) until |φ| < hit_eps, or φ changes sign between two steps
 // (then bisected), or it leaves the box or runs out of steps.
 
@@ -16,10 +19,13 @@ struct RenderParams {
     vec4 box_max;
     uvec4 size;      // width, height, max_steps, bisection steps
     vec4 march;      // step_scale, hit_eps, min_step, unused
+    uvec4 tile;      // rays in tile order: tile width, height (pixels); rays per lane; unused
 };
 
 layout(std430, binding = RENDER_PARAMS_BINDING) readonly buffer Params { RenderParams rp; };
-// Per pixel: (t, ∇φ at the hit), t < 0 for a miss.
+// Per ray of the chunk, in tile order: (t, ∇φ at the hit), t < 0 for a miss. The host fills it
+// with t = −2 first: a ray left so was cut short by llvmpipe's loop limit (below), and the
+// host marches it on the CPU.
 layout(std430, binding = RENDER_OUT_BINDING) writeonly buffer Hits { vec4 hits[]; };
 
 vec3 pixel_ray(uint px, uint py) {
@@ -44,73 +50,149 @@ bool clip_to_box(vec3 o, vec3 d, out float t0, out float t1) {
     return t0 <= t1;
 }
 
-// The march as a state machine per lane — first sample, marching, bisecting, done — in a loop
-// that runs while any lane of the subgroup has work: every lane calls field_phi at every turn
-// (live = false once its ray is done), so the field is always evaluated in uniform control
-// flow and its tree walks are taken by the subgroup together. Each lane does the arithmetic the
-// plain loop did (render.cpp's march_ray): the same samples, the same hits.
-vec4 march(vec3 eye, vec3 d, bool valid) {
-    const uint FIRST = 0u, MARCH = 1u, BISECT = 2u, DONE = 3u;
-    float t0 = 0.0, t1 = 0.0;
-    bool inside = valid && clip_to_box(eye, d, t0, t1);
+// The pixel of ray p (tile order, src/render/render.cpp's tile_pixel): the image is cut into
+// tiles of tile.x × tile.y pixels (narrower in the last column, shorter in the last row), taken
+// row of tiles by row of tiles, each tile's pixels row by row. A subgroup's rays are a tile: the
+// rays of its lanes start and end near one another, and their tree walks open the same nodes.
+uvec2 tile_pixel(uint p) {
+    uint W = rp.size.x, H = rp.size.y, TW = rp.tile.x, TH = rp.tile.y;
+    uint ty = p / (W * TH), r = p - ty * (W * TH);
+    uint h = min(TH, H - ty * TH);           // this row of tiles' height
+    uint tiles_x = (W + TW - 1u) / TW;
+    uint tx = min(r / (TW * h), tiles_x - 1u);
+    uint w = tx + 1u < tiles_x ? TW : W - tx * TW;  // the last column's width
+    uint off = r - tx * TW * h;
+    return uvec2(tx * TW + off % w, ty * TH + off / w);
+}
+
+// A ray's march as a state machine (render.cpp's march_ray does the same arithmetic as a plain
+// loop, which the tests hold this to):
+const uint IDLE = 0u, FIRST = 1u, MARCH = 2u, BISECT = 3u, SHADE = 4u;
+struct Ray {
+    uint phase, index, s, k;  // index: the ray's place in the chunk
+    vec3 o, d;                // from where it enters the box
+    float t0, span, t, phi, tn, a, b, pa, hit;
+};
+
+// Starts ray `index` of the chunk; a ray that misses the box is written at once, its lane left
+// idle.
+void start_ray(inout Ray r, uint index, uint first_pixel) {
+    uvec2 px = tile_pixel(first_pixel + index);
+    vec3 d = pixel_ray(px.x, px.y);
+    float t0, t1;
+    bool in_box = clip_to_box(rp.eye.xyz, d, t0, t1);
     // March from where the ray enters the box, so t stays small and float steps stay exact
     // however far the camera is; t0 is added back at the end.
-    vec3 o = eye + t0 * d;
-    float span = t1 - t0;
+    r.index = index;
+    r.o = rp.eye.xyz + t0 * d;
+    r.d = d;
+    r.t0 = t0;
+    r.span = t1 - t0;
+    r.phase = in_box ? FIRST : IDLE;
+    r.t = 0.0;
+    r.s = 0u;
+    r.hit = -1.0;
+    if (!in_box) hits[index] = vec4(-1.0, 0.0, 0.0, 0.0);
+}
+
+// Where the ray samples φ next.
+float next_sample(Ray r) {
+    if (r.phase == MARCH) return r.tn;
+    if (r.phase == BISECT) return 0.5 * (r.a + r.b);
+    if (r.phase == SHADE) return r.hit;
+    return 0.0;
+}
+
+// Takes φ = p at next_sample(r); returns true when the ray has ended (hit or not).
+bool advance(inout Ray r, float p) {
+    if (r.phase == FIRST || r.phase == MARCH) {
+        bool next = false;  // take another step from (t, phi)
+        if (r.phase == FIRST) {
+            r.phi = p;
+            if (abs(r.phi) < rp.march.y) r.hit = 0.0;
+            else next = true;
+        } else if ((p < 0.0) != (r.phi < 0.0)) {
+            // Crossed the surface within the step: bisect [t, tn].
+            r.a = r.t;
+            r.b = r.tn;
+            r.pa = r.phi;
+            r.k = 0u;
+            if (rp.size.w == 0u) r.hit = 0.5 * (r.a + r.b);
+            else { r.phase = BISECT; return false; }
+        } else if (abs(p) < rp.march.y) {
+            r.hit = r.tn;
+        } else {
+            r.t = r.tn;
+            r.phi = p;
+            ++r.s;
+            next = true;
+        }
+        if (next) {
+            r.tn = r.t + max(rp.march.x * abs(r.phi), rp.march.z);
+            if (r.s < rp.size.z && r.tn <= r.span) { r.phase = MARCH; return false; }
+        }
+        return true;
+    }
+    // BISECT
+    if ((p < 0.0) == (r.pa < 0.0)) { r.a = 0.5 * (r.a + r.b); r.pa = p; } else { r.b = 0.5 * (r.a + r.b); }
+    if (++r.k < rp.size.w) return false;
+    r.hit = 0.5 * (r.a + r.b);
+    return true;
+}
+
+// llvmpipe ends every loop of a shader, silently, once the SIMD group running it has iterated
+// 65 535 times in all (docs/gpu.md): a subgroup whose rays march long through a dense tree gets
+// there, and its walks would return wrong sums. On software devices (LOOP_CAP > 0) every loop
+// counts its iterations — uniform ones once for the subgroup, a lane's own per lane, their sum
+// over the lanes bounding what the SIMD group iterated — and the subgroup stops, writing
+// nothing more, once the count passes LOOP_CAP: the rays it had not finished keep the host's
+// t = −2, and the host marches them on the CPU.
+bool past_loop_limit() {
+    if (LOOP_CAP == 0u) return false;
+    subgroup_ticks += subgroupAdd(lane_ticks) + 1u;
+    lane_ticks = 0u;
+    return subgroup_ticks > LOOP_CAP;
+}
+
+// Ray compaction. A subgroup owns a block of rays (tile.z per lane: a tile, in tile order) and
+// runs one loop while any of them is left: at every turn each lane without a ray takes the
+// block's next one, every lane calls field_phi — live = false on an idle lane — so the field is
+// always evaluated in uniform control flow and its tree walks are taken by the subgroup
+// together, and a lane whose ray ended shades it (∇φ at the hit, one more turn) and takes
+// another. A lane never waits for its neighbours' longer rays while the block has rays left.
+void render_main(uint first_pixel, uint pixel_count) {
+    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint lane0 = group * gl_WorkGroupSize.x + subgroupBroadcastFirst(gl_LocalInvocationIndex);
+    uint lanes = subgroupBallotBitCount(subgroupBallot(true));
+    uint next = min(lane0 * rp.tile.z, pixel_count);                // the block's next ray
+    uint end = min((lane0 + lanes) * rp.tile.z, pixel_count);
+    Ray r;
+    r.phase = IDLE;
+    r.o = vec3(0.0);
+    r.d = vec3(0.0);
     vec3 g;
-    uint phase = inside ? FIRST : DONE;
-    float t = 0.0, phi = 0.0, tn = 0.0, a = 0.0, b = 0.0, pa = 0.0, hit = -1.0;
-    uint s = 0u, k = 0u;
-    while (subgroupAny(phase != DONE)) {
-        float at = phase == FIRST ? 0.0 : (phase == MARCH ? tn : 0.5 * (a + b));
-        float p = field_phi(o + at * d, phase != DONE, false, g);
-        if (phase == FIRST || phase == MARCH) {
-            bool next = false;  // take another step from (t, phi)
-            if (phase == FIRST) {
-                phi = p;
-                if (abs(phi) < rp.march.y) hit = 0.0;
-                else next = true;
-            } else if ((p < 0.0) != (phi < 0.0)) {
-                // Crossed the surface within the step: bisect [t, tn].
-                a = t;
-                b = tn;
-                pa = phi;
-                k = 0u;
-                if (rp.size.w == 0u) hit = 0.5 * (a + b);
-                else phase = BISECT;
-            } else if (abs(p) < rp.march.y) {
-                hit = tn;
-            } else {
-                t = tn;
-                phi = p;
-                ++s;
-                next = true;
-            }
-            if (next) {
-                tn = t + max(rp.march.x * abs(phi), rp.march.z);
-                phase = (s < rp.size.z && tn <= span) ? MARCH : DONE;
-            } else if (phase != BISECT) {
-                phase = DONE;
-            }
-        } else if (phase == BISECT) {
-            if ((p < 0.0) == (pa < 0.0)) { a = 0.5 * (a + b); pa = p; } else { b = 0.5 * (a + b); }
-            if (++k >= rp.size.w) {
-                hit = 0.5 * (a + b);
-                phase = DONE;
+    while (true) {
+        // Idle lanes take the next rays, in lane order; a ray that misses the box is done at once.
+        while (subgroupAny(r.phase == IDLE) && next < end) {
+            TICK_LANE(4u);  // clip_to_box's loop
+            bool want = r.phase == IDLE;
+            uvec4 wanting = subgroupBallot(want);
+            uint index = next + subgroupBallotBitCount(wanting & gl_SubgroupLtMask);
+            next = min(next + subgroupBallotBitCount(wanting), end);
+            if (want && index < end) start_ray(r, index, first_pixel);
+        }
+        if (past_loop_limit() || !subgroupAny(r.phase != IDLE)) break;
+        float p = field_phi(r.o + next_sample(r) * r.d, r.phase != IDLE, r.phase == SHADE, g);
+        if (past_loop_limit()) break;  // p may be cut short: this turn writes nothing
+        if (r.phase == SHADE) {
+            hits[r.index] = vec4(r.t0 + r.hit, g);
+            r.phase = IDLE;
+        } else if (r.phase != IDLE && advance(r, p)) {
+            if (r.hit >= 0.0) r.phase = SHADE;
+            else {
+                hits[r.index] = vec4(-1.0, 0.0, 0.0, 0.0);
+                r.phase = IDLE;
             }
         }
     }
-    bool got = hit >= 0.0;
-    field_phi(o + max(hit, 0.0) * d, got, true, g);  // ∇φ at the hit, again by every lane
-    if (!got) return vec4(-1.0, 0.0, 0.0, 0.0);
-    return vec4(t0 + hit, g);
-}
-
-void render_main(uint first_pixel, uint pixel_count) {
-    uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
-    bool valid = i < pixel_count;  // lanes past the end take part in the walks, idle
-    uint p = first_pixel + min(i, pixel_count - 1u);
-    uint px = p % rp.size.x, py = p / rp.size.x;
-    vec4 h = march(rp.eye.xyz, pixel_ray(px, py), valid);
-    if (valid) hits[i] = h;
 }

@@ -2,6 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 // Sphere-traces a blended field (PAT, SSPD, SHC; the accelerated sum) per pixel: the renderer's
 // GPU path (src/render/render_gpu.cpp). Bindings 0–2 and the first push constants are those of
 // blend_eval.comp, so the field's device data serves both.
@@ -11,6 +12,7 @@
 layout(local_size_x_id = 0) in;
 layout(constant_id = 1) const int KIND = 0;  // 0 PAT, 1 SSPD, 2 SHC
 layout(constant_id = 2) const int SHARED_KNN = 0;  // 1: the k-nearest fallback walked per subgroup (blend_field.glsl)
+layout(constant_id = 3) const uint LOOP_CAP = 0u;  // software devices: render_march.glsl's guard; 0: none
 
 layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };
 layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };
@@ -27,6 +29,10 @@ layout(push_constant) uniform Push {
     uint pixel_count;
 } pc;
 
+// The loop iterations the walks take, for render_march.glsl's guard against llvmpipe's limit.
+uint lane_ticks = 0u, subgroup_ticks = 0u;
+#define TICK_LANE(n) if (LOOP_CAP > 0u) lane_ticks += uint(n)
+#define TICK_UNIFORM(n) if (LOOP_CAP > 0u) subgroup_ticks += uint(n)
 #include "blend_field.glsl"
 
 float field_phi(vec3 x, bool live, bool grad, out vec3 g) { return blend_field(x, live, grad, g); }

@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 
 using namespace gsd;
 
@@ -265,9 +266,18 @@ void device_matches_cpu(const char* what, FieldRenderOptions o, double depth_tol
     o.chunk_size = 777;
     const RenderedField chunked = render(o);
     // Rays are independent, but a subgroup's rays share its neighbor walks, so the sums' terms
-    // (and the last bits of a normal) can come in another order: equal depths, and pixels that
-    // differ by more than 8 no more often than between the devices.
-    CHECK(chunked.depth == gpu.depth);
+    // (and the last bits of a normal) can come in another order, and on lavapipe the rays that
+    // pass its loop limit with their subgroup are marched on the CPU instead: the same hits,
+    // depths within the tolerance (most of them equal), and pixels that differ by more than 8
+    // no more often than between the devices.
+    const Agreement c = between(chunked, gpu);
+    std::size_t equal = 0;
+    for (std::size_t p = 0; p < gpu.depth.size(); ++p) equal += chunked.depth[p] == gpu.depth[p];
+    MESSAGE(std::string(what) << ", rays in chunks of 777 against one chunk: depths equal at " << equal << " of "
+                 << gpu.depth.size() << " pixels, max difference " << c.depth_quantile(1.0));
+    CHECK(c.mask_differs == 0);
+    CHECK(c.depth_quantile(1.0) <= depth_tol);
+    CHECK(double(equal) >= 0.9 * double(gpu.depth.size()));
     const double chunk_off = image_difference(chunked.image, gpu.image, 8);
     MESSAGE(std::string(what) << ", rays in chunks of 777 against one chunk: image bytes off by > 8: " << chunk_off);
     CHECK(chunk_off <= 0.01);
@@ -286,6 +296,17 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         FieldRenderOptions o = small("cpu");
         o.view_from = {0.2, 1.0, 0.7};
         device_matches_cpu("PAT", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
+    }
+    SUBCASE("PAT, four rays a lane: the compaction hardware GPUs run") {
+        // A lane whose ray ends takes its tile's next one (render_march.glsl); lavapipe runs one
+        // ray a lane unless told otherwise.
+        setenv("GSD_RENDER_RAYS_PER_LANE", "4", 1);
+        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        FieldRenderOptions o = small("cpu");
+        o.view_from = {0.2, 1.0, 0.7};
+        device_matches_cpu("PAT, 4 rays a lane", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
+        unsetenv("GSD_RENDER_RAYS_PER_LANE");
     }
     SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
         const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");

@@ -27,7 +27,8 @@ namespace gsd {
 class TorusField;
 class BaselineField;
 
-/// Where it runs and the rays per GPU chunk (0: 65536): Execution (gsd/gpu.hpp).
+/// Where it runs and the rays per GPU submission (0: 2^20 on a GPU, 65 536 on a software
+/// device): Execution (gsd/gpu.hpp).
 struct FieldRenderOptions : Execution {
     int width = 800, height = 600;
     /// Direction the camera looks from, toward the center of the surface's box (need not be

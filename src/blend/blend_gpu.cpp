@@ -30,6 +30,18 @@ int shared_knn(const gpu::Context& c) {
     return c.info().is_software() ? 0 : 1;
 }
 
+/// The renderer's choice is the other way round. On a hardware GPU each lane walks its own:
+/// rays of a tile reach the fallback at different points of their march, and walked together
+/// the render took twice as long on an H200 (4.1 s against 2.0 s at 1920×1080). On a software
+/// device the walk together: its loops are counted exactly there, so fewer rays pass the loop
+/// guard of render_march.glsl (3.8 % against 5.2 % of the bench's rays went to the CPU, and
+/// the device rate rose from 0.38× to 0.44× the CPU path's on lavapipe). $GSD_SHARED_KNN
+/// overrides it too.
+int render_shared_knn(const gpu::Context& c) {
+    if (const char* v = std::getenv("GSD_SHARED_KNN"); v && (v[0] == '0' || v[0] == '1')) return v[0] - '0';
+    return c.info().is_software() ? 1 : 0;
+}
+
 
 constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 
@@ -107,7 +119,8 @@ public:
     /// Queries in an application's buffer, results into another (gsd/vulkan.hpp).
     void evaluate_into(const Params& p, const gpu::DeviceQueries& job, const gpu::SubmitSync& sync);
     void record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
-                       std::uint32_t first_pixel, std::uint32_t pixel_count);
+                       std::uint32_t first_pixel, std::uint32_t pixel_count, std::uint32_t rays_per_lane,
+                       std::uint32_t loop_cap);
     std::string device_name() const { return ctx_->info().name; }
     const gpu::Context* context() const { return ctx_.get(); }
 
@@ -228,25 +241,25 @@ void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, con
 }
 
 void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
-                             std::uint32_t first_pixel, std::uint32_t pixel_count) {
+                             std::uint32_t first_pixel, std::uint32_t pixel_count, std::uint32_t rays_per_lane,
+                             std::uint32_t loop_cap) {
     struct RenderPush {  // `Push` in render_pat.comp: blend_eval's, then the chunk
         BlendPush blend;
         std::uint32_t pixel_count;
     };
-    // Each lane's own k-nearest walk here: rays of a tile reach the fallback at different points
-    // of their march, and walked together the render took twice as long on an H200 (4.1 s
-    // against 2.0 s at 1920×1080).
-    const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush), {int(kind_), 0});
+    const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush),
+                                        {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)});
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
                           pixel_count};
     rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&params}, {&hits, 0, VkDeviceSize(pixel_count) * 16}}, &push,
-                 sizeof(push), (pixel_count + k.workgroup - 1) / k.workgroup);
+                 sizeof(push), (pixel_count + k.workgroup * rays_per_lane - 1) / (k.workgroup * rays_per_lane));
 }
 
 void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const gpu::Buffer& params,
-                   const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count) {
-    field.record_render(rec, p, params, hits, first_pixel, pixel_count);
+                   const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count,
+                   std::uint32_t rays_per_lane, std::uint32_t loop_cap) {
+    field.record_render(rec, p, params, hits, first_pixel, pixel_count, rays_per_lane, loop_cap);
 }
 
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,

@@ -135,6 +135,7 @@ DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, st
     const bool compute = sub.supportedStages & VK_SHADER_STAGE_COMPUTE_BIT;
     d.subgroup_vote = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_VOTE_BIT);
     d.subgroup_ballot = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_BALLOT_BIT);
+    d.subgroup_arithmetic = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_ARITHMETIC_BIT);
     d.max_storage_buffer_range = p.limits.maxStorageBufferRange;
     std::uint32_t family = 0;
     if (p.apiVersion < VK_API_VERSION_1_1) d.why_not = "needs Vulkan 1.1";
@@ -698,9 +699,30 @@ void Recorder::copy(const Buffer& src, VkDeviceSize so, const Buffer& dst, VkDev
 
 void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
                         std::uint32_t push_bytes, std::uint32_t groups) {
+    if (groups == 0) return;
+    bind(k, bindings, push, push_bytes);
+    const std::uint32_t max_x = ctx_.max_groups_x();
+    const std::uint32_t x = std::min(groups, max_x);
+    const std::uint32_t y = (groups + x - 1) / x;
+    time_start();
+    ctx_.vk().vkCmdDispatch(cmd_, x, y, 1);
+    time_end(k.name);
+}
+
+void Recorder::dispatch_grid(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
+                             std::uint32_t push_bytes, std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+    if (x == 0 || y == 0 || z == 0) return;
+    if (x > ctx_.max_groups_x() || std::max(y, z) > 65535u)
+        throw Error("gpu", "kernel " + k.name + ": more workgroups along an axis than the device allows");
+    bind(k, bindings, push, push_bytes);
+    time_start();
+    ctx_.vk().vkCmdDispatch(cmd_, x, y, z);
+    time_end(k.name);
+}
+
+void Recorder::bind(const Kernel& k, std::initializer_list<Binding> bindings, const void* push, std::uint32_t push_bytes) {
     if (bindings.size() != k.bindings) throw Error("gpu", "kernel " + k.name + ": wrong number of buffers");
     if (push_bytes != k.push_bytes) throw Error("gpu", "kernel " + k.name + ": wrong push-constant size");
-    if (groups == 0) return;
     ctx_.vk().vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.pipeline);
     std::vector<VkDescriptorBufferInfo> infos;
     infos.reserve(bindings.size());
@@ -715,16 +737,14 @@ void Recorder::dispatch(const Kernel& k, std::initializer_list<Binding> bindings
     }
     ctx_.vk().vkCmdPushDescriptorSetKHR(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, std::uint32_t(writes.size()), writes.data());
     if (push_bytes) ctx_.vk().vkCmdPushConstants(cmd_, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
-    const std::uint32_t max_x = ctx_.max_groups_x();
-    const std::uint32_t x = std::min(groups, max_x);
-    const std::uint32_t y = (groups + x - 1) / x;
-    time_start();
-    ctx_.vk().vkCmdDispatch(cmd_, x, y, 1);
-    time_end(k.name);
 }
 
 void Recorder::fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes) {
-    ctx_.vk().vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, 0);
+    fill(dst, offset, bytes, 0);
+}
+
+void Recorder::fill(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes, std::uint32_t word) {
+    ctx_.vk().vkCmdFillBuffer(cmd_, dst.handle(), offset, bytes, word);
 }
 
 void Recorder::barrier() {

@@ -160,10 +160,16 @@ public:
               VkDeviceSize bytes);
     /// Zeroes `bytes` (a multiple of 4) of a buffer from `offset`.
     void fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes);
+    /// Sets `bytes` (a multiple of 4) of a buffer from `offset` to the 32-bit pattern `word`.
+    void fill(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes, std::uint32_t word);
     /// Records a dispatch of `groups` workgroups (split over y when above the device limit;
     /// kernels compute their linear id as gl_WorkGroupID.y·gl_NumWorkGroups.x + x).
     void dispatch(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
                   std::uint32_t push_bytes, std::uint32_t groups);
+    /// Records a dispatch of x × y × z workgroups as given (y, z ≤ 65 535, the least every
+    /// device allows): for kernels that read their cell from gl_WorkGroupID.yz.
+    void dispatch_grid(const Kernel& k, std::initializer_list<Binding> bindings, const void* push,
+                       std::uint32_t push_bytes, std::uint32_t x, std::uint32_t y, std::uint32_t z);
     /// Makes earlier writes (transfer or compute) visible to later reads (transfer, compute, host).
     void barrier();
     /// Makes writes by anything earlier on the queue (an application's commands, transfers,
@@ -183,6 +189,8 @@ public:
     bool pending() const { return pending_; }
 
 private:
+    /// Binds the kernel's pipeline, buffers and push constants for a dispatch.
+    void bind(const Kernel& k, std::initializer_list<Binding> bindings, const void* push, std::uint32_t push_bytes);
     /// Profiling: a timestamp before and after a command, labeled (State::profile).
     void time_start();
     void time_end(const std::string& label);

@@ -44,7 +44,7 @@ March make_march(const Box& box, const FieldRenderOptions& o) {
     m.hit_eps = o.hit_tolerance > 0 ? o.hit_tolerance : 1e-4 * box.diagonal();
     m.min_step = m.hit_eps;
     m.bisection = o.bisection_steps;
-    if (o.chunk_size) m.chunk = o.chunk_size;
+    m.chunk = o.chunk_size;
     return m;
 }
 
@@ -282,6 +282,27 @@ Box grid_subject(const GridSpec& g, const std::vector<float>& values) {
     return b;
 }
 
+// Rays the device left unfinished (t = −2: llvmpipe's loop limit, render_march.glsl) marched on
+// the CPU, with one line saying so.
+void redo_unfinished(std::vector<float>& hits, const std::function<Sampler()>& make_sampler, const Camera& cam,
+                     const March& m, const std::string& device) {
+    std::vector<long> redo;
+    for (std::size_t p = 0; 4 * p < hits.size(); ++p)
+        if (hits[4 * p] == -2.0f) redo.push_back(long(p));
+    if (redo.empty()) return;
+    log_once(std::to_string(redo.size()) + " rays past " + device + "'s loop limit were marched on the CPU");
+#pragma omp parallel
+    {
+        const Sampler field = make_sampler();
+#pragma omp for schedule(dynamic, 16)
+        for (std::size_t i = 0; i < redo.size(); ++i) {
+            const long p = redo[i];
+            const Eigen::Vector4d h = march_ray(field, cam.eye, cam.ray(int(p % cam.width), int(p / cam.width)), m);
+            for (int c = 0; c < 4; ++c) hits[std::size_t(4 * p + c)] = float(h[c]);
+        }
+    }
+}
+
 // The march on the chosen device, else (no device, or the field does not fit it) on the CPU,
 // then the shading both share. `march_on(ctx, hits, why_not)` marches on a context and says why
 // it could not (a generic lambda: gpu::on_device).
@@ -292,7 +313,10 @@ RenderedField march_and_shade(const Frame& f, const FieldRenderOptions& o, const
     const gpu::DeviceRun run = gpu::on_device(
         o.device, [&](const auto& ctx, std::string& why_not) { return march_on(ctx, hits, why_not); },
         "; rendering on the CPU");
-    if (run) return shade(hits, f.cam, o, run.device);
+    if (run) {
+        redo_unfinished(hits, make_sampler, f.cam, f.march, run.device);
+        return shade(hits, f.cam, o, run.device);
+    }
     hits = march_cpu(make_sampler, f.cam, f.march, progress);
     return shade(hits, f.cam, o, "cpu");
 }

@@ -36,7 +36,7 @@ struct March {
     int max_steps = 256;
     double step_scale = 0.9, hit_eps = 0, min_step = 0;
     int bisection = 12;
-    std::size_t chunk = 1 << 16;  ///< rays per GPU submission (FieldRenderOptions::chunk_size)
+    std::size_t chunk = 0;  ///< rays per GPU submission (FieldRenderOptions::chunk_size; 0: the device's default)
 };
 
 /// A camera looking at `subject` (where the surface is) from FieldRenderOptions::view_from,
