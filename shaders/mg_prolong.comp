@@ -1,7 +1,8 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // e_fine += P e_coarse (cell-centered linear interpolation, tensor product). This level is the
-// fine one; the other level (odims) is the coarse one.
+// fine one; the other level (odims) is the coarse one. A workgroup takes a row of cells along
+// z, as mg_smooth.
 // The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
 layout(local_size_x_id = 0) in;
 #include "mg_common.glsl"
@@ -10,10 +11,10 @@ layout(std430, binding = 1) readonly buffer EC { float ec[]; };
 layout(std430, binding = 2) buffer EF { float ef[]; };
 
 void main() {
-    uint p = linear_id();
     uvec3 d = pc.dims;
-    if (p >= d.x * d.y * d.z) return;
-    uvec3 c = cell_of(p, d);
+    uvec3 c = uvec3(gl_WorkGroupID.z, gl_WorkGroupID.y, gl_GlobalInvocationID.x);  // a row per workgroup (mg_smooth)
+    if (c.z >= d.z) return;
+    uint p = index_of(c, d);
     AxisEntry ax = axes[pc.axes_off.x + c.x], ay = axes[pc.axes_off.y + c.y], az = axes[pc.axes_off.z + c.z];
     int ci[2] = int[2](ax.c0, ax.c1), cj[2] = int[2](ay.c0, ay.c1), ck[2] = int[2](az.c0, az.c1);
     float wi[2] = float[2](ax.w0, ax.w1), wj[2] = float[2](ay.w0, ay.w1), wk[2] = float[2](az.w0, az.w1);

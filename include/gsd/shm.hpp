@@ -102,6 +102,9 @@ struct ShmResult {
     std::vector<double> residual_history;  ///< relative residual after each cycle/iteration
     std::vector<double> fit_history;       ///< the same for the zero-set fit (empty without one)
     double seconds_diffuse = 0, seconds_solve = 0;
+    /// Parts of seconds_diffuse: the setup (the source's tree, its upload to a device), the sums
+    /// at the nodes summed exactly, and the rest (interpolation between levels, node lists).
+    double seconds_setup = 0, seconds_sums = 0;
     /// Parts of seconds_solve: the Poisson solve itself (with the divergence and the mean
     /// shift), the zero-set fit and the outside veto (both on the CPU).
     double seconds_poisson = 0, seconds_fit = 0, seconds_veto = 0;

@@ -3,6 +3,7 @@
 #include "sums/sum_tree.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 namespace gsd::shm_detail {
@@ -127,6 +128,7 @@ std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, doubl
                 }
                 Eigen::Vector3d sum = Eigen::Vector3d::Zero();
                 double low = INFINITY;
+                const bool bound = l > 0;  // the finest level's bounds have no use
                 bool all_far = true;
                 for (int corner = 0; corner < 8 && all_far; ++corner) {
                     const int o[3] = {corner & 1, (corner >> 1) & 1, (corner >> 2) & 1};
@@ -136,7 +138,8 @@ std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, doubl
                     const double w = (o[0] ? t[0] : 1 - t[0]) * (o[1] ? t[1] : 1 - t[1]) * (o[2] ? t[2] : 1 - t[2]);
                     for (int a = 0; a < 3; ++a) sum[a] += w * coarse.y[3 * q + std::size_t(a)];
                     // r_min is 1-Lipschitz: a bound at the corner bounds it here too.
-                    low = std::min(low, coarse.r_low[q] - (x - c.node(base[0] + o[0], base[1] + o[1], base[2] + o[2])).norm());
+                    if (bound)
+                        low = std::min(low, coarse.r_low[q] - (x - c.node(base[0] + o[0], base[1] + o[1], base[2] + o[2])).norm());
                 }
                 if (!all_far) continue;
                 exact[p] = 0;
@@ -159,7 +162,9 @@ std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, doubl
         std::vector<float> y;
         std::vector<double> rmin;
         const ProgressFn level_progress = progress && l == 0 ? progress : ProgressFn{};
+        const auto t0 = std::chrono::steady_clock::now();
         stats.kernel_terms += eval.evaluate(x, y, rmin, level_progress);
+        stats.seconds_sums += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         stats.exact_nodes += to_sum.size();
         for (std::size_t m = 0; m < to_sum.size(); ++m) {
             const std::size_t p = to_sum[m];

@@ -54,6 +54,7 @@ void for_each_sample(const ShmSource& source, double max_element, const Box& foc
 
 struct DiffuseStats {
     std::size_t exact_nodes = 0, kernel_terms = 0;
+    double seconds_sums = 0;  ///< in DirectionEvaluator::evaluate
 };
 
 /// Y at every node of `grid` (3 floats per node, GridSpec order): exact within

@@ -359,23 +359,27 @@ std::vector<double> GridPoissonSolver::divergence(const std::vector<float>& Y) c
     const double h[3] = {g.box.extent().x() / (g.nx - 1), g.box.extent().y() / (g.ny - 1), g.box.extent().z() / (g.nz - 1)};
     const int n[3] = {g.nx, g.ny, g.nz};
     const Level& lv = impl_->H.levels[0];
-    std::vector<double> b(g.node_count(), 0.0);
+    std::vector<double> b(g.node_count());
     // Edge (p, p+e_a) carries Ȳ_a = (Y_a(p) + Y_a(p+e_a))/2: it adds −Ȳ_a/Δ_a to b_p and +Ȳ_a/Δ_a to
-    // b_{p+e_a} (normal equations of Σ_edges ((φ_q − φ_p)/Δ_a − Ȳ_a)²).
+    // b_{p+e_a} (normal equations of Σ_edges ((φ_q − φ_p)/Δ_a − Ȳ_a)²). Each node gathers its six
+    // edges, in parallel: first the edges from its lower neighbours, then its own, along x, y, z —
+    // the order in which a serial sweep over the edges in storage order would add them.
+    const std::size_t stride[3] = {std::size_t(n[1]) * std::size_t(n[2]), std::size_t(n[2]), 1};
+    auto ybar = [&](std::size_t p, int a) {  // the edge (p, p + e_a)
+        return 0.5 * (double(Y[3 * p + std::size_t(a)]) + double(Y[3 * (p + stride[a]) + std::size_t(a)]));
+    };
+#pragma omp parallel for collapse(2) schedule(static)
     for (int i = 0; i < n[0]; ++i)
         for (int j = 0; j < n[1]; ++j)
             for (int k = 0; k < n[2]; ++k) {
                 const int ijk[3] = {i, j, k};
                 const std::size_t p = lv.index(i, j, k);
-                for (int a = 0; a < 3; ++a) {
-                    if (ijk[a] + 1 >= n[a]) continue;
-                    int nb[3] = {i, j, k};
-                    ++nb[a];
-                    const std::size_t q = lv.index(nb[0], nb[1], nb[2]);
-                    const double ybar = 0.5 * (double(Y[3 * p + std::size_t(a)]) + double(Y[3 * q + std::size_t(a)]));
-                    b[p] -= ybar / h[a];
-                    b[q] += ybar / h[a];
-                }
+                double v = 0.0;
+                for (int a = 0; a < 3; ++a)
+                    if (ijk[a] > 0) v += ybar(p - stride[a], a) / h[a];
+                for (int a = 0; a < 3; ++a)
+                    if (ijk[a] + 1 < n[a]) v -= ybar(p, a) / h[a];
+                b[p] = v;
             }
     return b;
 }

@@ -8,6 +8,7 @@
 
 #include "gpu/runtime.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -76,6 +77,10 @@ public:
             axes_off_.push_back(off);
         }
         if (gathers.empty()) gathers.push_back({0, 0});
+        for (const Level& lv : H_.levels)
+            for (const AxisLevel& ax : lv.axis)
+                for (std::size_t i = 0; i + 1 < ax.offsets.size(); ++i)
+                    max_taps_ = std::max(max_taps_, ax.offsets[i + 1] - ax.offsets[i]);
         axes_ = gpu::upload(c, axes.data(), axes.size() * sizeof(AxisEntry));
         gathers_ = gpu::upload(c, gathers.data(), gathers.size() * sizeof(GatherEntry));
         std::vector<float> pinv(H_.coarse_pinv.begin(), H_.coarse_pinv.end());
@@ -90,7 +95,10 @@ public:
         const std::size_t n0 = H_.levels[0].count();
         phi_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
         b_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
-        groups0_ = std::uint32_t((n0 + c.workgroup_size() - 1) / c.workgroup_size());
+        // mg_refine's workgroups: a row of cells along z each (dispatch_rows), one partial sum each.
+        const Level& fine = H_.levels[0];
+        const auto row_groups = std::uint32_t((fine.axis[2].n + c.workgroup_size() - 1) / c.workgroup_size());
+        groups0_ = row_groups * std::uint32_t(fine.axis[1].n) * std::uint32_t(fine.axis[0].n);
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
     }
@@ -149,18 +157,25 @@ private:
         return std::uint32_t((H_.levels[l].count() + ctx_->workgroup_size() - 1) / ctx_->workgroup_size());
     }
 
+    // The stencil kernels take a row of cells along z per workgroup (x: `cells` of the row,
+    // y: j, z: i), so that they need no division to find a cell (mg_smooth.comp).
+    void dispatch_rows(gpu::Recorder& rec, const gpu::Kernel& k, std::initializer_list<gpu::Binding> bindings,
+                       const MgPush& p, std::uint32_t cells) {
+        rec.dispatch_grid(k, bindings, &p, sizeof(p), (cells + k.workgroup - 1) / k.workgroup, p.dims[1], p.dims[0]);
+    }
+
     void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color) {
         const gpu::Kernel& k = ctx_->kernel("mg_smooth", 3, sizeof(MgPush));
         MgPush p = push_for(l, l);
         p.color = color;
-        rec.dispatch(k, {{&axes_}, {&r_[l]}, {&e_[l]}}, &p, sizeof(p), groups(l));
+        dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}}, p, (p.dims[2] + 1) / 2);  // the row's cells of one color
         rec.barrier();
     }
 
     void residual(gpu::Recorder& rec, std::size_t l) {
         const gpu::Kernel& k = ctx_->kernel("mg_residual", 4, sizeof(MgPush));
         const MgPush p = push_for(l, l);
-        rec.dispatch(k, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, &p, sizeof(p), groups(l));
+        dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
         rec.barrier();
     }
 
@@ -178,9 +193,9 @@ private:
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 0); smooth(rec, l, 1); }
         residual(rec, l);
         {
-            const gpu::Kernel& k = ctx_->kernel("mg_restrict", 4, sizeof(MgPush));
+            const gpu::Kernel& k = ctx_->kernel("mg_restrict", 4, sizeof(MgPush), {max_taps_});
             const MgPush p = push_for(l + 1, l);
-            rec.dispatch(k, {{&axes_}, {&gathers_}, {&t_[l]}, {&r_[l + 1]}}, &p, sizeof(p), groups(l + 1));
+            dispatch_rows(rec, k, {{&axes_}, {&gathers_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
             rec.barrier();
         }
         record_cycle(rec, l + 1, f_cycle);
@@ -200,7 +215,7 @@ private:
         {
             const gpu::Kernel& k = ctx_->kernel("mg_prolong", 3, sizeof(MgPush));
             const MgPush p = push_for(l, l + 1);
-            rec.dispatch(k, {{&axes_}, {&e_[l + 1]}, {&e_[l]}}, &p, sizeof(p), groups(l));
+            dispatch_rows(rec, k, {{&axes_}, {&e_[l + 1]}, {&e_[l]}}, p, p.dims[2]);
             rec.barrier();
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
@@ -212,12 +227,12 @@ private:
         const gpu::Kernel& k = ctx_->kernel("mg_refine", 5, sizeof(MgPush));
         MgPush p = push_for(0, 0);
         p.color = with_correction ? 1 : 0;
-        rec.dispatch(k, {{&phi_}, {&b_}, {&e_[0]}, {&r_[0]}, {&partial_}}, &p, sizeof(p), groups0_);
+        dispatch_rows(rec, k, {{&phi_}, {&b_}, {&e_[0]}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
         rec.barrier();
         if (with_correction) {
             const gpu::Kernel& u = ctx_->kernel("mg_update", 2, 4);
             const std::uint32_t m = std::uint32_t(n0);
-            rec.dispatch(u, {{&phi_}, {&e_[0]}}, &m, 4, groups0_);
+            rec.dispatch(u, {{&phi_}, {&e_[0]}}, &m, 4, groups(0));
             rec.barrier();
         }
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
@@ -236,18 +251,23 @@ private:
     std::vector<std::array<std::uint32_t, 3>> axes_off_;
     gpu::Buffer axes_, gathers_, pinv_, phi_, b_, partial_, partial_down_;
     std::vector<gpu::Buffer> r_, e_, t_, save_;
-    std::uint32_t groups0_ = 0;
+    std::uint32_t groups0_ = 0;  // mg_refine's workgroups (its partial sums)
+    std::int32_t max_taps_ = 1;  // the longest restriction gather list (mg_restrict's MAX_TAPS)
 };
 
 }  // namespace
 
 std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Context>& ctx, const Hierarchy& h,
                                                  std::string& why_not) {
-    if (!ctx->has_float64()) {
-        why_not = ctx->info().name + " has no float64 in shaders; the multigrid runs on the CPU";
+    if (!ctx->has_float64() || !ctx->info().subgroup_arithmetic) {
+        why_not = ctx->info().name + " has no float64 or no subgroup arithmetic in shaders; the multigrid runs on the CPU";
         return nullptr;
     }
     const std::uint64_t n0 = h.levels[0].count();
+    if (h.levels[0].axis[0].n > 65535 || h.levels[0].axis[1].n > 65535) {  // rows are workgroups (dispatch_rows)
+        why_not = "the grid has more than 65535 nodes along x or y; the multigrid runs on the CPU";
+        return nullptr;
+    }
     if (n0 * 8 > ctx->max_binding_bytes()) {
         why_not = "the grid (" + std::to_string(n0) + " nodes) exceeds " + ctx->info().name +
                   "'s storage buffer range; the multigrid runs on the CPU";

@@ -56,7 +56,9 @@ struct SignedHeatGrid::Impl {
         return k;
     }
 
-    std::vector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress) const {
+    std::vector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress,
+                                  double* seconds_setup = nullptr) const {
+        const auto t0 = std::chrono::steady_clock::now();
         std::unique_ptr<shm_detail::DirectionEvaluator> eval;
         gpu::on_device(opt.device, [&](const auto& ctx, std::string& why_not) {
             eval = shm_detail::make_gpu_evaluator(ctx, source, kernel(), opt.chunk_size, why_not);
@@ -64,6 +66,7 @@ struct SignedHeatGrid::Impl {
         });
         if (!eval) eval = shm_detail::make_cpu_evaluator(source, kernel());
         device = eval->device();
+        if (seconds_setup) *seconds_setup = seconds_since(t0);
         return shm_detail::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
     }
 
@@ -183,16 +186,18 @@ struct SignedHeatGrid::Impl {
         if (samples.empty()) throw Error("the source lies outside the grid's bounds");
         const std::vector<double> psi = penalized_solve(coarse, samples, penalty_weight(coarse), history);
         std::vector<double> phi = phi0;
-        const Points nodes = grid.nodes();
-#pragma omp parallel for schedule(static)
-        for (Eigen::Index i = 0; i < nodes.rows(); ++i) {
-            std::size_t node[8];
-            double w[8];
-            if (!trilinear(coarse, nodes.row(i).transpose(), node, w)) continue;
-            double v = 0;
-            for (int c = 0; c < 8; ++c) v += w[c] * psi[node[c]];
-            phi[std::size_t(i)] += v;
-        }
+        // Node coordinates as computed, not a grid.nodes() copy (400 MB at 256³, filled serially).
+#pragma omp parallel for collapse(2) schedule(static)
+        for (int i = 0; i < grid.nx; ++i)
+            for (int j = 0; j < grid.ny; ++j)
+                for (int k = 0; k < grid.nz; ++k) {
+                    std::size_t node[8];
+                    double w[8];
+                    if (!trilinear(coarse, grid.node(i, j, k), node, w)) continue;
+                    double v = 0;
+                    for (int c = 0; c < 8; ++c) v += w[c] * psi[node[c]];
+                    phi[(std::size_t(i) * std::size_t(grid.ny) + std::size_t(j)) * std::size_t(grid.nz) + std::size_t(k)] += v;
+                }
         return phi;
     }
 
@@ -227,9 +232,13 @@ struct SignedHeatGrid::Impl {
                 const std::ptrdiff_t iz = i % grid.nz, iy = (i / grid.nz) % grid.ny, ix = i / (std::ptrdiff_t(grid.nz) * grid.ny);
                 const Eigen::Vector3d x = grid.box.lo + step.cwiseProduct(Eigen::Vector3d(double(ix), double(iy), double(iz)));
                 const double threshold = opt.veto_slope * -value + margin;
+                auto far_ramp = [&](double d) { return std::clamp(0.5 + (d - threshold) / distance_band, 0.0, 1.0); };
+                // Most nodes are near an element for their |φ|, and the last node's nearest
+                // element says so without a search: its distance bounds the nearest one from
+                // above and the ramp is monotone, so the node would stay as it is.
+                if (nearest < tree.size() && far_ramp(tree.element_distance(x, nearest)) <= 0) continue;
                 // Exact up to where the ramp ends; that bound prunes the search.
-                const double d = tree.nearest_distance(x, threshold + 0.5 * distance_band, &nearest);
-                const double far = std::clamp(0.5 + (d - threshold) / distance_band, 0.0, 1.0);
+                const double far = far_ramp(tree.nearest_distance(x, threshold + 0.5 * distance_band, &nearest));
                 if (far <= 0) continue;
                 std::size_t terms = 0;
                 const double w = tree.winding(x, criterion.beta, criterion.tolerance, terms);
@@ -287,7 +296,8 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     auto t0 = std::chrono::steady_clock::now();
     shm_detail::DiffuseStats stats;
     std::string diffuse_device;
-    const std::vector<float> Y = m.directions(stats, diffuse_device, progress);
+    const std::vector<float> Y = m.directions(stats, diffuse_device, progress, &out.seconds_setup);
+    out.seconds_sums = stats.seconds_sums;
     out.exact_nodes = stats.exact_nodes;
     out.kernel_terms = stats.kernel_terms;
     out.seconds_diffuse = seconds_since(t0);

@@ -630,6 +630,11 @@ double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nea
     return r_min;
 }
 
+double SumTree::element_distance(const Vec3& x, std::uint32_t j) const {
+    const double* c = corners(j);
+    return std::sqrt(sums::point_triangle_distance2(x, vec(c), vec(c + 3), vec(c + 6)));
+}
+
 void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const {
     constexpr int L = kScreenedLanes;
     const std::vector<Hot>& records = hot();

@@ -151,6 +151,9 @@ public:
     /// previous query's nearest, for a neighbor: usually the answer; ≥ size() for none); out,
     /// the element that attains the distance.
     double nearest_distance(const Eigen::Vector3d& x, double bound = INFINITY, std::uint32_t* nearest = nullptr) const;
+    /// Distance from x to element j (what nearest_distance() minimizes): an upper bound of the
+    /// nearest distance from one element, no search.
+    double element_distance(const Eigen::Vector3d& x, std::uint32_t j) const;
     /// X = Σ_j v_j ∫ e^(−λ(r − r_min))/r dA_j / A_j over elements within r_min + cutoff/λ, by
     /// node expansions where accept_screened() says so and by adaptive subdivision of the
     /// triangles elsewhere. Returns X (only its direction matters) and sets r_min.

@@ -459,6 +459,8 @@ void add_shm(CLI::App& app) {
                  std::to_string(*n) + "^3 on " + r.device);
             note("step 1 (diffuse): " + fmt("%.2f s", r.seconds_diffuse) + ", " + std::to_string(r.exact_nodes) + " of " +
                  std::to_string(g.node_count()) + " nodes summed exactly, " + std::to_string(r.kernel_terms) + " kernel terms");
+            note("step 1's parts: setup " + fmt("%.2f s", r.seconds_setup) + ", sums " + fmt("%.2f s", r.seconds_sums) +
+                 ", interpolation " + fmt("%.2f s", r.seconds_diffuse - r.seconds_setup - r.seconds_sums));
             std::string fit;
             if (!r.fit_history.empty())
                 fit = "; zero-set fit " + std::to_string(r.fit_history.size()) + " iterations, relative residual " +
