@@ -22,6 +22,7 @@
 #include <optional>
 
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -160,7 +161,10 @@ public:
     GridPoissonSolver& operator=(GridPoissonSolver&&) noexcept;
 
     /// Right-hand side of the least-squares problem from a vector field (3 per node).
-    std::vector<double> divergence(const std::vector<float>& field) const;
+    std::vector<double> divergence(std::span<const float> field) const;
+    std::vector<double> divergence(const std::vector<float>& field) const {
+        return divergence(std::span<const float>(field.data(), field.size()));
+    }
     /// Solves L φ = b (b must sum to zero). Returns φ (double) with mean zero; the relative
     /// residual after each cycle or iteration goes to `residual_history` if given.
     std::vector<double> solve(const std::vector<double>& b, const PoissonSolveOptions& options = {},

@@ -828,10 +828,26 @@ void Recorder::wait() {
     collect_times();
 }
 
+void copy_bytes(void* dst, const void* src, std::size_t bytes) {
+    // One core copies ~10 GB/s and takes the page faults of a fresh buffer alone; a grid's
+    // field at 256³ is 128 MB.
+    constexpr std::size_t block = std::size_t(1) << 20;
+    if (bytes < 8 * block) {
+        std::memcpy(dst, src, bytes);
+        return;
+    }
+    const auto blocks = std::ptrdiff_t((bytes + block - 1) / block);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t b = 0; b < blocks; ++b) {
+        const std::size_t first = std::size_t(b) * block;
+        std::memcpy(static_cast<char*>(dst) + first, static_cast<const char*>(src) + first, std::min(block, bytes - first));
+    }
+}
+
 Buffer upload(Context& ctx, const void* data, std::size_t bytes) {
     Buffer dst(ctx, bytes, Memory::Device);
     Buffer staging(ctx, bytes, Memory::Upload);
-    std::memcpy(staging.mapped(), data, bytes);
+    copy_bytes(staging.mapped(), data, bytes);
     Recorder rec(ctx);
     rec.begin();
     rec.copy(staging, 0, dst, 0, bytes);
@@ -849,7 +865,7 @@ void download(Context& ctx, const Buffer& src, void* dst, std::size_t bytes) {
     rec.barrier();
     rec.submit();
     rec.wait();
-    std::memcpy(dst, staging.mapped(), bytes);
+    copy_bytes(dst, staging.mapped(), bytes);
 }
 
 }  // namespace gsd::gpu

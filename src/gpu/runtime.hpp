@@ -204,6 +204,8 @@ private:
     std::vector<std::string> timed_;  ///< labels of the timestamp pairs recorded since begin()
 };
 
+/// memcpy, by several threads when it is large (staging buffers of grids).
+void copy_bytes(void* dst, const void* src, std::size_t bytes);
 /// Copies host data into a new device-local buffer (through a temporary staging buffer; waits).
 Buffer upload(Context& ctx, const void* data, std::size_t bytes);
 /// Copies a device buffer's first `bytes` back to the host (waits).

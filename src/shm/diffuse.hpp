@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "core/uninitialized.hpp"
 #include "sums/sum_tree.hpp"
 
 namespace gsd::gpu { class Context; }
@@ -59,7 +60,7 @@ struct DiffuseStats {
 
 /// Y at every node of `grid` (3 floats per node, GridSpec order): exact within
 /// interpolation_cells cells of the source on each level, interpolated beyond.
-std::vector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, double interpolation_cells,
-                           DiffuseStats& stats, const ProgressFn& progress);
+detail::UninitializedVector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, double interpolation_cells,
+                                           DiffuseStats& stats, const ProgressFn& progress);
 
 }  // namespace gsd::shm_detail

@@ -353,7 +353,7 @@ GridPoissonSolver::~GridPoissonSolver() = default;
 GridPoissonSolver::GridPoissonSolver(GridPoissonSolver&&) noexcept = default;
 GridPoissonSolver& GridPoissonSolver::operator=(GridPoissonSolver&&) noexcept = default;
 
-std::vector<double> GridPoissonSolver::divergence(const std::vector<float>& Y) const {
+std::vector<double> GridPoissonSolver::divergence(std::span<const float> Y) const {
     const GridSpec& g = impl_->grid;
     if (Y.size() != 3 * g.node_count()) throw Error("divergence: the field needs 3 values per node");
     const double h[3] = {g.box.extent().x() / (g.nx - 1), g.box.extent().y() / (g.ny - 1), g.box.extent().z() / (g.nz - 1)};

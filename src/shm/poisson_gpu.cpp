@@ -109,7 +109,7 @@ public:
         const std::size_t n0 = H_.levels[0].count();
         {
             gpu::Buffer staging(c, n0 * 8, gpu::Memory::Upload);
-            std::memcpy(staging.mapped(), b.data(), n0 * 8);
+            gpu::copy_bytes(staging.mapped(), b.data(), n0 * 8);
             gpu::Recorder rec(c);
             rec.begin();
             rec.copy(staging, 0, b_, 0, n0 * 8);

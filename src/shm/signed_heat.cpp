@@ -56,7 +56,7 @@ struct SignedHeatGrid::Impl {
         return k;
     }
 
-    std::vector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress,
+    detail::UninitializedVector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress,
                                   double* seconds_setup = nullptr) const {
         const auto t0 = std::chrono::steady_clock::now();
         std::unique_ptr<shm_detail::DirectionEvaluator> eval;
@@ -170,7 +170,8 @@ struct SignedHeatGrid::Impl {
     // I trilinear interpolation. The correction is smooth, so a coarse grid carries it: on ten
     // broken meshes the full grid, half and a quarter of it sign the same shares of nodes right
     // to within 0.3 points (docs/shm.md), and the quarter costs a small part of the full fit.
-    std::vector<double> fit_zero_set(const std::vector<double>& phi0, std::vector<double>& history) const {
+    void fit_zero_set(std::vector<double>& phi, std::vector<double>& history) const {
+        const std::vector<double>& phi0 = phi;  // φ₀ until the correction is added, in place
         GridSpec coarse = grid;
         coarse.nx = std::min(grid.nx, std::max(9, grid.nx / 4 + 1));
         coarse.ny = std::min(grid.ny, std::max(9, grid.ny / 4 + 1));
@@ -185,7 +186,6 @@ struct SignedHeatGrid::Impl {
         });
         if (samples.empty()) throw Error("the source lies outside the grid's bounds");
         const std::vector<double> psi = penalized_solve(coarse, samples, penalty_weight(coarse), history);
-        std::vector<double> phi = phi0;
         // Node coordinates as computed, not a grid.nodes() copy (400 MB at 256³, filled serially).
 #pragma omp parallel for collapse(2) schedule(static)
         for (int i = 0; i < grid.nx; ++i)
@@ -198,7 +198,6 @@ struct SignedHeatGrid::Impl {
                     for (int c = 0; c < 8; ++c) v += w[c] * psi[node[c]];
                     phi[(std::size_t(i) * std::size_t(grid.ny) + std::size_t(j)) * std::size_t(grid.nz) + std::size_t(k)] += v;
                 }
-        return phi;
     }
 
     // The outside veto (ShmOptions::veto_winding). Where holes are large, SHM's completion can
@@ -287,7 +286,8 @@ const ShmSource& SignedHeatGrid::source() const { return impl_->source; }
 std::vector<float> SignedHeatGrid::diffused_directions(const ProgressFn& progress) const {
     shm_detail::DiffuseStats stats;
     std::string device;
-    return impl_->directions(stats, device, progress);
+    const detail::UninitializedVector<float> y = impl_->directions(stats, device, progress);
+    return std::vector<float>(y.begin(), y.end());
 }
 
 ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
@@ -296,7 +296,7 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     auto t0 = std::chrono::steady_clock::now();
     shm_detail::DiffuseStats stats;
     std::string diffuse_device;
-    const std::vector<float> Y = m.directions(stats, diffuse_device, progress, &out.seconds_setup);
+    const detail::UninitializedVector<float> Y = m.directions(stats, diffuse_device, progress, &out.seconds_setup);
     out.seconds_sums = stats.seconds_sums;
     out.exact_nodes = stats.exact_nodes;
     out.kernel_terms = stats.kernel_terms;
@@ -304,14 +304,16 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
 
     t0 = std::chrono::steady_clock::now();
     const GridPoissonSolver poisson(m.grid, m.opt.solver, m.opt.device);
-    const std::vector<double> b = poisson.divergence(Y);
+    const std::vector<double> b = poisson.divergence(std::span<const float>(Y.data(), Y.size()));
     std::vector<double> phi =
         poisson.solve(b, {m.opt.tolerance, std::max(0, m.opt.max_iterations), m.opt.f_cycle}, &out.residual_history, progress);
     const double shift = m.mean_on_source(phi);
-    for (double& v : phi) v -= shift;
+    const auto nodes = std::ptrdiff_t(phi.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < nodes; ++i) phi[std::size_t(i)] -= shift;
     out.seconds_poisson = seconds_since(t0);
     auto t1 = std::chrono::steady_clock::now();
-    if (m.opt.fit_zero_set > 0) phi = m.fit_zero_set(phi, out.fit_history);  // on the CPU: a small grid
+    if (m.opt.fit_zero_set > 0) m.fit_zero_set(phi, out.fit_history);  // on the CPU: a small grid
     out.seconds_fit = seconds_since(t1);
     t1 = std::chrono::steady_clock::now();
     if (m.opt.veto_winding > 0) out.vetoed_nodes = m.veto_outside(phi);      // on the CPU: a few nodes' sums
@@ -319,7 +321,9 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     out.seconds_solve = seconds_since(t0);
     const std::string solve_device = poisson.device();
     out.device = diffuse_device == solve_device ? diffuse_device : diffuse_device + " (step 1), " + solve_device + " (step 3)";
-    out.phi.assign(phi.begin(), phi.end());
+    out.phi.resize(phi.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < nodes; ++i) out.phi[std::size_t(i)] = float(phi[std::size_t(i)]);
     return out;
 }
 
