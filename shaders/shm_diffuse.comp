@@ -1,9 +1,18 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+#extension GL_KHR_shader_subgroup_vote : require
+#extension GL_KHR_shader_subgroup_ballot : require
+#extension GL_KHR_shader_subgroup_arithmetic : require
 // SHM step 1–2 at a batch of points (mirrors SumTree::screened in src/sums/sum_tree.cpp): the
 // distance r_min to the nearest element, then X = Σ_j v_j ∫ e^(−λ(r − r_min))/r dA_j / A_j over
 // what lies within r_min + cutoff/λ — nodes by their second-order expansion where
 // accept() allows it, triangles refined adaptively elsewhere — and Y = X/|X|.
+// The walks are taken by the subgroup together, as sums_winding.comp's (grid nodes come in
+// C order: the lanes are neighbours along z): at each node every lane decides for itself (out
+// of its reach, accepted, or opened), the walk descends when any lane opened the node, and a
+// lane that did not sits out the node's subtree. Node records and a leaf's elements are read
+// once for the subgroup; each lane refines the elements it opened on its own.
 #include "box_tree.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -26,30 +35,43 @@ layout(push_constant) uniform Push {
     float cutoff;
     float r_floor;
     float budget;  // tolerance · 2π/λ
-    uint lane_cap; // loop iterations one lane may run (0: no limit), see sums_tree.glsl
+    uint group_cap; // loop iterations one subgroup may run (0: no limit): llvmpipe's limit, below
 } pc;
+
+const uint NONE = 0xffffffffu;
 
 #include "sums_tree.glsl"
 
-uint iters = 0u;
+uint iters = 0u;  // this lane's iterations in its refinements (render_march.glsl's guard, below)
 
-float nearest_distance(vec3 x) {
+// The distance to the nearest element for every lane, the subgroup walking together (as the
+// k-nearest walk of blend_field.glsl): a node is opened when any lane's best so far reaches its
+// box, children first in the order most of those lanes prefer, and each lane takes the elements
+// of the leaves it still needed. Exact for every lane: a node no lane needs holds nothing nearer
+// for any. Uniform control flow; `group_iters` counts the walk's iterations.
+float nearest_distance(vec3 x, bool live, inout uint group_iters) {
     float best2 = 3.0e38;
     uint stack[STACK];
     int top = 0;
     stack[top++] = 0u;
     while (top > 0) {
         uint i = stack[--top];
-        ++iters;
-        if (box_distance2(x, nodes[i].lo, nodes[i].hi) >= best2) continue;
+        ++group_iters;
+        bool need = live && box_distance2(x, nodes[i].lo, nodes[i].hi) < best2;
+        if (!subgroupAny(need)) continue;
         if (i >= pc.first_leaf) {
-            iters += nodes[i].end - nodes[i].begin;
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j)
-                best2 = min(best2, triangle_distance2(x, elems[3u * j].xyz, elems[3u * j + 1u].xyz, elems[3u * j + 2u].xyz));
+            group_iters += nodes[i].end - nodes[i].begin;
+            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
+                float d2 = triangle_distance2(x, elems[3u * j].xyz, elems[3u * j + 1u].xyz, elems[3u * j + 2u].xyz);
+                if (need) best2 = min(best2, d2);
+            }
         } else {
             uint l = 2u * i + 1u, r = 2u * i + 2u;
-            bool left_first = box_distance2(x, nodes[l].lo, nodes[l].hi) <= box_distance2(x, nodes[r].lo, nodes[r].hi);
-            stack[top++] = left_first ? r : l;
+            bool prefers_left = box_distance2(x, nodes[l].lo, nodes[l].hi) <= box_distance2(x, nodes[r].lo, nodes[r].hi);
+            uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
+            uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
+            bool left_first = left >= right;
+            stack[top++] = left_first ? r : l;  // the preferred child is popped first
             stack[top++] = left_first ? l : r;
         }
     }
@@ -95,92 +117,124 @@ void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
     rho = max(length(qa), max(length(qb), length(qc)));
 }
 
+// Element j's part of X for one lane (the refinement of SumTree::screened_element); sets `wide`
+// when the element is to be left to the CPU.
+void add_element(uint j, vec3 x, float rmin, float R, inout vec3 X, inout uint terms, inout bool wide) {
+    vec4 ea = elems[3u * j], eb = elems[3u * j + 1u], ec = elems[3u * j + 2u];
+    vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w), cd, co;
+    float rho0;
+    triangle_shape(ab, ac, cd, co, rho0);
+    // Wider than the reach (a face with a far corner): only its part within the reach counts,
+    // cut out on the CPU (SumTree::screened_element), which redoes this query; so does a
+    // needle, which the CPU refines by bisection (the 1→4 split here keeps a needle's shape and
+    // ran to the split cap beside one). Not here: llvmpipe runs an if's body under a lane mask
+    // whether a lane takes it or not, and the clipping, run so for every element, made step 1
+    // 2.5× slower there.
+    float longest2 = max(dot(ab, ab), max(dot(ac, ac), dot(ac - ab, ac - ab)));
+    if (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac))) {
+        wide = true;
+        return;
+    }
+    float area = length(v);
+    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
+    int np = 0, splits = 0;
+    pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
+    while (np > 0) {
+        vec4 pq = pieces[--np];
+        ++iters;
+        float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
+        vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
+        float rho = rho0 * pq.z;
+        vec3 dg = x - g;
+        float dist = length(dg);
+        if (dist - rho > R) continue;
+        float share = pq.z * pq.z;
+        vec3 m0 = v * share;
+        if (accept(rho, dist, area * share, rmin)) {
+            vec3 u = dg / dist;
+            vec3 f = radial(dist, rmin);
+            float A = f.z - f.y / dist, B = f.y / dist;
+            float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
+                       2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
+            float ct = cd.x + cd.y + cd.z;
+            X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
+        } else if (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS) {
+            X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+        } else {
+            float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
+            ++splits;
+            pieces[np++] = vec4(pq.x, pq.y, h, w);
+            pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
+            pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
+            pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
+            continue;
+        }
+        ++terms;
+    }
+}
+
 void main() {
     uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
-    if (q >= pc.count) return;
-    vec3 x = qs[q].xyz;
-    float rmin = nearest_distance(x);
+    bool valid = q < pc.count;  // lanes past the end walk along, idle: the subgroup stays whole
+    vec3 x = valid ? qs[q].xyz : vec3(0.0);
+    uint group_iters = 0u;
+    float rmin = nearest_distance(x, valid, group_iters);
     float R = rmin + pc.cutoff / pc.lambda;
     vec3 X = vec3(0.0);
     uint terms = 0u;
     bool wide = false;  // met an element wider than the reach: the host redoes this query
-    uint stack[STACK];
-    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
-    int top = 0;
-    stack[top++] = 0u;
-    while (top > 0) {
-        uint i = stack[--top];
-        ++iters;
-        if (box_distance2(x, nodes[i].lo, nodes[i].hi) > R * R) continue;
-        vec3 d = x - mom3(i, 0u);
-        if (accept(mom(i, 3u), length(d), mom(i, 7u), rmin)) {
-            X += node_expansion(i, d, rmin);
+    // llvmpipe ends every loop of a shader, silently, once its SIMD group has iterated 65 535
+    // times in all: the subgroup counts the walks' iterations once, and the lanes' own (their
+    // refinements) summed over the lanes — a bound on what the SIMD group iterated — and stops
+    // short of the limit; the host redoes what it flags.
+    bool cut = false;
+    uint sit_out = valid ? NONE : 0u;  // depth of the node this lane is out of (NONE: walking)
+    uint node = 0u, depth = 0u;
+    while (true) {
+        if (pc.group_cap > 0u && group_iters >= pc.group_cap) {
+            cut = true;
+            break;
+        }
+        ++group_iters;
+        if (valid && depth <= sit_out) sit_out = NONE;  // the walk left the subtree it sat out
+        bool walking = sit_out == NONE;
+        bool reached = walking && box_distance2(x, nodes[node].lo, nodes[node].hi) <= R * R;
+        vec3 d = x - mom3(node, 0u);
+        bool accepted = reached && accept(mom(node, 3u), length(d), mom(node, 7u), rmin);
+        if (accepted) {
+            X += node_expansion(node, d, rmin);
             ++terms;
-            continue;
         }
-        if (i < pc.first_leaf) {
-            stack[top++] = 2u * i + 1u;
-            stack[top++] = 2u * i + 2u;
-            continue;
-        }
-        for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-            ++iters;
-            vec4 ea = elems[3u * j], eb = elems[3u * j + 1u], ec = elems[3u * j + 2u];
-            vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w), cd, co;
-            float rho0;
-            triangle_shape(ab, ac, cd, co, rho0);
-            // Wider than the reach (a face with a far corner): only its part within the reach
-            // counts, cut out on the CPU (SumTree::screened_element), which redoes this query; so
-            // does a needle, which the CPU refines by bisection (the 1→4 split here keeps a
-            // needle's shape and ran to the split cap beside one). Not here: llvmpipe runs an
-            // if's body under a lane mask whether a lane takes it or not, and the clipping, run
-            // so for every element, made step 1 2.5× slower there.
-            float longest2 = max(dot(ab, ab), max(dot(ac, ac), dot(ac - ab, ac - ab)));
-            if (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac))) {
-                wide = true;
-                continue;
-            }
-            float area = length(v);
-            int np = 0, splits = 0;
-            pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
-            while (np > 0) {
-                vec4 pq = pieces[--np];
-                ++iters;
-                float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
-                vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
-                float rho = rho0 * pq.z;
-                vec3 dg = x - g;
-                float dist = length(dg);
-                if (dist - rho > R) continue;
-                float share = pq.z * pq.z;
-                vec3 m0 = v * share;
-                if (accept(rho, dist, area * share, rmin)) {
-                    vec3 u = dg / dist;
-                    vec3 f = radial(dist, rmin);
-                    float A = f.z - f.y / dist, B = f.y / dist;
-                    float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
-                               2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
-                    float ct = cd.x + cd.y + cd.z;
-                    X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
-                } else if (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS) {
-                    X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
-                } else {
-                    float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
-                    ++splits;
-                    pieces[np++] = vec4(pq.x, pq.y, h, w);
-                    pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
-                    pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
-                    pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
-                    continue;
-                }
-                ++terms;
+        bool open = reached && !accepted;
+        bool leaf = node >= pc.first_leaf;
+        bool any_open = subgroupAny(open);
+        if (leaf && any_open) {  // the leaf's elements, on the lanes that opened it
+            for (uint j = nodes[node].begin; j < nodes[node].end; ++j) {
+                if (open) add_element(j, x, rmin, R, X, terms, wide);
+                group_iters += subgroupAdd(iters) + 1u;
+                iters = 0u;
+                if (pc.group_cap > 0u && group_iters >= pc.group_cap) break;
             }
         }
+        if (!leaf && any_open) {
+            if (walking && !open) sit_out = depth;  // out of reach or accepted: not its subtree
+            node = 2u * node + 1u;
+            ++depth;
+            continue;
+        }
+        // Next in depth-first order (sums_winding.comp): climb past the right children, step
+        // to the right sibling; all ones is the root's rightmost path: the walk is over.
+        uint k = node + 1u;
+        uint up = uint(findLSB(~k));
+        k >>= up;
+        if (k == 0u) break;
+        node = k;
+        depth -= up;
     }
+    if (!valid) return;
     float len = length(X);
     outv[2u * q] = vec4(len > 0.0 ? X / len : vec3(0.0), rmin);
-    // y: redo on the CPU — 1: the loop limit may have cut the walk short (the host redoes the
-    // query's whole SIMD group, which shares the limit), 2: an element was wider than the reach
-    // or a needle (this query alone).
-    outv[2u * q + 1u] = vec4(float(terms), pc.lane_cap > 0u && iters >= pc.lane_cap ? 1.0 : (wide ? 2.0 : 0.0), 0.0, 0.0);
+    // y: redo on the CPU — 1: the subgroup stopped short of llvmpipe's loop limit, 2: an element
+    // was wider than the reach or a needle.
+    outv[2u * q + 1u] = vec4(float(terms), cut ? 1.0 : (wide ? 2.0 : 0.0), 0.0, 0.0);
 }

@@ -247,8 +247,10 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
         BlendPush blend;
         std::uint32_t pixel_count;
     };
+    // With a loop cap (a software device) a workgroup is one subgroup (gpu::software_loop_cap).
+    const std::uint32_t workgroup = loop_cap ? std::max<std::uint32_t>(ctx_->info().subgroup_size, 1) : 0;
     const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush),
-                                        {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)});
+                                        {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)}, workgroup);
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
                           pixel_count};

@@ -828,6 +828,16 @@ void Recorder::wait() {
     collect_times();
 }
 
+std::uint32_t software_loop_cap(const Context& ctx) {
+    if (!ctx.info().is_software()) return 0;
+    // $GSD_LOOP_CAP lowers it, so that tests can run the kernels' cut and the host's redo.
+    if (const char* v = std::getenv("GSD_LOOP_CAP")) {
+        const long cap = std::strtol(v, nullptr, 10);
+        if (cap > 0 && cap < 65535 - 1024) return std::uint32_t(cap);
+    }
+    return 65535u - 1024u;  // room below 65 535 for the few iterations a kernel does not count
+}
+
 void copy_bytes(void* dst, const void* src, std::size_t bytes) {
     // One core copies ~10 GB/s and takes the page faults of a fresh buffer alone; a grid's
     // field at 256³ is 128 MB.

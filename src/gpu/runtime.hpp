@@ -204,6 +204,12 @@ private:
     std::vector<std::string> timed_;  ///< labels of the timestamp pairs recorded since begin()
 };
 
+/// llvmpipe (lavapipe) ends every loop of a shader, silently, once the SIMD group running it has
+/// iterated 65 535 times in all. Kernels that may get there on a software device count their
+/// subgroup's iterations and stop short of this many (0 on hardware: no limit); the host redoes
+/// on the CPU what they flag. On a software device such a kernel runs a workgroup of one
+/// subgroup, so that the count is the SIMD group's own. $GSD_LOOP_CAP lowers the cap (tests).
+std::uint32_t software_loop_cap(const Context& ctx);
 /// memcpy, by several threads when it is large (staging buffers of grids).
 void copy_bytes(void* dst, const void* src, std::size_t bytes);
 /// Copies host data into a new device-local buffer (through a temporary staging buffer; waits).

@@ -126,11 +126,6 @@ void march_chunks(gpu::Context& ctx, const Camera& cam, const March& m, const Ti
     }
 }
 
-std::uint32_t loop_cap(const gpu::Context& ctx) {
-    // Below llvmpipe's 65 535 with room for the few iterations the kernel does not count.
-    return ctx.info().is_software() ? 65535u - 1024u : 0u;
-}
-
 bool subgroups_ready(const gpu::Context& ctx, std::string& why_not) {
     if (ctx.info().subgroup_arithmetic) return true;
     why_not = ctx.info().name + " has no subgroup arithmetic in compute shaders (the renderer's kernels need it)";
@@ -154,7 +149,7 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
     const Tiling tiles = tiling_for(*ctx);
     const gpu::Buffer params = upload_params(*ctx, cam, m, tiles);
     march_chunks(*ctx, cam, m, tiles, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
-        blend::record_render(*field, rec, p, params, out, first, count, tiles.rays_per_lane, loop_cap(*ctx));
+        blend::record_render(*field, rec, p, params, out, first, count, tiles.rays_per_lane, gpu::software_loop_cap(*ctx));
     });
     return true;
 }
@@ -176,7 +171,9 @@ bool march_grid_gpu(const GridSpec& grid, const std::vector<float>& values, cons
     const gpu::Buffer data = gpu::upload(c, values.data(), bytes);
     const Tiling tiles = tiling_for(c);
     const gpu::Buffer params = upload_params(c, cam, m, tiles);
-    const gpu::Kernel& k = c.kernel("render_grid", 3, sizeof(GridPush), {std::int32_t(loop_cap(c))});
+    const std::uint32_t cap = gpu::software_loop_cap(c);  // with a cap, a workgroup is one subgroup
+    const gpu::Kernel& k = c.kernel("render_grid", 3, sizeof(GridPush), {std::int32_t(cap)},
+                                    cap ? std::max<std::uint32_t>(c.info().subgroup_size, 1) : 0);
     const std::uint32_t rays_per_group = k.workgroup * tiles.rays_per_lane;
     const Eigen::Vector3d h = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
     march_chunks(c, cam, m, tiles, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {

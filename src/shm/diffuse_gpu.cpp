@@ -7,14 +7,16 @@
 #include "sums/sum_tree.hpp"
 #include "sums/sums_gpu.hpp"
 
+#include <algorithm>
+
 namespace gsd::shm_detail {
 
 namespace {
 
-struct DiffusePush {
+struct DiffusePush {  // `Push` in shm_diffuse.comp
     std::uint32_t count, first_leaf;
     float lambda, cutoff, r_floor, budget;
-    std::uint32_t lane_cap;
+    std::uint32_t group_cap;
 };
 
 class GpuEvaluator final : public DirectionEvaluator {
@@ -28,8 +30,12 @@ public:
         y.assign(3 * n, 0.0f);
         r_min.assign(n, 0.0);
         std::size_t terms = 0;
-        const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush));
-        const std::uint32_t cap = sums_detail::lane_cap(*ctx_), lanes = sums_detail::lanes_per_group(*ctx_);
+        // A subgroup walks together and counts its loop iterations against llvmpipe's limit
+        // (gpu::software_loop_cap): on a software device a workgroup is one subgroup.
+        const bool software = ctx_->info().is_software();
+        const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush), {},
+                                            software ? std::max<std::uint32_t>(ctx_->info().subgroup_size, 1) : 0);
+        const std::uint32_t cap = gpu::software_loop_cap(*ctx_);
         std::vector<char> redo(n, 0);
         std::vector<float> device_terms(n, 0.0f);  // summed at the end over the queries not redone
         gpu::StreamJob job;
@@ -51,8 +57,7 @@ public:
                 for (int a = 0; a < 3; ++a) y[3 * (first + i) + std::size_t(a)] = r[8 * i + std::size_t(a)];
                 r_min[first + i] = r[8 * i + 3];
                 device_terms[first + i] = r[8 * i + 4];
-                if (r[8 * i + 5] == 1) sums_detail::mark_group(redo, first, first + i, lanes, first + m);
-                else if (r[8 * i + 5] == 2) redo[first + i] = 1;
+                if (r[8 * i + 5] != 0) redo[first + i] = 1;  // cut short with its subgroup, or a wide element
             }
         };
         gpu::stream(*ctx_, job, progress);
@@ -92,6 +97,10 @@ private:
 
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
                                                        const KernelParams& k, std::size_t chunk_size, std::string& why_not) {
+    if (!ctx->info().subgroup_arithmetic) {
+        why_not = ctx->info().name + " has no subgroup arithmetic in compute shaders; step 1 runs on the CPU";
+        return nullptr;
+    }
     detail::SumTree tree(src.elements);
     why_not = sums_detail::gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return nullptr;

@@ -28,20 +28,6 @@ void outward(const double* lo, const double* hi, gpu::DeviceNode& out) {
 
 }  // namespace
 
-std::uint32_t lanes_per_group(const gpu::Context& ctx) {
-    // At least 16: a conservative guess where the reported subgroup is narrower than the SIMD.
-    return std::max<std::uint32_t>(ctx.info().subgroup_size, 16);
-}
-
-std::uint32_t lane_cap(const gpu::Context& ctx) {
-    return ctx.info().is_software() ? 65535 / lanes_per_group(ctx) - 1 : 0;
-}
-
-void mark_group(std::vector<char>& redo, std::size_t first, std::size_t q, std::uint32_t lanes, std::size_t count) {
-    const std::size_t begin = first + (q - first) / lanes * lanes;
-    for (std::size_t i = begin; i < std::min(count, begin + lanes); ++i) redo[i] = 1;
-}
-
 std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree) {
     // float32 squares distances: beyond ~1e19 they overflow. Keep a wide margin.
     const auto& root = tree.nodes()[0];

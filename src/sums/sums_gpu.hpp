@@ -27,17 +27,6 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
 
 namespace gsd::sums_detail {
 
-/// llvmpipe (lavapipe) silently ends every loop of a shader once the SIMD group running it has
-/// iterated 65535 times in all. On a software device the kernels count their own iterations
-/// and flag a query past lane_cap = 65535 / lanes; the host redoes the flagged query's whole
-/// group of `lanes` consecutive queries (lanes_per_group) on the CPU. 0: no limit (hardware).
-std::uint32_t lane_cap(const gpu::Context& ctx);
-std::uint32_t lanes_per_group(const gpu::Context& ctx);
-
-/// Marks the group of consecutive invocations (within one dispatch starting at `first`) that
-/// holds query q.
-void mark_group(std::vector<char>& redo, std::size_t first, std::size_t q, std::uint32_t lanes, std::size_t count);
-
 struct DeviceSumTree {
     gpu::Buffer nodes, moments, elements;
     std::uint32_t first_leaf = 0;
