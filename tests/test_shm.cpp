@@ -239,6 +239,17 @@ TEST_CASE("step 1 on the device matches the CPU, whatever the chunk size") {
         MESSAGE("step 1 with a loop cap of 200: max |Y_gpu − Y_cpu| = " << capped << ", " << redone << " nodes the CPU's");
         CHECK(capped < 1e-4);
         CHECK(redone > 0);
+        // Each lane walking alone, as on GPUs.
+        setenv("GSD_SHM_WALK", "alone", 1);
+        const std::vector<float> alone = SignedHeatGrid(src, g, gpu_one).diffused_directions();
+        unsetenv("GSD_SHM_WALK");
+        double apart = 0;
+        for (std::size_t i = 0; i < g.node_count(); ++i) {
+            const Eigen::Vector3f u(a[3 * i], a[3 * i + 1], a[3 * i + 2]), v(alone[3 * i], alone[3 * i + 1], alone[3 * i + 2]);
+            apart = std::max(apart, double((u - v).norm()));
+        }
+        MESSAGE("step 1, each lane walking alone: max |Y_gpu − Y_cpu| = " << apart);
+        CHECK(apart < 1e-4);
     }
     CHECK(gpu::validation_error_count() == 0);
 }

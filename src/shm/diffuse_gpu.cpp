@@ -8,6 +8,8 @@
 #include "sums/sums_gpu.hpp"
 
 #include <algorithm>
+#include <cstdlib>
+#include <string>
 
 namespace gsd::shm_detail {
 
@@ -33,7 +35,11 @@ public:
         // A subgroup walks together and counts its loop iterations against llvmpipe's limit
         // (gpu::software_loop_cap): on a software device a workgroup is one subgroup.
         const bool software = ctx_->info().is_software();
-        const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush), {},
+        // The subgroup walks together on software devices, each lane alone on GPUs (shm_diffuse.comp);
+        // $GSD_SHM_WALK=alone|together overrides (tests, measurements).
+        bool together = software;
+        if (const char* w = std::getenv("GSD_SHM_WALK")) together = std::string(w) == "together" || (together && std::string(w) != "alone");
+        const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush), {together ? 1 : 0},
                                             software ? std::max<std::uint32_t>(ctx_->info().subgroup_size, 1) : 0);
         const std::uint32_t cap = gpu::software_loop_cap(*ctx_);
         std::vector<char> redo(n, 0);
