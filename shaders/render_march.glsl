@@ -1,14 +1,14 @@
 // Sphere tracing for the field renderer (mirrors src/render/render.cpp's march_ray, which the
 // tests hold this to). The including shader defines, before including this,
-//   float field_phi(vec3 x, bool grad, out vec3 g)   the field, and ∇φ when `grad`,
+//   float field_phi(vec3 x, bool live, bool grad, out vec3 g)   the field (called by every lane
+//   together, live = false on lanes with nothing to evaluate), and ∇φ into g when `grad`,
 // RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below, the
 // specialization constant LOOP_CAP, the counters lane_ticks and subgroup_ticks and the macros
 // TICK_LANE / TICK_UNIFORM that its field's loops count into (see past_loop_limit), and enables
 // the subgroup vote, ballot and arithmetic extensions.
 // Each ray (render_main() says how the lanes of a subgroup share them) is clipped to the box,
-// then advanced by
-// step_scale·|φ| (at least min_step) until |φ| < hit_eps, or φ changes sign between two steps
-// (then bisected), or it leaves the box or runs out of steps.
+// then advanced by step_scale·|φ| (at least min_step) until |φ| < hit_eps, or φ changes sign
+// between two steps (then bisected), or it leaves the box or runs out of steps.
 
 struct RenderParams {
     vec4 eye;
@@ -154,12 +154,13 @@ bool past_loop_limit() {
     return subgroup_ticks > LOOP_CAP;
 }
 
-// Ray compaction. A subgroup owns a block of rays (tile.z per lane: a tile, in tile order) and
-// runs one loop while any of them is left: at every turn each lane without a ray takes the
-// block's next one, every lane calls field_phi — live = false on an idle lane — so the field is
-// always evaluated in uniform control flow and its tree walks are taken by the subgroup
-// together, and a lane whose ray ended shades it (∇φ at the hit, one more turn) and takes
-// another. A lane never waits for its neighbours' longer rays while the block has rays left.
+// A subgroup owns a block of rays (tile.z per lane: a tile, in tile order) and runs one loop
+// while any of them is left: at every turn each lane without a ray takes the block's next one,
+// every lane calls field_phi — live = false on an idle lane — so the field is always evaluated
+// in uniform control flow and its tree walks are taken by the subgroup together, and a lane
+// whose ray ended shades it (∇φ at the hit, one more turn) and takes another. With one ray a
+// lane (the default, render_gpu.cpp says why) that is the tile marched together; with more, a
+// lane never waits for its neighbours' longer rays while the block has rays left.
 void render_main(uint first_pixel, uint pixel_count) {
     uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     uint lane0 = group * gl_WorkGroupSize.x + subgroupBroadcastFirst(gl_LocalInvocationIndex);

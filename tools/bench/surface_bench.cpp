@@ -15,13 +15,13 @@
 #include <gsd/shapes.hpp>
 #include <gsd/surface.hpp>
 
+#include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <numbers>
@@ -382,45 +382,28 @@ int write_case(int level, const std::string& prefix) {
     return 0;
 }
 
-int usage() {
-    std::fprintf(stderr,
-                 "usage: gsd-surface-bench accuracy [--reference PROGRAM] [--work DIR]\n"
-                 "       gsd-surface-bench timing [--levels 5,6,7,8]\n"
-                 "       gsd-surface-bench write LEVEL PREFIX\n");
-    return 2;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc < 2) return usage();
-    const std::string mode = argv[1];
+    CLI::App app{"The Signed Heat Method on surfaces: accuracy against exact distances, and timing (scripts/bench.sh surface)"};
+    app.require_subcommand(1);
+    std::string reference, work = (std::filesystem::temp_directory_path() / "gsd-surface-bench").string();
+    CLI::App* a = app.add_subcommand("accuracy", "ε (thesis §4.5) and sign agreement on planar and spherical meshes");
+    a->add_option("--reference", reference, "a program `MESH.obj CURVES.txt -o OUT.npy` solving the same inputs");
+    a->add_option("--work", work, "a folder for the reference's files")->capture_default_str();
+    std::vector<int> levels{5, 6, 7, 8};
+    CLI::App* t = app.add_subcommand("timing", "setup and solve times vs mesh size (icospheres)");
+    t->add_option("--levels", levels, "icosphere levels")->delimiter(',')->check(CLI::Range(0, 12))->capture_default_str();
+    int level = 0;
+    std::string prefix;
+    CLI::App* w = app.add_subcommand("write", "an icosphere and a wavy closed curve on it as PREFIX.obj, PREFIX.txt");
+    w->add_option("LEVEL", level, "icosphere level")->required()->check(CLI::Range(0, 12));
+    w->add_option("PREFIX", prefix, "where to write")->required();
+    CLI11_PARSE(app, argc, argv);
     try {
-        if (mode == "accuracy") {
-            std::string reference, work = (std::filesystem::temp_directory_path() / "gsd-surface-bench").string();
-            for (int i = 2; i + 1 < argc; i += 2) {
-                if (std::strcmp(argv[i], "--reference") == 0) reference = argv[i + 1];
-                else if (std::strcmp(argv[i], "--work") == 0) work = argv[i + 1];
-                else return usage();
-            }
-            return accuracy(reference, work);
-        }
-        if (mode == "timing") {
-            std::vector<int> levels{5, 6, 7, 8};
-            if (argc == 4 && std::strcmp(argv[2], "--levels") == 0) {
-                levels.clear();
-                for (const char* p = argv[3]; *p;) {
-                    levels.push_back(std::atoi(p));
-                    while (*p && *p != ',') ++p;
-                    if (*p) ++p;
-                }
-            } else if (argc != 2) {
-                return usage();
-            }
-            return timing(levels);
-        }
-        if (mode == "write" && argc == 4) return write_case(std::atoi(argv[2]), argv[3]);
-        return usage();
+        if (*a) return accuracy(reference, work);
+        if (*t) return timing(levels);
+        return write_case(level, prefix);
     } catch (const Error& e) {
         std::fprintf(stderr, "gsd-surface-bench: error: %s%s%s\n", e.where().c_str(), e.where().empty() ? "" : ": ", e.what());
         return 1;

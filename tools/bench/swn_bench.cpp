@@ -24,6 +24,7 @@
 #include <gsd/surface.hpp>
 #include <gsd/swn.hpp>
 
+#include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -31,7 +32,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <cstring>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -376,33 +376,23 @@ struct Stats {
     double max() const { return v.empty() ? NAN : *std::max_element(v.begin(), v.end()); }
 };
 
-int accuracy(int argc, char** argv) {
+struct AccuracyArgs {
     int per = 3;
     std::string reference, work, only;
     MeshSizes sizes;
     bool quiet = false;
     SwnOptions defaults;
-    for (int i = 2; i < argc; ++i) {
-        if (!std::strcmp(argv[i], "--cases") && i + 1 < argc) per = std::atoi(argv[++i]);
-        else if (!std::strcmp(argv[i], "--curve-weight") && i + 1 < argc) defaults.curve_weight = std::atof(argv[++i]);
-        else if (!std::strcmp(argv[i], "--reference") && i + 1 < argc) reference = argv[++i];
-        else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
-        else if (!std::strcmp(argv[i], "--torus") && i + 1 < argc) sizes.torus = std::atoi(argv[++i]);
-        else if (!std::strcmp(argv[i], "--double-torus") && i + 1 < argc) sizes.double_torus = std::atoi(argv[++i]);
-        else if (!std::strcmp(argv[i], "--work") && i + 1 < argc) work = argv[++i];
-        else if (!std::strcmp(argv[i], "--quiet")) quiet = true;
-        else {
-            std::fprintf(stderr, "unknown argument %s\n", argv[i]);
-            return 2;
-        }
-    }
-    if (per < 1) per = 1;
+};
+
+int accuracy(AccuracyArgs args) {
+    const int per = args.per;
+    const std::string &reference = args.reference, &only = args.only;
+    std::string& work = args.work;
+    const MeshSizes sizes = args.sizes;
+    const bool quiet = args.quiet;
+    const SwnOptions& defaults = args.defaults;
     if (work.empty()) work = std::filesystem::temp_directory_path().string() + "/gsd-swn-bench";
     std::filesystem::create_directories(work);
-    if (sizes.torus < 12 || sizes.double_torus < 12) {
-        std::fprintf(stderr, "--torus and --double-torus need at least 12\n");
-        return 2;
-    }
     std::vector<Case> cases = make_cases(per, sizes);
     if (!only.empty()) {
         std::erase_if(cases, [&](const Case& c) { return c.name.substr(0, c.name.find('/')) != only; });
@@ -502,27 +492,7 @@ int accuracy(int argc, char** argv) {
 
 // ---- timing --------------------------------------------------------------------------------
 
-std::vector<int> parse_list(const char* s) {
-    std::vector<int> out;
-    for (const char* p = s; *p;) {
-        out.push_back(std::atoi(p));
-        while (*p && *p != ',') ++p;
-        if (*p == ',') ++p;
-    }
-    return out;
-}
-
-int timing(int argc, char** argv) {
-    std::vector<int> sizes{32, 48, 64, 96, 128};
-    int clp_max = 48;
-    for (int i = 2; i < argc; ++i) {
-        if (!std::strcmp(argv[i], "--sizes") && i + 1 < argc) sizes = parse_list(argv[++i]);
-        else if (!std::strcmp(argv[i], "--clp-max") && i + 1 < argc) clp_max = std::atoi(argv[++i]);
-        else {
-            std::fprintf(stderr, "unknown argument %s\n", argv[i]);
-            return 2;
-        }
-    }
+int timing(const std::vector<int>& sizes, int clp_max) {
     std::printf("Double torus, a broken bounding loop (30 %% cut) and broken loops around both handles; seconds\n");
     std::printf("%6s %8s %8s %8s %8s %9s %9s %7s %9s %9s %9s\n", "grid", "faces", "jump", "hodge", "full", "reduced",
                 "full/red", "labels", "total", "clp", "clp/net");
@@ -561,25 +531,15 @@ int timing(int argc, char** argv) {
     return 0;
 }
 
-int write_case(int argc, char** argv) {
-    MeshSizes sizes;
-    for (int i = 4; i + 1 < argc; i += 2) {
-        if (!std::strcmp(argv[i], "--torus")) sizes.torus = std::atoi(argv[i + 1]);
-        else if (!std::strcmp(argv[i], "--double-torus")) sizes.double_torus = std::atoi(argv[i + 1]);
-    }
-    if (argc < 4 || argc % 2 != 0 || sizes.torus < 12 || sizes.double_torus < 12) {
-        std::fprintf(stderr, "usage: gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]   (CASE: a name from the accuracy table; sizes as given to accuracy, at least 12)\n");
-        return 2;
-    }
-    const std::string name = argv[2];
+int write_case(const std::string& name, const std::string& prefix, const MeshSizes& sizes) {
     const int index = std::atoi(name.substr(name.find('/') + 1).c_str());
     for (const Case& c : make_cases(index + 1, sizes)) {
         if (c.name != name) continue;
-        io::write_mesh(std::string(argv[3]) + ".obj", c.mesh);
-        write_surface_curves(std::string(argv[3]) + ".txt", c.curves);
+        io::write_mesh(prefix + ".obj", c.mesh);
+        write_surface_curves(prefix + ".txt", c.curves);
         std::vector<std::int32_t> truth(c.truth.begin(), c.truth.end());
-        io::write_npy(std::string(argv[3]) + ".truth.npy", {truth.size()}, truth);
-        std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", argv[3], c.name.c_str());
+        io::write_npy(prefix + ".truth.npy", {truth.size()}, truth);
+        std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", prefix.c_str(), c.name.c_str());
         return 0;
     }
     std::fprintf(stderr, "no case named %s\n", name.c_str());
@@ -589,16 +549,41 @@ int write_case(int argc, char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+    CLI::App app{"Surface Winding Numbers: accuracy on a synthetic benchmark, and timing (scripts/bench.sh swn)"};
+    app.require_subcommand(1);
+    // The meshes' resolutions, for accuracy and write (at least 12: torus_mesh(N, N/3)).
+    auto add_sizes = [](CLI::App* c, MeshSizes& s) {
+        c->add_option("--torus", s.torus, "the torus's resolution")->check(CLI::Range(12, 100000))->capture_default_str();
+        c->add_option("--double-torus", s.double_torus, "the double torus's resolution")
+            ->check(CLI::Range(12, 100000))->capture_default_str();
+    };
+    AccuracyArgs acc;
+    CLI::App* a = app.add_subcommand("accuracy", "mislabeled area of SWN (full, reduced), naive rounding, SHM's sign, a reference");
+    a->add_option("--cases", acc.per, "random functions per mesh")->check(CLI::PositiveNumber)->capture_default_str();
+    a->add_option("--only", acc.only, "the cases on one mesh")->check(CLI::IsMember({"sphere", "torus", "double-torus"}));
+    add_sizes(a, acc.sizes);
+    a->add_option("--curve-weight", acc.defaults.curve_weight, "SwnOptions::curve_weight")->capture_default_str();
+    a->add_option("--reference", acc.reference, "a program `REF MESH.obj CURVES.txt -o PREFIX` writing PREFIX.labels.npy");
+    a->add_option("--work", acc.work, "a folder for the reference's files (default: a temporary one)");
+    a->add_flag("--quiet", acc.quiet, "the summary only");
+    std::vector<int> timing_sizes{32, 48, 64, 96, 128};
+    int clp_max = 48;
+    CLI::App* t = app.add_subcommand("timing", "time per step and full vs reduced program vs mesh size; the network solver vs CLP");
+    t->add_option("--sizes", timing_sizes, "double torus resolutions")->delimiter(',')->check(CLI::Range(4, 100000))->capture_default_str();
+    t->add_option("--clp-max", clp_max, "the largest size CLP runs on")->capture_default_str();
+    std::string case_name, prefix;
+    MeshSizes write_sizes;
+    CLI::App* w = app.add_subcommand("write", "one accuracy case as PREFIX.obj, PREFIX.txt and PREFIX.truth.npy");
+    w->add_option("CASE", case_name, "a name from the accuracy table")->required();
+    w->add_option("PREFIX", prefix, "where to write")->required();
+    add_sizes(w, write_sizes);
+    CLI11_PARSE(app, argc, argv);
     try {
-        if (argc >= 2 && !std::strcmp(argv[1], "accuracy")) return accuracy(argc, argv);
-        if (argc >= 2 && !std::strcmp(argv[1], "timing")) return timing(argc, argv);
-        if (argc >= 2 && !std::strcmp(argv[1], "write")) return write_case(argc, argv);
+        if (*a) return accuracy(acc);
+        if (*t) return timing(timing_sizes, clp_max);
+        return write_case(case_name, prefix, write_sizes);
     } catch (const std::exception& e) {
         std::fprintf(stderr, "gsd-swn-bench: %s\n", e.what());
         return 1;
     }
-    std::fprintf(stderr, "usage: gsd-swn-bench accuracy [--cases N] [--only MESH] [--torus N] [--double-torus N] [--curve-weight W] [--reference PROGRAM] [--work DIR] [--quiet]\n"
-                         "       gsd-swn-bench timing [--sizes 32,48,64] [--clp-max 48]\n"
-                         "       gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]\n");
-    return 2;
 }

@@ -19,6 +19,8 @@
 
 #include "sums/sum_tree.hpp"
 
+#include <CLI/CLI.hpp>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -76,38 +78,20 @@ Errors errors(const std::vector<double>& exact, const std::vector<bool>& far, co
 int main(int argc, char** argv) {
     Options o;
     o.gsd = (std::filesystem::path(argv[0]).parent_path() / "gsd").string();
-    for (int i = 1; i < argc; ++i) {
-        const std::string a = argv[i];
-        auto next = [&] {
-            if (i + 1 >= argc) {
-                std::fprintf(stderr, "gsd-winding-bench: %s needs a value\n", a.c_str());
-                std::exit(2);
-            }
-            return std::string(argv[++i]);
-        };
-        if (a == "--resolution") o.resolution = std::stoi(next());
-        else if (a == "--mesh") o.mesh = next();
-        else if (a == "--queries") o.queries = std::stoul(next());
-        else if (a == "--check") o.check = std::stoul(next());
-        else if (a == "--repeat") o.repeat = std::stoi(next());
-        else if (a == "--threads") o.threads = std::stoi(next());
-        else if (a == "--igl") o.igl = next();
-        else if (a == "--gsd") o.gsd = next();
-        else if (a == "--work") o.work = next();
-        else if (a == "--gpu") o.gpu = true;
-        else if (a == "--also") o.also.push_back(next());
-        else {
-            std::fprintf(stderr,
-                         "usage: gsd-winding-bench [--resolution R | --mesh FILE] [--queries M] [--check K] [--repeat N]\n"
-                         "                         [--threads T] [--igl PROGRAM] [--gpu] [--gsd PROGRAM] [--work DIR]\n"
-                         "                         [--also \"GSD ARGS\"]...\n");
-            return 2;
-        }
-    }
-    if (o.resolution < 16 || o.queries == 0 || o.repeat < 1 || o.threads < 1) {
-        std::fprintf(stderr, "gsd-winding-bench: --resolution ≥ 16, --queries ≥ 1, --repeat ≥ 1, --threads ≥ 1\n");
-        return 2;
-    }
+    CLI::App app{"Whole runs of gsd winding against the exact sum and other programs (scripts/bench.sh sums)"};
+    app.add_option("--resolution", o.resolution, "double torus resolution (3 holes, 5 % of faces flipped)")
+        ->check(CLI::Range(16, 100000))->capture_default_str();
+    app.add_option("--mesh", o.mesh, "a mesh file instead of the double torus")->check(CLI::ExistingFile);
+    app.add_option("--queries", o.queries, "uniform queries in the mesh's box")->check(CLI::PositiveNumber)->capture_default_str();
+    app.add_option("--check", o.check, "queries held to the exact sum")->capture_default_str();
+    app.add_option("--repeat", o.repeat, "runs per program (the fastest counts)")->check(CLI::PositiveNumber)->capture_default_str();
+    app.add_option("--threads", o.threads, "threads per program")->check(CLI::PositiveNumber)->capture_default_str();
+    app.add_option("--igl", o.igl, "libigl's fast winding number: PROGRAM mesh MESH Q.npy OUT.npy --threads T");
+    app.add_flag("--gpu", o.gpu, "also gsd winding --device gpu");
+    app.add_option("--gsd", o.gsd, "the gsd program")->capture_default_str();
+    app.add_option("--work", o.work, "a folder for the inputs and outputs")->capture_default_str();
+    app.add_option("--also", o.also, "another gsd winding run with these arguments (repeatable)");
+    CLI11_PARSE(app, argc, argv);
     o.check = std::min(o.check, o.queries);
     std::filesystem::create_directories(o.work);
     const std::string mesh_path = o.work + "/mesh.obj", query_path = o.work + "/queries.npy";
