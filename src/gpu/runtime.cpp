@@ -1,5 +1,7 @@
 // Vulkan runtime: instance and device selection (through volk, so a machine without a loader
 // still runs), buffers, kernels from the embedded SPIR-V, and command recording.
+// Long (~900 lines) because it is the whole runtime behind one header (runtime.hpp): its parts
+// are each short and all share Context::State.
 #include "gpu/runtime.hpp"
 #include "gpu/device_choice.hpp"
 

@@ -1,3 +1,8 @@
+// SumTree (sum_tree.hpp): the tree's build and moments, then its walks — fast winding numbers
+// (the packet walk itself is in winding_walk.inl), the nearest element, and SHM step 1's
+// screened sum with its element refinement (wide faces clipped, needles bisected).
+// Long (~950 lines) because every walk reads the tree's private records (Hot, the expansions)
+// and shares its refinement helpers; splitting it would expose those records to other files.
 #include "sums/sum_tree.hpp"
 
 #include "core/clip.hpp"

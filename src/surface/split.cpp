@@ -1,4 +1,6 @@
-// Cutting a mesh along curve pieces (see split.hpp), in three stages:
+// Cutting a mesh along curve pieces (see split.hpp), in three stages (~1450 lines: one pipeline
+// whose stages share its snapping tolerances and exact predicates; the planned src/mesh module
+// takes the constrained Delaunay part):
 //   1. every piece end is classified — an input vertex, a point on an input edge, or a point
 //      inside its triangle — snapping within the tolerance;
 //   2. the points on each edge are merged and numbered once, for every triangle on that edge

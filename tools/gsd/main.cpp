@@ -1,4 +1,7 @@
 // gsd — generalized signed distance from imperfect geometry, on the command line.
+// The volumetric commands (the surface ones are in surface.cpp and swn.cpp): each a CLI11
+// subcommand, its options and its run function, over ~800 lines because they share the option
+// helpers and the output contract below.
 //
 // Exit status: 0 success, 1 a data error (message "gsd: error: <file>: <what>"), 2 a usage
 // error. Outputs are written only when everything succeeded (atomically), so a failed run
