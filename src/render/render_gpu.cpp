@@ -100,8 +100,8 @@ void march_chunks(gpu::Context& ctx, const Camera& cam, const March& m, const Ti
                   const ProgressFn& progress,
                   const std::function<void(gpu::Recorder&, const gpu::Buffer&, std::uint32_t, std::uint32_t)>& record) {
     const std::size_t n = std::size_t(cam.width) * std::size_t(cam.height);
-    // A GPU wants many rays in flight (2^20: 2048 workgroups of 4 rays a lane); a software
-    // device, shorter submissions for smooth progress.
+    // A GPU wants many rays in flight (2^20: 8192 workgroups of 128 lanes); a software device,
+    // shorter submissions for smooth progress.
     const std::size_t chunk = std::clamp<std::size_t>(m.chunk ? m.chunk : gpu::default_chunk(ctx), 1, std::max<std::size_t>(n, 1));
     hits.resize(4 * n);
     gpu::Buffer out(ctx, chunk * 16, gpu::Memory::Device);
@@ -119,8 +119,9 @@ void march_chunks(gpu::Context& ctx, const Camera& cam, const March& m, const Ti
         rec.submit();
         rec.wait();
         const float* got = static_cast<const float*>(down.mapped());
-        for (std::size_t j = 0; j < count; ++j)
-            std::memcpy(hits.data() + 4 * tile_pixel(first + j, std::size_t(cam.width), std::size_t(cam.height), tiles),
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t j = 0; j < std::ptrdiff_t(count); ++j)
+            std::memcpy(hits.data() + 4 * tile_pixel(first + std::size_t(j), std::size_t(cam.width), std::size_t(cam.height), tiles),
                         got + 4 * j, 16);
         if (progress) progress("march", double(first + count) / double(n));
     }
