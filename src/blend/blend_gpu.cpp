@@ -21,13 +21,18 @@ namespace gsd::blend {
 
 namespace {
 
+/// $GSD_SHARED_KNN=0|1 if set, else `choice`.
+int shared_knn_override(int choice) {
+    if (const char* v = std::getenv("GSD_SHARED_KNN"); v && (v[0] == '0' || v[0] == '1')) return v[0] - '0';
+    return choice;
+}
+
 /// Whether the k-nearest fallback is walked per subgroup (blend_field.glsl, knn_together): on
 /// hardware GPUs, where a lane's own walk keeps its stack and list in slow memory and waits on
 /// its neighbours' branches; not on software devices (their loop limit). $GSD_SHARED_KNN=0|1
 /// overrides, to measure it.
 int shared_knn(const gpu::Context& c) {
-    if (const char* v = std::getenv("GSD_SHARED_KNN"); v && (v[0] == '0' || v[0] == '1')) return v[0] - '0';
-    return c.info().is_software() ? 0 : 1;
+    return shared_knn_override(c.info().is_software() ? 0 : 1);
 }
 
 /// The renderer's choice is the other way round. On a hardware GPU each lane walks its own:
@@ -38,8 +43,7 @@ int shared_knn(const gpu::Context& c) {
 /// the device rate rose from 0.38× to 0.44× the CPU path's on lavapipe). $GSD_SHARED_KNN
 /// overrides it too.
 int render_shared_knn(const gpu::Context& c) {
-    if (const char* v = std::getenv("GSD_SHARED_KNN"); v && (v[0] == '0' || v[0] == '1')) return v[0] - '0';
-    return c.info().is_software() ? 1 : 0;
+    return shared_knn_override(c.info().is_software() ? 1 : 0);
 }
 
 
@@ -247,10 +251,9 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
         BlendPush blend;
         std::uint32_t pixel_count;
     };
-    // With a loop cap (a software device) a workgroup is one subgroup (gpu::software_loop_cap).
-    const std::uint32_t workgroup = loop_cap ? std::max<std::uint32_t>(ctx_->info().subgroup_size, 1) : 0;
     const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush),
-                                        {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)}, workgroup);
+                                        {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)},
+                                        gpu::loop_capped_workgroup(*ctx_));
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
                           pixel_count};

@@ -840,6 +840,10 @@ std::uint32_t software_loop_cap(const Context& ctx) {
     return 65535u - 1024u;  // room below 65 535 for the few iterations a kernel does not count
 }
 
+std::uint32_t loop_capped_workgroup(const Context& ctx) {
+    return ctx.info().is_software() ? std::max<std::uint32_t>(ctx.info().subgroup_size, 1) : 0;
+}
+
 void copy_bytes(void* dst, const void* src, std::size_t bytes) {
     // One core copies ~10 GB/s and takes the page faults of a fresh buffer alone; a grid's
     // field at 256³ is 128 MB.

@@ -210,6 +210,9 @@ private:
 /// on the CPU what they flag. On a software device such a kernel runs a workgroup of one
 /// subgroup, so that the count is the SIMD group's own. $GSD_LOOP_CAP lowers the cap (tests).
 std::uint32_t software_loop_cap(const Context& ctx);
+/// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
+/// default) elsewhere.
+std::uint32_t loop_capped_workgroup(const Context& ctx);
 /// memcpy, by several threads when it is large (staging buffers of grids).
 void copy_bytes(void* dst, const void* src, std::size_t bytes);
 /// Copies host data into a new device-local buffer (through a temporary staging buffer; waits).

@@ -38,9 +38,12 @@ public:
         // The subgroup walks together on software devices, each lane alone on GPUs (shm_diffuse.comp);
         // $GSD_SHM_WALK=alone|together overrides (tests, measurements).
         bool together = software;
-        if (const char* w = std::getenv("GSD_SHM_WALK")) together = std::string(w) == "together" || (together && std::string(w) != "alone");
+        if (const char* w = std::getenv("GSD_SHM_WALK")) {
+            if (std::string(w) == "together") together = true;
+            if (std::string(w) == "alone") together = false;
+        }
         const gpu::Kernel& k = ctx_->kernel("shm_diffuse", 5, sizeof(DiffusePush), {together ? 1 : 0},
-                                            software ? std::max<std::uint32_t>(ctx_->info().subgroup_size, 1) : 0);
+                                            gpu::loop_capped_workgroup(*ctx_));
         const std::uint32_t cap = gpu::software_loop_cap(*ctx_);
         std::vector<char> redo(n, 0);
         std::vector<float> device_terms(n, 0.0f);  // summed at the end over the queries not redone

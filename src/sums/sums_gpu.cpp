@@ -162,7 +162,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
     const bool software = ctx->info().is_software();
-    const std::uint32_t workgroup = software ? std::max<std::uint32_t>(ctx->info().subgroup_size, 1) : 0;
+    const std::uint32_t workgroup = gpu::loop_capped_workgroup(*ctx);
     const gpu::Kernel& k = ctx->kernel("sums_winding", 4, sizeof(WindingPush), {}, workgroup);
     const std::uint32_t cap = software ? 65535u - 64u - d.widest_leaf : 0u;
     const auto n = std::size_t(queries.rows());
