@@ -2,7 +2,9 @@
 #
 # Each shader NAME.comp becomes ${GSD_SHADER_DIR}/NAME.spv.h holding a uint32_t array
 # (glslangValidator --vn), and ${GSD_SHADER_DIR}/gsd_shader_registry.h lists them all as
-# {name, words, word_count} so the gpu module can look kernels up by name.
+# {name, words, word_count} so the gpu module can look kernels up by name. A shader that
+# mentions GSD_SOFTWARE_SHAPED is also built with it defined, as NAME_software (the kernel shaped
+# for a software device's SIMD lanes: gpu::software_shaped).
 # Shared GLSL snippets live in shaders/*.glsl and are #included by the .comp files.
 
 set(GSD_SHADER_DIR ${CMAKE_BINARY_DIR}/generated/shaders)
@@ -16,20 +18,33 @@ function(gsd_embed_shaders target)
   set(registry_includes "")
   set(registry_entries "")
   foreach(src ${shader_sources})
-    get_filename_component(name ${src} NAME_WE)
-    set(out ${GSD_SHADER_DIR}/${name}.spv.h)
-    add_custom_command(
-      OUTPUT ${out}
-      COMMAND ${CMAKE_COMMAND} -E make_directory ${GSD_SHADER_DIR}
-      COMMAND ${GLSLANG_VALIDATOR} --quiet -V --target-env vulkan1.1
-              -I${CMAKE_SOURCE_DIR}/shaders --vn gsd_spv_${name} -o ${out} ${src}
-      DEPENDS ${src} ${shader_includes}
-      COMMENT "Compiling shader ${name}.comp"
-      VERBATIM)
-    list(APPEND headers ${out})
-    string(APPEND registry_includes "#include \"${name}.spv.h\"\n")
-    string(APPEND registry_entries
-           "    {\"${name}\", gsd_spv_${name}, sizeof(gsd_spv_${name}) / sizeof(uint32_t)},\n")
+    get_filename_component(base ${src} NAME_WE)
+    # A shader that tests GSD_SOFTWARE_SHAPED is built twice: NAME as written, and NAME_software
+    # with it defined (gpu::software_shaped says which a device runs).
+    file(STRINGS ${src} software_variant REGEX "GSD_SOFTWARE_SHAPED")
+    set(variants ${base})
+    if(software_variant)
+      list(APPEND variants ${base}_software)
+    endif()
+    foreach(name ${variants})
+      set(defines)
+      if(name MATCHES "_software$")
+        set(defines -DGSD_SOFTWARE_SHAPED)
+      endif()
+      set(out ${GSD_SHADER_DIR}/${name}.spv.h)
+      add_custom_command(
+        OUTPUT ${out}
+        COMMAND ${CMAKE_COMMAND} -E make_directory ${GSD_SHADER_DIR}
+        COMMAND ${GLSLANG_VALIDATOR} --quiet -V --target-env vulkan1.1 ${defines}
+                -I${CMAKE_SOURCE_DIR}/shaders --vn gsd_spv_${name} -o ${out} ${src}
+        DEPENDS ${src} ${shader_includes}
+        COMMENT "Compiling shader ${name}"
+        VERBATIM)
+      list(APPEND headers ${out})
+      string(APPEND registry_includes "#include \"${name}.spv.h\"\n")
+      string(APPEND registry_entries
+             "    {\"${name}\", gsd_spv_${name}, sizeof(gsd_spv_${name}) / sizeof(uint32_t)},\n")
+    endforeach()
   endforeach()
   set(registry ${GSD_SHADER_DIR}/gsd_shader_registry.h)
   file(CONFIGURE OUTPUT ${registry} CONTENT

@@ -94,9 +94,11 @@ public:
     /// Bytes of device-local memory in the largest heap.
     VkDeviceSize device_memory_bytes() const;
     /// The kernel for a shader and its specialization constants (1..n), built once and cached.
-    /// `workgroup`: its workgroup size (constant 0); 0 takes workgroup_size().
+    /// `workgroup`: its workgroup size (constant 0); 0 takes workgroup_size(). `texel_bindings`:
+    /// bit i set when binding i is a uniform texel buffer (runtime.hpp, Kernel).
     const Kernel& kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                         std::initializer_list<std::int32_t> constants = {}, std::uint32_t workgroup = 0);
+                         std::initializer_list<std::int32_t> constants = {}, std::uint32_t workgroup = 0,
+                         std::uint32_t texel_bindings = 0);
     std::uint32_t memory_type(std::uint32_t type_bits, Memory memory) const;
     /// Held around every vkQueueSubmit gsd makes (Vulkan requires queue access to be serialized).
     std::mutex& queue_mutex();

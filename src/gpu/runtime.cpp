@@ -516,10 +516,11 @@ std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
 }
 
 const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                              std::initializer_list<std::int32_t> constants, std::uint32_t workgroup) {
+                              std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
+                              std::uint32_t texel_bindings) {
     State& st = *s_;
     if (workgroup == 0) workgroup = st.workgroup;
-    std::string key = shader + "@" + std::to_string(workgroup);
+    std::string key = shader + "@" + std::to_string(workgroup) + "/" + std::to_string(texel_bindings);
     for (auto c : constants) key.append(",").append(std::to_string(c));
     std::lock_guard<std::mutex> lock(st.kernels_mutex);
     if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
@@ -541,9 +542,11 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     k->bindings = bindings;
     k->push_bytes = push_bytes;
     k->workgroup = workgroup;
+    k->texel_bindings = texel_bindings;
     std::vector<VkDescriptorSetLayoutBinding> b(bindings);
     for (std::uint32_t i = 0; i < bindings; ++i)
-        b[i] = {i, VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1, VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
+        b[i] = {i, (texel_bindings >> i) & 1u ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+                VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
     VkDescriptorSetLayoutCreateInfo dl{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     dl.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
     dl.bindingCount = bindings;
@@ -578,7 +581,8 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
 Buffer::Buffer(Context& ctx, VkDeviceSize bytes, Memory memory) : ctx_(&ctx), size_(std::max<VkDeviceSize>(bytes, 16)) {
     VkBufferCreateInfo bi{VK_STRUCTURE_TYPE_BUFFER_CREATE_INFO};
     bi.size = size_;
-    bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
+    bi.usage = VK_BUFFER_USAGE_STORAGE_BUFFER_BIT | VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT |
+               VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
     bi.sharingMode = VK_SHARING_MODE_EXCLUSIVE;
     check(ctx.vk().vkCreateBuffer(ctx.device(), &bi, nullptr, &buffer_), "vkCreateBuffer");
     VkMemoryRequirements req;
@@ -640,6 +644,7 @@ Recorder::Recorder(Context& ctx) : ctx_(ctx) {
 
 Recorder::~Recorder() {
     try { wait(); } catch (...) {}
+    release_views();
     if (queries_) ctx_.vk().vkDestroyQueryPool(ctx_.device(), queries_, nullptr);
     ctx_.vk().vkDestroyFence(ctx_.device(), fence_, nullptr);
     ctx_.vk().vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
@@ -647,6 +652,7 @@ Recorder::~Recorder() {
 
 void Recorder::begin() {
     wait();
+    release_views();
     check(ctx_.vk().vkResetCommandBuffer(cmd_, 0), "vkResetCommandBuffer");
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
@@ -727,18 +733,51 @@ void Recorder::bind(const Kernel& k, std::initializer_list<Binding> bindings, co
     if (push_bytes != k.push_bytes) throw Error("gpu", "kernel " + k.name + ": wrong push-constant size");
     ctx_.vk().vkCmdBindPipeline(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.pipeline);
     std::vector<VkDescriptorBufferInfo> infos;
+    std::vector<VkBufferView> views(bindings.size(), VK_NULL_HANDLE);
     infos.reserve(bindings.size());
-    for (const Binding& b : bindings) infos.push_back({b.buffer, b.offset, b.range});
+    for (const Binding& b : bindings) {
+        if ((k.texel_bindings >> infos.size()) & 1u) views[infos.size()] = texel_view(k, b);
+        infos.push_back({b.buffer, b.offset, b.range});
+    }
     std::vector<VkWriteDescriptorSet> writes(infos.size());
     for (std::uint32_t i = 0; i < infos.size(); ++i) {
         writes[i] = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
         writes[i].dstBinding = i;
         writes[i].descriptorCount = 1;
-        writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
-        writes[i].pBufferInfo = &infos[i];
+        if (views[i]) {
+            writes[i].descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER;
+            writes[i].pTexelBufferView = &views[i];
+        } else {
+            writes[i].descriptorType = VK_DESCRIPTOR_TYPE_STORAGE_BUFFER;
+            writes[i].pBufferInfo = &infos[i];
+        }
     }
     ctx_.vk().vkCmdPushDescriptorSetKHR(cmd_, VK_PIPELINE_BIND_POINT_COMPUTE, k.layout, 0, std::uint32_t(writes.size()), writes.data());
     if (push_bytes) ctx_.vk().vkCmdPushConstants(cmd_, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
+}
+
+VkBufferView Recorder::texel_view(const Kernel& k, const Binding& b) {
+    const VkPhysicalDeviceLimits& lim = ctx_.limits();
+    if (b.size == 0) throw Error("gpu", "kernel " + k.name + ": a texel binding needs a buffer gsd owns");
+    const VkDeviceSize bytes = b.range == VK_WHOLE_SIZE ? (b.size - b.offset) / 16 * 16 : b.range;
+    if (b.offset % std::max<VkDeviceSize>(lim.minTexelBufferOffsetAlignment, 1) != 0 || bytes % 16 != 0 ||
+        bytes / 16 > lim.maxTexelBufferElements)
+        throw Error("gpu", "kernel " + k.name + ": a texel binding of " + std::to_string(bytes) + " bytes at " +
+                               std::to_string(b.offset) + " is more than or not aligned as the device allows");
+    VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
+    vi.buffer = b.buffer;
+    vi.format = VK_FORMAT_R32G32B32A32_SFLOAT;
+    vi.offset = b.offset;
+    vi.range = bytes;
+    VkBufferView view = VK_NULL_HANDLE;
+    check(ctx_.vk().vkCreateBufferView(ctx_.device(), &vi, nullptr, &view), "vkCreateBufferView");
+    views_.push_back(view);
+    return view;
+}
+
+void Recorder::release_views() {
+    for (VkBufferView v : views_) ctx_.vk().vkDestroyBufferView(ctx_.device(), v, nullptr);
+    views_.clear();
 }
 
 void Recorder::fill_zero(const Buffer& dst, VkDeviceSize offset, VkDeviceSize bytes) {
@@ -838,6 +877,11 @@ std::uint32_t software_loop_cap(const Context& ctx) {
         if (cap > 0 && cap < 65535 - 1024) return std::uint32_t(cap);
     }
     return 65535u - 1024u;  // room below 65 535 for the few iterations a kernel does not count
+}
+
+bool software_shaped(const Context& ctx) {
+    if (const char* v = std::getenv("GSD_SOFTWARE_SHAPED"); v && (v[0] == '0' || v[0] == '1') && v[1] == 0) return v[0] == '1';
+    return ctx.info().is_software();
 }
 
 std::uint32_t loop_capped_workgroup(const Context& ctx) {

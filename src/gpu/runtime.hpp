@@ -55,7 +55,10 @@ private:
 /// Constant 0 is always the workgroup size (local_size_x_id = 0); the rest are the shader's.
 struct Kernel {
     std::string name;
-    std::uint32_t bindings = 0;      ///< storage buffers at set 0, bindings 0..n−1
+    std::uint32_t bindings = 0;      ///< buffers at set 0, bindings 0..n−1
+    /// Bit i set: binding i is a uniform texel buffer of vec4 floats (software_shaped kernels),
+    /// not a storage buffer.
+    std::uint32_t texel_bindings = 0;
     std::uint32_t push_bytes = 0;
     std::uint32_t workgroup = 0;
     VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
@@ -66,12 +69,13 @@ struct Kernel {
 /// A buffer range bound to one binding of a dispatch.
 struct Binding {
     Binding(const Buffer* b, VkDeviceSize off = 0, VkDeviceSize r = VK_WHOLE_SIZE)
-        : buffer(b->handle()), offset(off), range(r) {}
+        : buffer(b->handle()), offset(off), range(r), size(b->size()) {}
     /// A range of a buffer gsd does not own (an application's, see evaluate_into).
     Binding(VkBuffer b, VkDeviceSize off, VkDeviceSize r) : buffer(b), offset(off), range(r) {}
     VkBuffer buffer;
     VkDeviceSize offset;
     VkDeviceSize range;
+    VkDeviceSize size = 0;  ///< the whole buffer's bytes, where gsd owns it (texel views need it)
 };
 
 // The Vulkan commands gsd calls on a device, loaded through that device's own
@@ -90,7 +94,7 @@ struct Binding {
     X(vkGetBufferMemoryRequirements) X(vkGetDeviceQueue) X(vkGetFenceStatus) X(vkMapMemory)          \
     X(vkQueueSubmit) X(vkResetCommandBuffer) X(vkResetFences) X(vkUnmapMemory) X(vkWaitForFences)     \
     X(vkCreateQueryPool) X(vkDestroyQueryPool) X(vkCmdResetQueryPool) X(vkCmdWriteTimestamp)         \
-    X(vkGetQueryPoolResults)
+    X(vkGetQueryPoolResults) X(vkCreateBufferView) X(vkDestroyBufferView)
 
 // The instance-level commands a Context needs about its physical device.
 #define GSD_INSTANCE_COMMANDS(X)                                                                     \
@@ -202,6 +206,10 @@ private:
     bool pending_ = false;
     VkQueryPool queries_ = VK_NULL_HANDLE;
     std::vector<std::string> timed_;  ///< labels of the timestamp pairs recorded since begin()
+    /// Texel views of the bindings recorded since begin(): alive until the submission is done.
+    std::vector<VkBufferView> views_;
+    void release_views();
+    VkBufferView texel_view(const Kernel& k, const Binding& b);
 };
 
 /// llvmpipe (lavapipe) ends every loop of a shader, silently, once the SIMD group running it has
@@ -210,6 +218,16 @@ private:
 /// on the CPU what they flag. On a software device such a kernel runs a workgroup of one
 /// subgroup, so that the count is the SIMD group's own. $GSD_LOOP_CAP lowers the cap (tests).
 std::uint32_t software_loop_cap(const Context& ctx);
+/// Whether kernels should run as shaped for a software device's SIMD lanes (llvmpipe). llvmpipe
+/// runs the body of every `if` whether a lane takes it or not and every loop's body at least
+/// once, reads a storage buffer inside a loop one lane and one scalar at a time (a branch each,
+/// unpredictable where the lane mask is), and writes a private array at a lane's own index the
+/// same way. So those kernels read trees through uniform texel buffers (a texel fetch is one
+/// vector gather), list their work on every lane unmasked and sum it in loops of their own.
+/// Software devices use them; GPUs keep the kernels written for GPUs. A shader built both ways
+/// (GSD_SOFTWARE_SHAPED, cmake/EmbedShaders.cmake) is NAME and NAME_software.
+/// $GSD_SOFTWARE_SHAPED=0|1 overrides (tests run both against the CPU).
+bool software_shaped(const Context& ctx);
 /// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
 /// default) elsewhere.
 std::uint32_t loop_capped_workgroup(const Context& ctx);

@@ -81,12 +81,13 @@ DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree) {
 namespace {
 
 struct WindingPush {
-    std::uint32_t count, first_leaf, group_cap;
+    std::uint32_t count, first_leaf, group_cap, node_count;
 };
 
-/// The tree as sums_winding.comp walks it: 8 vec4 per node (the float32 walk's test and
-/// expansion records, with the node's element range) and 3 vec4 per element, all in the float
-/// walk's normalized coordinates (vector areas scaled by scale², so that a point's dipole
+/// The tree as sums_winding.comp walks it: a vec4 per node, the float32 walk's test (all a walk
+/// reads of a node it does not sum: kept together, siblings side by side), then 7 vec4 per node
+/// (its element range and the float32 walk's expansion); and 3 vec4 per element; all in the
+/// float walk's normalized coordinates (vector areas scaled by scale², so that a point's dipole
 /// v·y/|y|³ is unchanged).
 struct DeviceWindingTree {
     // What the records were made for: the device (first, so that it outlives the buffers), β and
@@ -94,7 +95,8 @@ struct DeviceWindingTree {
     std::shared_ptr<gpu::Context> ctx;
     float beta = 0, reach_scale = 0;
     gpu::Buffer nodes, elements;
-    std::uint32_t first_leaf = 0, widest_leaf = 0;
+    std::uint32_t first_leaf = 0, widest_leaf = 0, node_count = 0;
+    std::int32_t element_kinds = 0;  ///< bit 0: triangles, bit 1: points (a = b = c)
 };
 
 DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree, float beta, float reach_scale) {
@@ -103,15 +105,17 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree,
     const auto* expansions = tree.winding_nodes_f();
     static_assert(sizeof(detail::SumTree::WindingNodeT<float>) == 23 * sizeof(float), "23 floats");
     DeviceWindingTree d;
-    std::vector<float> nd(nodes.size() * 32, 0.0f);
-    for (std::size_t i = 0; i < nodes.size(); ++i) {
-        float* r = &nd[32 * i];
+    const std::size_t n = nodes.size();
+    std::vector<float> nd(n * 4 + n * 28, 0.0f);
+    for (std::size_t i = 0; i < n; ++i) {
+        float* test = &nd[4 * i];
         const auto& t = tests[i];
-        r[0] = t.c[0], r[1] = t.c[1], r[2] = t.c[2];
-        r[3] = detail::sums::winding_reach2(t.rho, t.q, beta, reach_scale);
-        std::memcpy(&r[4], &nodes[i].begin, 4);
-        std::memcpy(&r[5], &nodes[i].end, 4);
-        std::memcpy(&r[8], &expansions[i], sizeof(expansions[i]));
+        test[0] = t.c[0], test[1] = t.c[1], test[2] = t.c[2];
+        test[3] = detail::sums::winding_reach2(t.rho, t.q, beta, reach_scale);
+        float* r = &nd[4 * n + 28 * i];
+        std::memcpy(&r[0], &nodes[i].begin, 4);
+        std::memcpy(&r[1], &nodes[i].end, 4);
+        std::memcpy(&r[4], &expansions[i], sizeof(expansions[i]));
         if (i >= tree.first_leaf()) d.widest_leaf = std::max(d.widest_leaf, nodes[i].end - nodes[i].begin);
     }
     const double* origin = tree.winding_origin();
@@ -124,10 +128,14 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree,
             for (int a = 0; a < 3; ++a) el[12 * j + std::size_t(4 * k + a)] = float((p[3 * k + a] - origin[a]) * scale);
             el[12 * j + std::size_t(4 * k + 3)] = float(v[k] * scale * scale);
         }
+        const float* e = &el[12 * j];  // the shader's test for a point: a = b = c, as it reads them
+        const bool point = std::equal(e, e + 3, e + 4) && std::equal(e, e + 3, e + 8);
+        d.element_kinds |= point ? 2 : 1;
     }
     d.nodes = gpu::upload(ctx, nd.data(), nd.size() * 4);
     d.elements = gpu::upload(ctx, el.data(), el.size() * 4);
     d.first_leaf = tree.first_leaf();
+    d.node_count = std::uint32_t(n);
     d.beta = beta;
     d.reach_scale = reach_scale;
     return d;
@@ -161,10 +169,17 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     const double t_uploaded = clock();
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
-    const bool software = ctx->info().is_software();
     const std::uint32_t workgroup = gpu::loop_capped_workgroup(*ctx);
-    const gpu::Kernel& k = ctx->kernel("sums_winding", 4, sizeof(WindingPush), {}, workgroup);
-    const std::uint32_t cap = software ? 65535u - 64u - d.widest_leaf : 0u;
+    // Software devices: the walk that lists and sums apart, the tree and the elements read as
+    // texel buffers (bindings 0 and 1).
+    const bool shaped = gpu::software_shaped(*ctx) && ctx->info().subgroup_arithmetic;
+    const gpu::Kernel& k = ctx->kernel(shaped ? "sums_winding_software" : "sums_winding", 4, sizeof(WindingPush),
+                                       {d.element_kinds}, workgroup, shaped ? 0b11u : 0u);
+    // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
+    // elements, or (software-shaped) a round's sums: 32 expansions and 32 leaves.
+    const std::uint32_t step = shaped ? 1024u + 32u * (d.widest_leaf + 1u) : 64u + d.widest_leaf;
+    const std::uint32_t limit = gpu::software_loop_cap(*ctx);  // 0 on hardware: no limit
+    const std::uint32_t cap = limit == 0 ? 0u : limit > step ? limit - step : 1u;
     const auto n = std::size_t(queries.rows());
     // Morton order, so that a subgroup's queries are neighbours; results go back in input order.
     std::vector<std::uint32_t> order;
@@ -208,7 +223,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
         }
     };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
-        const WindingPush push{std::uint32_t(m), d.first_leaf, cap};
+        const WindingPush push{std::uint32_t(m), d.first_leaf, cap, d.node_count};
         rec.dispatch(k, {{&d.nodes}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
                      std::uint32_t((m + k.workgroup - 1) / k.workgroup));
     };
