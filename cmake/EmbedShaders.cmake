@@ -22,6 +22,8 @@ function(gsd_embed_shaders target)
     # A shader that tests GSD_SOFTWARE_SHAPED is built twice: NAME as written, and NAME_software
     # with it defined (gpu::software_shaped says which a device runs).
     file(STRINGS ${src} software_variant REGEX "GSD_SOFTWARE_SHAPED")
+    # ... which is read here, at configure time: an edit that adds or drops the macro reconfigures.
+    set_property(DIRECTORY APPEND PROPERTY CMAKE_CONFIGURE_DEPENDS ${src})
     set(variants ${base})
     if(software_variant)
       list(APPEND variants ${base}_software)

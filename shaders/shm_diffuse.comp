@@ -17,7 +17,10 @@
 // every iteration of a loop any lane is in, so sharing the walk costs it nothing: 1.7× the
 // speed there. On GPUs (0) each lane walks alone, with its own stack: 32 lanes' walks taken
 // together visited so many more nodes than one lane's that the kernel took twice as long on
-// an H200 (228 ms against 109 ms at 256³, 10⁵ points).
+// an H200 (228 ms against 109 ms at 256³, 10⁵ points). Built with GSD_SOFTWARE_SHAPED (the
+// kernel software devices run, gpu::software_shaped), the sum is walk_listed's instead: each
+// lane alone, listing what it sums and summing it in loops of their own; the nearest element
+// is still found together.
 #include "box_tree.glsl"
 
 layout(local_size_x_id = 0) in;
@@ -28,9 +31,32 @@ const int PIECES = 68;
 const int MAX_SPLITS = 4096;  // sums::kMaxSplits
 const float NEEDLE_ASPECT = 768.0;  // sums::kNeedleAspectGpu: below the CPU's 1024, so the GPU never refines what the CPU bisects
 
+// The tree, its moments and the elements. Built twice (cmake/EmbedShaders.cmake): as storage
+// buffers, and with GSD_SOFTWARE_SHAPED (gpu::software_shaped) as uniform texel buffers of vec4
+// — a Node is two: (lo, begin), (hi, end) —, for llvmpipe, which reads a storage buffer inside
+// a loop one lane and one float at a time behind a branch on the lane's mask bit, where a texel
+// fetch is one gather.
+#ifdef GSD_SOFTWARE_SHAPED
+layout(binding = 0) uniform samplerBuffer node_texels;
+layout(binding = 1) uniform samplerBuffer moment_texels;
+layout(binding = 2) uniform samplerBuffer elem_texels;
+vec3 node_lo(uint i) { return texelFetch(node_texels, int(2u * i)).xyz; }
+vec3 node_hi(uint i) { return texelFetch(node_texels, int(2u * i + 1u)).xyz; }
+uint node_begin(uint i) { return floatBitsToUint(texelFetch(node_texels, int(2u * i)).w); }
+uint node_end(uint i) { return floatBitsToUint(texelFetch(node_texels, int(2u * i + 1u)).w); }
+#define MOMENT(i) texelFetch(moment_texels, int(i))
+#define ELEM(i) texelFetch(elem_texels, int(i))
+#else
 layout(std430, binding = 0) readonly buffer Nodes { Node nodes[]; };
 layout(std430, binding = 1) readonly buffer Moments { vec4 moments[]; };
 layout(std430, binding = 2) readonly buffer Elems { vec4 elems[]; };
+vec3 node_lo(uint i) { return nodes[i].lo; }
+vec3 node_hi(uint i) { return nodes[i].hi; }
+uint node_begin(uint i) { return nodes[i].begin; }
+uint node_end(uint i) { return nodes[i].end; }
+#define MOMENT(i) moments[i]
+#define ELEM(i) elems[i]
+#endif
 layout(std430, binding = 3) readonly buffer Queries { vec4 qs[]; };
 layout(std430, binding = 4) writeonly buffer Out { vec4 outv[]; };  // (Y, r_min), (terms, 0, 0, 0)
 
@@ -63,17 +89,17 @@ float nearest_distance(vec3 x, bool live, inout uint group_iters) {
     while (top > 0) {
         uint i = stack[--top];
         ++group_iters;
-        bool need = live && box_distance2(x, nodes[i].lo, nodes[i].hi) < best2;
+        bool need = live && box_distance2(x, node_lo(i), node_hi(i)) < best2;
         if (!subgroupAny(need)) continue;
         if (i >= pc.first_leaf) {
-            group_iters += nodes[i].end - nodes[i].begin;
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-                float d2 = triangle_distance2(x, elems[3u * j].xyz, elems[3u * j + 1u].xyz, elems[3u * j + 2u].xyz);
+            group_iters += node_end(i) - node_begin(i);
+            for (uint j = node_begin(i); j < node_end(i); ++j) {
+                float d2 = triangle_distance2(x, ELEM(3u * j).xyz, ELEM(3u * j + 1u).xyz, ELEM(3u * j + 2u).xyz);
                 if (need) best2 = min(best2, d2);
             }
         } else {
             uint l = 2u * i + 1u, r = 2u * i + 2u;
-            bool prefers_left = box_distance2(x, nodes[l].lo, nodes[l].hi) <= box_distance2(x, nodes[r].lo, nodes[r].hi);
+            bool prefers_left = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
             uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
             uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
             bool left_first = left >= right;
@@ -92,13 +118,13 @@ float nearest_distance_alone(vec3 x) {
     stack[top++] = 0u;
     while (top > 0) {
         uint i = stack[--top];
-        if (box_distance2(x, nodes[i].lo, nodes[i].hi) >= best2) continue;
+        if (box_distance2(x, node_lo(i), node_hi(i)) >= best2) continue;
         if (i >= pc.first_leaf) {
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j)
-                best2 = min(best2, triangle_distance2(x, elems[3u * j].xyz, elems[3u * j + 1u].xyz, elems[3u * j + 2u].xyz));
+            for (uint j = node_begin(i); j < node_end(i); ++j)
+                best2 = min(best2, triangle_distance2(x, ELEM(3u * j).xyz, ELEM(3u * j + 1u).xyz, ELEM(3u * j + 2u).xyz));
         } else {
             uint l = 2u * i + 1u, r = 2u * i + 2u;
-            bool left_first = box_distance2(x, nodes[l].lo, nodes[l].hi) <= box_distance2(x, nodes[r].lo, nodes[r].hi);
+            bool left_first = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
             stack[top++] = left_first ? r : l;
             stack[top++] = left_first ? l : r;
         }
@@ -146,9 +172,11 @@ void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
 }
 
 // Element j's part of X for one lane (the refinement of SumTree::screened_element); sets `wide`
-// when the element is to be left to the CPU.
-void add_element(uint j, vec3 x, float rmin, float R, inout vec3 X, inout uint terms, inout bool wide) {
-    vec4 ea = elems[3u * j], eb = elems[3u * j + 1u], ec = elems[3u * j + 2u];
+// when the element is to be left to the CPU. A lane that is not `live` adds nothing and stops
+// at once (the software kernel runs every lane through its element passes).
+void add_element(uint j, vec3 x, float rmin, float R, bool live, inout vec3 X, inout uint terms, inout bool wide) {
+    if (!live) R = -3.0e38;  // every piece out of reach
+    vec4 ea = ELEM(3u * j), eb = ELEM(3u * j + 1u), ec = ELEM(3u * j + 2u);
     vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w), cd, co;
     float rho0;
     triangle_shape(ab, ac, cd, co, rho0);
@@ -159,7 +187,7 @@ void add_element(uint j, vec3 x, float rmin, float R, inout vec3 X, inout uint t
     // whether a lane takes it or not, and the clipping, run so for every element, made step 1
     // 2.5× slower there.
     float longest2 = max(dot(ab, ab), max(dot(ac, ac), dot(ac - ab, ac - ab)));
-    if (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac))) {
+    if (live && (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac)))) {
         wide = true;
         return;
     }
@@ -208,7 +236,7 @@ void walk_alone(vec3 x, float rmin, float R, inout vec3 X, inout uint terms, ino
     stack[top++] = 0u;
     while (top > 0) {
         uint i = stack[--top];
-        if (box_distance2(x, nodes[i].lo, nodes[i].hi) > R * R) continue;
+        if (box_distance2(x, node_lo(i), node_hi(i)) > R * R) continue;
         vec3 d = x - mom3(i, 0u);
         if (accept(mom(i, 3u), length(d), mom(i, 7u), rmin)) {
             X += node_expansion(i, d, rmin);
@@ -220,7 +248,7 @@ void walk_alone(vec3 x, float rmin, float R, inout vec3 X, inout uint terms, ino
             stack[top++] = 2u * i + 2u;
             continue;
         }
-        for (uint j = nodes[i].begin; j < nodes[i].end; ++j) add_element(j, x, rmin, R, X, terms, wide);
+        for (uint j = node_begin(i); j < node_end(i); ++j) add_element(j, x, rmin, R, true, X, terms, wide);
     }
 }
 
@@ -231,6 +259,79 @@ void write_result(uint q, vec3 X, float rmin, uint terms, bool cut, bool wide) {
     // was wider than the reach or a needle.
     outv[2u * q + 1u] = vec4(float(terms), cut ? 1.0 : (wide ? 2.0 : 0.0), 0.0, 0.0);
 }
+
+#ifdef GSD_SOFTWARE_SHAPED
+// The sum's walk shaped for llvmpipe (as sums_winding.comp's software walk): each lane walks on
+// its own, stackless, and only lists the nodes it accepts and the leaves it opens — every lane
+// writes its entry, the counts say which hold —; every ROUND steps the lists are summed in
+// loops of their own, so that no visit pays for an expansion or an element it does not sum
+// (llvmpipe runs an if's body whatever the lanes decide). `group_iters` counts the subgroup's
+// loop iterations, the lanes' refinements summed over the lanes, against llvmpipe's limit;
+// `cut` is set when it stops short.
+const uint ROUND = 32u;
+
+void walk_listed(vec3 x, bool live, float rmin, float R, inout vec3 X, inout uint terms, inout bool wide,
+                 inout uint group_iters, out bool cut) {
+    const uint first_leaf = pc.first_leaf, group_cap = pc.group_cap;  // read once: gathered in loops
+    cut = false;
+    bool walking = live;
+    uint node = 0u;
+    uint accepted_nodes[ROUND], opened_leaves[ROUND];
+    while (true) {
+        if (group_cap > 0u && group_iters >= group_cap) {
+            cut = true;
+            return;
+        }
+        group_iters += ROUND + 2u;
+        uint n_accepted = 0u, n_opened = 0u;
+        for (uint step = 0u; step < ROUND; ++step) {
+            if (!walking) break;
+            bool reached = box_distance2(x, node_lo(node), node_hi(node)) <= R * R;
+            vec3 d = x - mom3(node, 0u);
+            bool accepted = reached && accept(mom(node, 3u), length(d), mom(node, 7u), rmin);
+            bool leaf = node >= first_leaf;
+            accepted_nodes[n_accepted] = node;
+            opened_leaves[n_opened] = node;
+            n_accepted += accepted ? 1u : 0u;
+            n_opened += reached && !accepted && leaf ? 1u : 0u;
+            if (reached && !accepted && !leaf) {
+                node = 2u * node + 1u;
+            } else {  // next in depth-first order (sums_winding.comp)
+                uint k = node + 1u;
+                k >>= uint(findLSB(~k));
+                walking = k != 0u;
+                node = k;
+            }
+        }
+        uint passes = subgroupMax(n_accepted);
+        group_iters += passes + 1u;
+        for (uint i = 0u; i < passes; ++i) {
+            uint a = accepted_nodes[min(i, ROUND - 1u)];
+            vec3 e = node_expansion(a, x - mom3(a, 0u), rmin);
+            if (i < n_accepted) X += e;
+        }
+        terms += n_accepted;
+        passes = subgroupMax(n_opened);
+        group_iters += passes + 1u;
+        for (uint i = 0u; i < passes; ++i) {
+            uint leaf = opened_leaves[min(i, ROUND - 1u)];
+            uint begin = node_begin(leaf), count = i < n_opened ? node_end(leaf) - begin : 0u;
+            uint longest = subgroupMax(count);
+            group_iters += 1u;
+            for (uint j = 0u; j < longest; ++j) {
+                add_element(begin + min(j, max(count, 1u) - 1u), x, rmin, R, j < count, X, terms, wide);
+                group_iters += subgroupAdd(iters) + 1u;
+                iters = 0u;
+                if (group_cap > 0u && group_iters >= group_cap) {
+                    cut = true;
+                    return;
+                }
+            }
+        }
+        if (!subgroupAny(walking)) return;
+    }
+}
+#endif
 
 void main() {
     uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
@@ -254,6 +355,11 @@ void main() {
     // refinements) summed over the lanes — a bound on what the SIMD group iterated — and stops
     // short of the limit; the host redoes what it flags.
     bool cut = false;
+#ifdef GSD_SOFTWARE_SHAPED
+    walk_listed(x, valid, rmin, R, X, terms, wide, group_iters, cut);
+    if (valid) write_result(q, X, rmin, terms, cut, wide);
+    return;
+#endif
     uint sit_out = valid ? NONE : 0u;  // depth of the node this lane is out of (NONE: walking)
     uint node = 0u, depth = 0u;
     while (true) {
@@ -264,7 +370,7 @@ void main() {
         ++group_iters;
         if (valid && depth <= sit_out) sit_out = NONE;  // the walk left the subtree it sat out
         bool walking = sit_out == NONE;
-        bool reached = walking && box_distance2(x, nodes[node].lo, nodes[node].hi) <= R * R;
+        bool reached = walking && box_distance2(x, node_lo(node), node_hi(node)) <= R * R;
         vec3 d = x - mom3(node, 0u);
         bool accepted = reached && accept(mom(node, 3u), length(d), mom(node, 7u), rmin);
         if (accepted) {
@@ -275,8 +381,8 @@ void main() {
         bool leaf = node >= pc.first_leaf;
         bool any_open = subgroupAny(open);
         if (leaf && any_open) {  // the leaf's elements, on the lanes that opened it
-            for (uint j = nodes[node].begin; j < nodes[node].end; ++j) {
-                if (open) add_element(j, x, rmin, R, X, terms, wide);
+            for (uint j = node_begin(node); j < node_end(node); ++j) {
+                if (open) add_element(j, x, rmin, R, true, X, terms, wide);
                 group_iters += subgroupAdd(iters) + 1u;
                 iters = 0u;
                 if (pc.group_cap > 0u && group_iters >= pc.group_cap) break;

@@ -1,9 +1,11 @@
 // The SumTree of src/sums/sum_tree.hpp as kernels walk it (uploaded by src/sums/sums_gpu.cpp).
-// The including shader declares, before this file:
-//   Node nodes[]      boxes and element ranges (box_tree.glsl's Node; children 2i+1, 2i+2)
-//   vec4 moments[]    9 per node, flat index k: 0–2 center c, 3 radius ρ, 4–6 M0, 7 area,
+// The including shader declares, before this file (as storage or texel buffers):
+//   node_lo(i), node_hi(i), node_begin(i), node_end(i): boxes and element ranges
+//                     (box_tree.glsl's Node; children 2i+1, 2i+2)
+//   MOMENT(i)         the moments' vec4 i: 9 per node, flat index k: 0–2 center c, 3 radius ρ,
+//                     4–6 M0, 7 area,
 //                     8–16 M1 (3a+i), 17–34 M2 (6a + xx yy zz xy xz yz)
-//   vec4 elems[]      3 per element: (a, v.x), (b, v.y), (c, v.z)
+//   ELEM(i)           the elements' vec4 i: 3 per element: (a, v.x), (b, v.y), (c, v.z)
 
 const float FOUR_PI = 12.566370614359172;
 
@@ -12,7 +14,7 @@ const float FOUR_PI = 12.566370614359172;
 // flag a query at `lane_cap` = 65535 / lanes per group; the host redoes flagged groups on the
 // CPU (sums_gpu.hpp).
 
-float mom(uint node, uint k) { return moments[9u * node + (k >> 2)][k & 3u]; }
+float mom(uint node, uint k) { return MOMENT(9u * node + (k >> 2))[k & 3u]; }
 vec3 mom3(uint node, uint k) { return vec3(mom(node, k), mom(node, k + 1u), mom(node, k + 2u)); }
 
 // uᵀ S u and S u for the symmetric S at flat index k (xx yy zz xy xz yz).
