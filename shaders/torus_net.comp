@@ -8,9 +8,9 @@
 // src/pat/torus_net.cpp.
 //
 // Every matrix product is tiled: an invocation computes TR rows × 4·TC columns, reading vec4s
-// (8 × 8 on CPU devices: 256 multiply-adds per 16 loads, since lavapipe executes each load of
-// shared or storage memory lane by lane and loads, not arithmetic, bound its speed; 4 × 4 on
-// GPUs, where more, smaller tiles keep more threads busy). docs/gpu.md has the measurements.
+// (4 × 16 on CPU devices: lavapipe executes each load of shared or storage memory lane by lane
+// and loads, not arithmetic, bound its speed; 4 × 4 on GPUs, where more, smaller tiles keep
+// more threads busy). docs/gpu.md has the measurements.
 //
 // Weights come in one buffer in the layout src/pat/torus_net_gpu.cpp packs (offsets below, in
 // vec4s): every Linear's weight transposed to [in][out], qkv regrouped per head.
@@ -69,7 +69,16 @@ const int T = 2 * K * XS;    // scratch: features [K][8]; per head q|k|v [K][3D]
                              // MLP hidden [K][FC] (POOL = T + the largest of these)
 const int SC = T + K * QS;   // attention scores
 
+// The weights: a storage buffer, or (built with GSD_SOFTWARE_SHAPED: the kernel software
+// devices run, gpu::software_shaped) a uniform texel buffer, which llvmpipe reads with one
+// gather where it reads a storage buffer one lane and one float at a time.
+#ifdef GSD_SOFTWARE_SHAPED
+layout(binding = 0) uniform samplerBuffer w4_texels;
+#define WEIGHT(i) texelFetch(w4_texels, int(i))
+#else
 layout(std430, binding = 0) readonly buffer Params4 { vec4 w4[]; };
+#define WEIGHT(i) w4[i]
+#endif
 layout(std430, binding = 1) readonly buffer Fixed { ivec4 fixed_pts[]; };  // position = xyz·2^w (|xyz| ≤ 2^29)
 layout(std430, binding = 2) readonly buffer Normals { vec4 nrm[]; };  // unit normal, w: tangent_of's axis
 layout(std430, binding = 3) readonly buffer Tokens { uint tokens[]; };  // [count][K]
@@ -131,7 +140,7 @@ void gemm(int a, int lda, int R, int rt, int I4, bool weights, int b, int ldb, i
         int r0 = (tile / nct) * rt, c0 = (tile % nct) * TC;
         vec4 acc[TR][TC];
         for (int q = 0; q < TC; ++q) {
-            vec4 bq = bias >= 0 && c0 + q < n4 ? w4[bias + c0 + q] : vec4(0.0);
+            vec4 bq = bias >= 0 && c0 + q < n4 ? WEIGHT(bias + c0 + q) : vec4(0.0);
             for (int t = 0; t < rt; ++t) acc[t][q] = bq;
         }
         for (int i4 = 0; i4 < I4; ++i4) {
@@ -140,7 +149,7 @@ void gemm(int a, int lda, int R, int rt, int I4, bool weights, int b, int ldb, i
             for (int k = 0; k < 4; ++k) {
                 int row = b + (4 * i4 + k) * ldb + c0;
                 for (int q = 0; q < TC; ++q) {
-                    vec4 bv = c0 + q < n4 ? (weights ? w4[row + q] : ld(row + q)) : vec4(0.0);
+                    vec4 bv = c0 + q < n4 ? (weights ? WEIGHT(row + q) : ld(row + q)) : vec4(0.0);
                     for (int t = 0; t < rt; ++t) acc[t][q] += av[t][k] * bv;
                 }
             }
@@ -195,7 +204,7 @@ void layer_norm(int src, int dst, int R, int g) {
     barrier();
     for (int e = tid; e < R * W4; e += WG) {
         int r = e / W4, c = e % W4;
-        st(dst + r * XS + c, (ld(src + r * XS + c) - row_mean[r]) * row_rstd[r] * w4[g + c] + w4[g + W4 + c]);
+        st(dst + r * XS + c, (ld(src + r * XS + c) - row_mean[r]) * row_rstd[r] * WEIGHT(g + c) + WEIGHT(g + W4 + c));
     }
     sync();
 }
@@ -315,8 +324,8 @@ void main() {
     layer_norm(X, Y, 1, FN_G);
     if (tid < 6) {
         vec4 acc = vec4(0.0);
-        for (int i4 = 0; i4 < W4; ++i4) acc += ld(Y + i4) * w4[HD_W + tid * W4 + i4];
-        float r = acc.x + acc.y + acc.z + acc.w + w4[HD_B + tid / 4][tid % 4];
+        for (int i4 = 0; i4 < W4; ++i4) acc += ld(Y + i4) * WEIGHT(HD_W + tid * W4 + i4);
+        float r = acc.x + acc.y + acc.z + acc.w + WEIGHT(HD_B + tid / 4)[tid % 4];
         // (a00, a10, a01, a11, a20, a02) = (r0·m, r1, r2, r3/m, r4/m, r5/m)
         outv[6 * g + uint(tid)] = tid == 0 ? r * m : (tid < 3 ? r : r / m);
     }

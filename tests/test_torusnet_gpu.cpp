@@ -422,13 +422,18 @@ struct Shape {
 };
 
 /// Each shape through the kernel against the reference: in shared memory where it fits, and
-/// forced into the device-memory workspace. With the matrix-product tile hardware GPUs get (4
-/// rows × 1 vec4 column; the golden and cloud cases run lavapipe's own, 8 × 2), so that tiling is
-/// tested too, and each pipeline compiles in half the time on a machine that has not cached it.
+/// forced into the device-memory workspace. With the kernel hardware GPUs get (weights in a
+/// storage buffer, the matrix-product tile 4 rows × 1 vec4 column; the golden and cloud cases
+/// run lavapipe's own: texel-buffer weights, 4 × 4), so that both are tested, and each pipeline
+/// compiles in half the time on a machine that has not cached it.
 void check_shapes(const PointCloud& c, std::initializer_list<Shape> shapes) {
     ::setenv("GSD_TORUSNET_TILE", "4,1", 1);
+    ::setenv("GSD_SOFTWARE_SHAPED", "0", 1);
     struct Unset {
-        ~Unset() { ::unsetenv("GSD_TORUSNET_TILE"); }
+        ~Unset() {
+            ::unsetenv("GSD_TORUSNET_TILE");
+            ::unsetenv("GSD_SOFTWARE_SHAPED");
+        }
     } unset;
     for (const Shape& s : shapes) {
         const Dims& d = s.dims;

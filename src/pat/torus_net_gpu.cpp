@@ -70,12 +70,12 @@ NetPlan plan(const TorusNetModel& m, const gpu::Context& ctx, bool force_global)
     for (int c = 4; c <= m.mlp; c += 4)
         if (m.mlp % c == 0 && k * (c / 4 + 1) <= scratch) p.fc = c;
     p.pool = 2 * k * xs + std::max(scratch, k * (p.fc / 4 + 1));
-    // Tiles (measured, docs/gpu.md): 8 rows × 2 vec4s on CPU devices (fewer loads per
-    // multiply-add; lavapipe runs each load lane by lane, and wider tiles spill its 16 vector
-    // registers), 4 × 1 on GPUs (more, smaller tiles keep more threads busy: on an H100 1.6×
-    // the throughput of 4 × 2). $GSD_TORUSNET_TILE=rows,cols overrides.
-    if (ctx.info().is_software() && k % 8 == 0) p.tile_rows = 8;
-    else if (!ctx.info().is_software()) p.tile_cols = 1;
+    // Tiles (measured, docs/gpu.md): 4 rows × 4 vec4s on CPU devices, whose kernel reads the
+    // weights as a texel buffer (8 × 2 was best while they were read lane by lane), 4 × 1 on
+    // GPUs (more, smaller tiles keep more threads busy: on an H100 1.6× the throughput of
+    // 4 × 2). $GSD_TORUSNET_TILE=rows,cols overrides.
+    if (ctx.info().is_software()) p.tile_cols = 4;
+    else p.tile_cols = 1;
     if (const char* v = std::getenv("GSD_TORUSNET_TILE"); v && *v) {
         int r = 0, c = 0;
         if (std::sscanf(v, "%d,%d", &r, &c) != 2 || r < 1 || r > 16 || k % r != 0 || c < 1 || c > 4)
@@ -195,9 +195,12 @@ DeviceCloud upload_cloud(gpu::Context& ctx, const Points& positions, const Point
 }
 
 const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
-    return ctx.kernel("torus_net", 7, 4,
+    // Software devices read the weights as a texel buffer (binding 0; torus_net.comp).
+    const bool shaped = gpu::software_shaped(ctx);
+    return ctx.kernel(shaped ? "torus_net_software" : "torus_net", 7, 4,
                       {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
-                       p.global ? 1 : p.pool, p.tile_rows, p.tile_cols});
+                       p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
+                      0, shaped ? 0b1u : 0u);
 }
 
 // Records the network over n points whose tokens are in `tokens`.
