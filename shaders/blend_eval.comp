@@ -2,6 +2,9 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_vote : require
 #extension GL_KHR_shader_subgroup_ballot : require
+#ifdef GSD_SOFTWARE_SHAPED
+#extension GL_KHR_shader_subgroup_arithmetic : require
+#endif
 // The blend engine on the GPU (mirrors src/blend/blend_cpu.cpp): for each query, choose the
 // summed set (all points, the ball of radius r_eval, or the k nearest), then blend the
 // per-point terms of PAT (tori), SSPD (tangent planes) or signed Hopf–Cole (screened dipoles).
@@ -17,9 +20,13 @@ layout(constant_id = 4) const int SHARED_KNN = 0;  // 1: the k-nearest fallback 
 
 const int TILE = 256;     // shared-memory tile for the exact sum (≥ workgroup size)
 
-layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };    // tree order
-layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };   // PAT: 3 per point; else (n, area)
-layout(std430, binding = 2) readonly buffer Nodes { Node nodes[]; };
+// Points in tree order, their terms (PAT: 3 per point; else (n, area)), the kd-tree's nodes:
+// storage buffers, or texel buffers in blend_eval_software, built with GSD_SOFTWARE_SHAPED
+// (box_tree_buffers.glsl).
+#define POINTS_BINDING 0
+#define TERMS_BINDING 1
+#define NODES_BINDING 2
+#include "box_tree_buffers.glsl"
 layout(std430, binding = 3) readonly buffer Queries { vec4 qs[]; };
 layout(std430, binding = 4) writeonly buffer Out { float outv[]; };
 
@@ -42,13 +49,13 @@ shared vec4 tile_t[3 * TILE];
 uint load_tile(uint base) {
     uint n = min(uint(TILE), pc.point_count - base);
     for (uint m = gl_LocalInvocationID.x; m < n; m += gl_WorkGroupSize.x) {
-        tile_p[m] = pts[base + m];
+        tile_p[m] = point_at(base + m);
         if (KIND == 0) {
-            tile_t[3 * m] = terms[3 * (base + m)];
-            tile_t[3 * m + 1] = terms[3 * (base + m) + 1];
-            tile_t[3 * m + 2] = terms[3 * (base + m) + 2];
+            tile_t[3 * m] = term_at(3 * (base + m));
+            tile_t[3 * m + 1] = term_at(3 * (base + m) + 1);
+            tile_t[3 * m + 2] = term_at(3 * (base + m) + 2);
         } else {
-            tile_t[m] = terms[base + m];
+            tile_t[m] = term_at(base + m);
         }
     }
     barrier();

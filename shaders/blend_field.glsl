@@ -1,7 +1,8 @@
 // The blend engine's per-query sums (mirrors src/blend/blend_cpu.cpp), shared by blend_eval.comp
 // and the renderer (render_pat.comp). The including shader declares, before including this:
-// the KIND specialization constant (0 PAT, 1 SSPD, 2 SHC), the buffers `pts` (tree order),
-// `terms` (PAT: 3 per point; else (n, area)) and `nodes`, and the push constants `pc`
+// the KIND specialization constant (0 PAT, 1 SSPD, 2 SHC), the tree's buffers through
+// box_tree_buffers.glsl (points in tree order, terms — PAT: 3 per point; else (n, area) — and
+// nodes), and the push constants `pc`
 // (point_count, first_leaf, k_fallback, r_eval, C, dmin) and the SHARED_KNN specialization
 // constant, and enables GL_KHR_shader_subgroup_vote and GL_KHR_shader_subgroup_ballot.
 const int K_MAX = 32;     // largest fallback_k the kernel supports
@@ -67,11 +68,18 @@ void add_term(inout Acc a, vec3 x, vec3 p, vec4 t0, vec4 t1, vec4 t2, float d, f
     }
 }
 
+// Point j's term data (PAT: its torus in t0..t2; else t0 = (n, area)).
+void point_terms(uint j, out vec4 t0, out vec4 t1, out vec4 t2) {
+    t1 = vec4(0.0);
+    t2 = vec4(0.0);
+    if (KIND == 0) { t0 = term_at(3 * j); t1 = term_at(3 * j + 1); t2 = term_at(3 * j + 2); }
+    else t0 = term_at(j);
+}
+
 void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, float rho, bool tapered, bool grad) {
-    vec4 t0, t1 = vec4(0.0), t2 = vec4(0.0);
-    if (KIND == 0) { t0 = terms[3 * j]; t1 = terms[3 * j + 1]; t2 = terms[3 * j + 2]; }
-    else t0 = terms[j];
-    add_term(a, x, pts[j].xyz, t0, t1, t2, d, lambda, sigma, rho, tapered, grad);
+    vec4 t0, t1, t2;
+    point_terms(j, t0, t1, t2);
+    add_term(a, x, point_at(j).xyz, t0, t1, t2, d, lambda, sigma, rho, tapered, grad);
 }
 
 // Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
@@ -84,6 +92,65 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
 // Call it from uniform control flow (every lane of the subgroup), with live = false on lanes
 // that have nothing to evaluate: subgroup votes in divergent control flow are where llvmpipe
 // (Mesa 22.3) went wrong, and a walk taken together needs every lane anyway.
+#ifdef GSD_SOFTWARE_SHAPED
+// sum_ball shaped for llvmpipe (the kernels software devices run: docs/gpu.md, "Kernels shaped
+// for software devices"), which runs a loop's body at least once and an if's body whatever the
+// lanes decide: the walk above paid a leaf's point at every node it visited. Here each lane
+// walks the tree on its own (stackless, the same order) and only lists the leaves its ball
+// meets, every lane writing its entry (the count says which hold); every BALL_ROUND steps the
+// listed leaves' points are summed in loops of their own. Each lane adds the same points in the
+// same order as the walk above. Needs GL_KHR_shader_subgroup_arithmetic.
+const uint BALL_ROUND = 32u;
+
+uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
+    const float r_eval = pc.r_eval, r2 = r_eval * r_eval;  // push constants: read outside the loops
+    const float sigma = 0.5 * r_eval, lambda = pc.C / sigma;
+    const uint first_leaf = pc.first_leaf;
+    uint found = 0u, node = 0u;
+    bool walking = live;
+    uint opened[BALL_ROUND];
+    while (true) {
+        TICK_UNIFORM(BALL_ROUND + 2u);
+        uint n_opened = 0u;
+        for (uint step = 0u; step < BALL_ROUND; ++step) {
+            if (!walking) break;
+            bool near = box_distance2(x, node_lo(node), node_hi(node)) <= r2;
+            bool leaf = node >= first_leaf;
+            opened[n_opened] = node;
+            n_opened += near && leaf ? 1u : 0u;
+            if (near && !leaf) {
+                node = 2u * node + 1u;
+            } else {  // next in depth-first order
+                uint k = node + 1u;
+                k >>= uint(findLSB(~k));
+                walking = k != 0u;
+                node = k;
+            }
+        }
+        uint passes = subgroupMax(n_opened);
+        TICK_UNIFORM(passes + 1u);
+        for (uint i = 0u; i < passes; ++i) {
+            uint leaf = opened[min(i, BALL_ROUND - 1u)];
+            uint begin = node_begin(leaf), count = i < n_opened ? node_end(leaf) - begin : 0u;
+            uint longest = subgroupMax(count);
+            TICK_UNIFORM(longest + 1u);
+            for (uint j = 0u; j < longest; ++j) {
+                uint p = begin + min(j, max(count, 1u) - 1u);
+                vec3 pp = point_at(p).xyz, dv = x - pp;
+                float d2 = dot(dv, dv);
+                vec4 t0, t1, t2;
+                point_terms(p, t0, t1, t2);
+                if (j < count && d2 <= r2) {
+                    add_term(a, x, pp, t0, t1, t2, sqrt(d2), lambda, sigma, r_eval, true, grad);
+                    ++found;
+                }
+            }
+        }
+        if (!subgroupAny(walking)) break;
+    }
+    return found;
+}
+#else
 uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     float r2 = pc.r_eval * pc.r_eval;
     float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
@@ -97,9 +164,9 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
                 node = 2u * node + 1u;
                 continue;
             }
-            TICK_UNIFORM(nodes[node].end - nodes[node].begin + 1u);
-            for (uint j = nodes[node].begin; j < nodes[node].end; ++j) {
-                vec3 dv = x - pts[j].xyz;
+            TICK_UNIFORM(node_end(node) - node_begin(node) + 1u);
+            for (uint j = node_begin(node); j < node_end(node); ++j) {
+                vec3 dv = x - point_at(j).xyz;
                 float d2 = dot(dv, dv);
                 if (near && d2 <= r2) {
                     add_point(a, x, j, sqrt(d2), lambda, sigma, pc.r_eval, true, grad);
@@ -114,6 +181,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     }
     return found;
 }
+#endif
 
 // The k ≤ K_MAX nearest points to x (distances kd, tree-order indices ki, nearest first) for
 // the fallback, the subgroup walking together (SHARED_KNN = 1, hardware GPUs): a node is opened
@@ -135,9 +203,9 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
         bool need = live && node_distance2(x, i) <= worst * worst;
         if (!subgroupAny(need)) continue;
         if (i >= pc.first_leaf) {
-            TICK_UNIFORM(nodes[i].end - nodes[i].begin + 1u);
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-                float d = distance(x, pts[j].xyz);
+            TICK_UNIFORM(node_end(i) - node_begin(i) + 1u);
+            for (uint j = node_begin(i); j < node_end(i); ++j) {
+                float d = distance(x, point_at(j).xyz);
                 if (!need || d >= kd[k - 1u]) continue;
                 TICK_LANE(1);
                 int m = int(k) - 1;
@@ -183,7 +251,7 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     uint k = pc.k_fallback;
     rho = max(kd[k - 1], 1e-30);
     rho_varies = true;
-    far_p = pts[ki[k - 1]].xyz;
+    far_p = point_at(ki[k - 1]).xyz;
     float sigma = 0.5 * rho, lambda = pc.C / sigma;
     for (uint m = 0; m < k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
 }

@@ -1,6 +1,6 @@
 // The kd-tree of src/spatial/box_tree.hpp as kernels walk it. Node i has children 2i+1 and
 // 2i+2; nodes at or past `first_leaf` are leaves holding points [begin, end) in tree order.
-// The including shader declares `Node nodes[]` and `vec4 pts[]` buffers before this file.
+// box_tree_buffers.glsl declares the buffers (or a kernel its own, with the same accessors).
 
 struct Node { vec3 lo; uint begin; vec3 hi; uint end; };
 

@@ -2,14 +2,14 @@
 // TICK_LANE(n), if the includer defines it, counts this lane's loop iterations (the renderer's
 // guard against llvmpipe's loop limit, render_march.glsl).
 // The including shader defines KNN_MAX (the array size: a constant or a specialization
-// constant) and STACK (tree depth bound), and declares `Node nodes[]` and `vec4 pts[]` (tree
-// order) before including this file.
+// constant) and STACK (tree depth bound), and includes box_tree_buffers.glsl (the nodes and the
+// points in tree order) before including this file.
 
 #ifndef TICK_LANE
 #define TICK_LANE(n)
 #endif
 
-float node_distance2(vec3 x, uint i) { return box_distance2(x, nodes[i].lo, nodes[i].hi); }
+float node_distance2(vec3 x, uint i) { return box_distance2(x, node_lo(i), node_hi(i)); }
 
 // The k ≤ KNN_MAX nearest points to x other than point `skip` (0xffffffff: none skipped),
 // nearest first: distances kd, tree-order indices ki. Ties at equal distance keep the point
@@ -25,9 +25,9 @@ void knn(vec3 x, uint k, uint skip, uint first_leaf, inout float kd[KNN_MAX], in
         TICK_LANE(1);
         if (node_distance2(x, i) > worst * worst) continue;
         if (i >= first_leaf) {
-            TICK_LANE(nodes[i].end - nodes[i].begin + 1u);
-            for (uint j = nodes[i].begin; j < nodes[i].end; ++j) {
-                float d = distance(x, pts[j].xyz);
+            TICK_LANE(node_end(i) - node_begin(i) + 1u);
+            for (uint j = node_begin(i); j < node_end(i); ++j) {
+                float d = distance(x, point_at(j).xyz);
                 if (d >= kd[k - 1] || j == skip) continue;
                 int m = int(k) - 1;
                 TICK_LANE(1);

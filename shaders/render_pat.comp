@@ -14,9 +14,12 @@ layout(constant_id = 1) const int KIND = 0;  // 0 PAT, 1 SSPD, 2 SHC
 layout(constant_id = 2) const int SHARED_KNN = 0;  // 1: the k-nearest fallback walked per subgroup (blend_field.glsl)
 layout(constant_id = 3) const uint LOOP_CAP = 0u;  // software devices: render_march.glsl's guard; 0: none
 
-layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };
-layout(std430, binding = 1) readonly buffer Terms { vec4 terms[]; };
-layout(std430, binding = 2) readonly buffer Nodes { Node nodes[]; };
+// As blend_eval.comp's: storage buffers, or texel buffers in render_pat_software, built with
+// GSD_SOFTWARE_SHAPED (box_tree_buffers.glsl).
+#define POINTS_BINDING 0
+#define TERMS_BINDING 1
+#define NODES_BINDING 2
+#include "box_tree_buffers.glsl"
 
 layout(push_constant) uniform Push {
     uint first_pixel;  // blend_eval's query_count: here the chunk's first pixel

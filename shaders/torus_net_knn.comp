@@ -12,8 +12,10 @@ layout(constant_id = 1) const int K = 32;  // tokens per point (≥ 2)
 
 const int STACK = 48;  // kd-tree depth bound
 
-layout(std430, binding = 0) readonly buffer Points { vec4 pts[]; };  // tree order (xyz: float32 position)
-layout(std430, binding = 1) readonly buffer Nodes { Node nodes[]; };
+// Points in tree order (xyz: float32 position) and the kd-tree's nodes (box_tree_buffers.glsl).
+#define POINTS_BINDING 0
+#define NODES_BINDING 1
+#include "box_tree_buffers.glsl"
 layout(std430, binding = 2) readonly buffer Centers { uint centers[]; };  // the chunk's points (tree order)
 layout(std430, binding = 3) writeonly buffer Tokens { uint tokens[]; };   // [count][K]
 
@@ -31,7 +33,7 @@ void main() {
     uint c = centers[i];
     float kd[K];
     uint ki[K];
-    knn(pts[c].xyz, uint(K - 1), c, pc.first_leaf, kd, ki);
+    knn(point_at(c).xyz, uint(K - 1), c, pc.first_leaf, kd, ki);
     uint base = i * uint(K);
     tokens[base] = c;
     for (int m = 0; m < K - 1; ++m) tokens[base + uint(m) + 1] = ki[m];

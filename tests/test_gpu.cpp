@@ -187,12 +187,17 @@ TEST_CASE("PAT's k-nearest fallback walked per subgroup (the hardware GPUs' path
         for (int a = 0; a < 3; ++a) spread(i, a) = u(rng);
     const FieldValues cpu = TorusField(f, on("cpu", false)).evaluate(q, true);
     const FieldValues cpu_spread = TorusField(f, on("cpu", false)).evaluate(spread, true);
-    for (const char* shared : {"0", "1"}) {
+    // And blend_eval as GPUs run it (storage buffers, the ball walked together) beside the
+    // kernel shaped for software devices (texel buffers, each lane's ball walk listing leaves).
+    for (const auto& [shared, shaped] : {std::pair{"0", "1"}, std::pair{"1", "1"}, std::pair{"0", "0"}}) {
         CAPTURE(shared);
+        CAPTURE(shaped);
         ::setenv("GSD_SHARED_KNN", shared, 1);
+        ::setenv("GSD_SOFTWARE_SHAPED", shaped, 1);
         const TorusField field(f, on("gpu", false));
         const FieldValues gpu = field.evaluate(q, true), gpu_spread = field.evaluate(spread, true);
         ::unsetenv("GSD_SHARED_KNN");
+        ::unsetenv("GSD_SOFTWARE_SHAPED");
         CHECK(compare(gpu.phi, cpu.phi, 1e-4).max_abs < 1e-4);
         CHECK(compare(gpu.gradient, cpu.gradient, 1e-3).max_abs < 1e-3);
         CHECK(compare(gpu_spread.phi, cpu_spread.phi, 1e-4).max_abs < 1e-4);

@@ -308,6 +308,15 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         device_matches_cpu("PAT, 4 rays a lane", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
         unsetenv("GSD_RENDER_RAYS_PER_LANE");
     }
+    SUBCASE("PAT, the kernel as GPUs run it (storage buffers, the ball walked together)") {
+        setenv("GSD_SOFTWARE_SHAPED", "0", 1);
+        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        FieldRenderOptions o = small("cpu");
+        o.view_from = {0.2, 1.0, 0.7};
+        device_matches_cpu("PAT, GPUs' kernel", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
+        unsetenv("GSD_SOFTWARE_SHAPED");
+    }
     SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
         const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});

@@ -54,6 +54,13 @@ struct BlendPush {  // `Push` in blend_eval.comp
     float r_eval, C, dmin;
 };
 
+/// blend_eval for these specialization constants: on software devices its variant that reads
+/// the tree's points, terms and nodes (bindings 0–2) as texel buffers (gpu::software_shaped).
+const gpu::Kernel& blend_kernel(gpu::Context& c, std::initializer_list<std::int32_t> constants) {
+    const bool shaped = gpu::software_shaped(c) && c.info().subgroup_arithmetic;
+    return c.kernel(shaped ? "blend_eval_software" : "blend_eval", 5, sizeof(BlendPush), constants, 0, shaped ? 0b111u : 0u);
+}
+
 std::vector<float> jet_records(const Points& points, const Points& normals, const Points& tangents,
                                const std::vector<Jet>& jets, const std::vector<std::uint32_t>& order) {
     std::vector<float> rec(order.size() * 16);
@@ -155,8 +162,7 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
                         const ProgressFn& progress) {
     gpu::Context& c = *ctx_;
     const std::size_t out_floats = p.gradient ? 4 : 1;
-    const gpu::Kernel& k = c.kernel("blend_eval", 5, sizeof(BlendPush),
-                                    {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(c)});
+    const gpu::Kernel& k = blend_kernel(c, {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(c)});
     gpu::StreamJob job;
     job.count = q.size();
     job.in_bytes = 16;
@@ -216,7 +222,7 @@ void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, con
     gpu::Context& c = *ctx_;
     const VkDeviceSize out_bytes = p.gradient ? 16 : 4;
     const gpu::Kernel& k =
-        c.kernel("blend_eval", 5, sizeof(BlendPush), {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(c)});
+        blend_kernel(c, {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(c)});
     // Dispatches of whole multiples of 256 queries, so every later binding offset stays a
     // multiple of any storage-buffer alignment a device may ask for (at most 256 bytes).
     const std::uint64_t by_range = c.max_binding_bytes() / 16 / 256 * 256;
@@ -251,9 +257,10 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
         BlendPush blend;
         std::uint32_t pixel_count;
     };
-    const gpu::Kernel& k = ctx_->kernel("render_pat", 5, sizeof(RenderPush),
+    const bool shaped = gpu::software_shaped(*ctx_);  // the tree's buffers as texel buffers
+    const gpu::Kernel& k = ctx_->kernel(shaped ? "render_pat_software" : "render_pat", 5, sizeof(RenderPush),
                                         {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)},
-                                        gpu::loop_capped_workgroup(*ctx_));
+                                        gpu::loop_capped_workgroup(*ctx_), shaped ? 0b111u : 0u);
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
                           pixel_count};
