@@ -189,7 +189,9 @@ TEST_CASE("PAT's k-nearest fallback walked per subgroup (the hardware GPUs' path
     const FieldValues cpu_spread = TorusField(f, on("cpu", false)).evaluate(spread, true);
     // And blend_eval as GPUs run it (storage buffers, the ball walked together) beside the
     // kernel shaped for software devices (texel buffers, each lane's ball walk listing leaves).
-    for (const auto& [shared, shaped] : {std::pair{"0", "1"}, std::pair{"1", "1"}, std::pair{"0", "0"}}) {
+    for (const auto& setting : {std::pair{"0", "1"}, std::pair{"1", "1"}, std::pair{"0", "0"}}) {
+        const char* shared = setting.first;  // (not structured bindings: clang's CAPTURE cannot take them)
+        const char* shaped = setting.second;
         CAPTURE(shared);
         CAPTURE(shaped);
         ::setenv("GSD_SHARED_KNN", shared, 1);

@@ -426,9 +426,13 @@ struct Shape {
 /// storage buffer, the matrix-product tile 4 rows × 1 vec4 column; the golden and cloud cases
 /// run lavapipe's own: texel-buffer weights, 4 × 4), so that both are tested, and each pipeline
 /// compiles in half the time on a machine that has not cached it.
-void check_shapes(const PointCloud& c, std::initializer_list<Shape> shapes) {
-    ::setenv("GSD_TORUSNET_TILE", "4,1", 1);
-    ::setenv("GSD_SOFTWARE_SHAPED", "0", 1);
+/// With `gpus_kernel` false, the device's own kernel instead (on lavapipe: texel-buffer weights,
+/// 4 × 4 tiles, and a workgroup as small as llvmpipe's loop limit allows).
+void check_shapes(const PointCloud& c, std::initializer_list<Shape> shapes, bool gpus_kernel = true) {
+    if (gpus_kernel) {
+        ::setenv("GSD_TORUSNET_TILE", "4,1", 1);
+        ::setenv("GSD_SOFTWARE_SHAPED", "0", 1);
+    }
     struct Unset {
         ~Unset() {
             ::unsetenv("GSD_TORUSNET_TILE");
@@ -480,6 +484,7 @@ TEST_CASE("models of other shapes: the published one and odd sizes, a whole clou
     // k = 64, width 128, 4 blocks, 4 heads, MLP 256 (the published network's shape) does not
     // fit 32 KiB of shared memory: its activations go to device memory.
     check_shapes(c, {Shape{{64, 128, 4, 4, 256}, 97}, Shape{{24, 48, 3, 3, 96}, 13}});
+    check_shapes(c, {Shape{{64, 128, 4, 4, 256}, 97}}, false);
     // A whole cloud through the device-memory workspace (lavapipe's own tile).
     const TorusNetModel big = random_model({64, 128, 2, 4, 256}, 3);
     std::size_t ties = 0;

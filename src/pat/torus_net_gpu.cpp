@@ -194,13 +194,51 @@ DeviceCloud upload_cloud(gpu::Context& ctx, const Points& positions, const Point
     return dc;
 }
 
+/// A bound on the loop iterations one subgroup of torus_net.comp runs for a point when the
+/// workgroup has `wg` invocations, all loops together, as llvmpipe counts them against its
+/// limit of 65 535 (docs/gpu.md): each loop's passes plus its final test, the loops with a
+/// constant count of a few passes unrolled. It follows the kernel's loops one by one.
+std::uint64_t net_loop_iterations(const NetPlan& p, std::uint64_t wg) {
+    using U = std::uint64_t;
+    const U K = U(p.k), W4 = U(p.width) / 4, D = U(p.width / p.heads), D4 = D / 4, K4 = K / 4, H = U(p.heads);
+    const U F = U(p.mlp), FC = U(p.fc), TR = U(p.tile_rows), TC = U(p.tile_cols);
+    auto passes = [&](U items) { return (items + wg - 1) / wg + 1; };  // a strided loop over items
+    auto gemm = [&](U R, U rt, U I4, U N) { return passes((R / rt) * ((N / 4 + TC - 1) / TC)) * (I4 + 1); };
+    auto scores = [&](U R, U rt) { return passes((R / rt) * ((K + 7) / 8)) * (D4 + 1); };
+    auto layer_norm = [&](U R) { return passes(R) * (2 * W4 + 2) + passes(R * W4); };
+    auto softmax = [&](U R) { return passes(R) * (3 * K4 + 3); };
+    auto block = [&](bool last) {
+        const U R = last ? 1 : K, rt = last ? 1 : TR;
+        U n = 2 * layer_norm(K) + H;
+        for (U h = 0; h < H; ++h) {
+            n += last ? gemm(1, 1, W4, D) + gemm(K, TR, W4, 2 * D) : gemm(K, TR, W4, 3 * D);
+            n += scores(R, rt) + softmax(R) + gemm(R, rt, K4, D) + gemm(R, rt, D4, 4 * W4);
+        }
+        return n + (F / FC + 1) * (gemm(R, rt, W4, FC) + gemm(R, rt, FC / 4, 4 * W4));
+    };
+    const U features = 2 * passes(K) + passes(K) * (K + 1);
+    const U blocks = U(p.blocks - 1) * block(false) + block(true) + U(p.blocks);
+    return features + gemm(K, TR, 2, 4 * W4) + 2 * layer_norm(K) + blocks + W4 + 1;
+}
+
 const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
-    // Software devices read the weights as a texel buffer (binding 0; torus_net.comp).
+    // Software devices read the weights as a texel buffer (binding 0; torus_net.comp), and run
+    // a point's workgroup with as few invocations as llvmpipe's loop limit allows (at least 8:
+    // the 6 that write the coefficients): the matrix products have 32 tiles for a width of 64,
+    // so 64 invocations left half of lavapipe's lanes idle, and its barriers switch between
+    // the subgroups of a workgroup. The bound of net_loop_iterations is kept under half the
+    // limit; a model too big for that runs at 64 as before.
     const bool shaped = gpu::software_shaped(ctx);
+    std::uint32_t workgroup = 0;
+    if (ctx.info().is_software()) {
+        workgroup = std::max(8u, ctx.info().subgroup_size);
+        while (workgroup < 64 && 2 * net_loop_iterations(p, workgroup) > 65535) workgroup *= 2;
+        workgroup = std::min(workgroup, 64u);
+    }
     return ctx.kernel(shaped ? "torus_net_software" : "torus_net", 7, 4,
                       {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
                        p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
-                      0, shaped ? 0b1u : 0u);
+                      workgroup, shaped ? 0b1u : 0u);
 }
 
 // Records the network over n points whose tokens are in `tokens`.
