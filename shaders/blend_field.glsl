@@ -120,11 +120,9 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
             n_opened += near && leaf ? 1u : 0u;
             if (near && !leaf) {
                 node = 2u * node + 1u;
-            } else {  // next in depth-first order
-                uint k = node + 1u;
-                k >>= uint(findLSB(~k));
-                walking = k != 0u;
-                node = k;
+            } else {
+                node = next_in_depth_first(node);
+                walking = node != 0u;
             }
         }
         uint passes = subgroupMax(n_opened);

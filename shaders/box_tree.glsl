@@ -8,3 +8,12 @@ float box_distance2(vec3 x, vec3 lo, vec3 hi) {
     vec3 e = max(max(lo - x, x - hi), vec3(0.0));
     return dot(e, e);
 }
+
+// The node after `node` in depth-first order, skipping `node`'s subtree; 0 when the walk is
+// over. With k = node + 1 (1-based heap numbering: left children even, right children odd),
+// climb past the trailing 1 bits — the right children — and step to the right sibling; all
+// ones is the root's rightmost path.
+uint next_in_depth_first(uint node) {
+    uint k = node + 1u;
+    return k >> uint(findLSB(~k));  // the sibling k + 1, 0-based
+}

@@ -296,11 +296,9 @@ void walk_listed(vec3 x, bool live, float rmin, float R, inout vec3 X, inout uin
             n_opened += reached && !accepted && leaf ? 1u : 0u;
             if (reached && !accepted && !leaf) {
                 node = 2u * node + 1u;
-            } else {  // next in depth-first order (sums_winding.comp)
-                uint k = node + 1u;
-                k >>= uint(findLSB(~k));
-                walking = k != 0u;
-                node = k;
+            } else {
+                node = next_in_depth_first(node);
+                walking = node != 0u;
             }
         }
         uint passes = subgroupMax(n_accepted);
@@ -357,9 +355,7 @@ void main() {
     bool cut = false;
 #ifdef GSD_SOFTWARE_SHAPED
     walk_listed(x, valid, rmin, R, X, terms, wide, group_iters, cut);
-    if (valid) write_result(q, X, rmin, terms, cut, wide);
-    return;
-#endif
+#else
     uint sit_out = valid ? NONE : 0u;  // depth of the node this lane is out of (NONE: walking)
     uint node = 0u, depth = 0u;
     while (true) {
@@ -403,5 +399,6 @@ void main() {
         node = k;
         depth -= up;
     }
+#endif
     if (valid) write_result(q, X, rmin, terms, cut, wide);
 }

@@ -22,6 +22,8 @@
 // Records (uploaded by src/sums/sums_gpu.cpp) are in the CPU walk's coordinates: centered on
 // the root and scaled by its radius, so float32 keeps its precision wherever the model is.
 
+#include "box_tree.glsl"  // next_in_depth_first
+
 layout(local_size_x_id = 0) in;
 
 // Per node, first a vec4: the acceptance test (c, reach²) — reach² = sums::winding_reach2 for
@@ -198,13 +200,8 @@ void main() {
             if (!accepted && !leaf) {
                 node = 2u * node + 1u;
             } else {
-                // Next in depth-first order. With k = node + 1 (1-based heap numbering: left
-                // children even, right children odd), climb past the trailing 1 bits — the
-                // right children — and step to the right sibling; all ones: the walk is over.
-                uint k = node + 1u;
-                k >>= uint(findLSB(~k));
-                walking = k != 0u;
-                node = k;  // the sibling k + 1, 0-based
+                node = next_in_depth_first(node);
+                walking = node != 0u;
             }
         }
         // The accepted nodes' expansions.

@@ -290,32 +290,25 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
     REQUIRE(sel.context);  // lavapipe in CI
     const std::uint64_t errors_before = gpu::validation_error_count();
 
-    SUBCASE("PAT of a torus") {
+    // A PAT torus on the device beside the CPU, with the environment variable `var` set to
+    // `value` for the device's run (nullptr: none).
+    auto torus_pat = [&](const char* label, const char* var, const char* value) {
+        if (var) setenv(var, value, 1);
         const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});
         FieldRenderOptions o = small("cpu");
         o.view_from = {0.2, 1.0, 0.7};
-        device_matches_cpu("PAT", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
-    }
+        device_matches_cpu(label, o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
+        if (var) unsetenv(var);
+    };
+    SUBCASE("PAT of a torus") { torus_pat("PAT", nullptr, nullptr); }
     SUBCASE("PAT, four rays a lane: the compaction hardware GPUs run") {
         // A lane whose ray ends takes its tile's next one (render_march.glsl); lavapipe runs one
         // ray a lane unless told otherwise.
-        setenv("GSD_RENDER_RAYS_PER_LANE", "4", 1);
-        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
-        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
-        FieldRenderOptions o = small("cpu");
-        o.view_from = {0.2, 1.0, 0.7};
-        device_matches_cpu("PAT, 4 rays a lane", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
-        unsetenv("GSD_RENDER_RAYS_PER_LANE");
+        torus_pat("PAT, 4 rays a lane", "GSD_RENDER_RAYS_PER_LANE", "4");
     }
     SUBCASE("PAT, the kernel as GPUs run it (storage buffers, the ball walked together)") {
-        setenv("GSD_SOFTWARE_SHAPED", "0", 1);
-        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
-        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
-        FieldRenderOptions o = small("cpu");
-        o.view_from = {0.2, 1.0, 0.7};
-        device_matches_cpu("PAT, GPUs' kernel", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
-        unsetenv("GSD_SOFTWARE_SHAPED");
+        torus_pat("PAT, GPUs' kernel", "GSD_SOFTWARE_SHAPED", "0");
     }
     SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
         const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");

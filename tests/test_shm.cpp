@@ -246,19 +246,22 @@ TEST_CASE("step 1 on the device matches the CPU, whatever the chunk size") {
         MESSAGE("step 1 with a loop cap of 200: max |Y_gpu − Y_cpu| = " << capped << ", " << redone << " nodes the CPU's");
         CHECK(capped < 1e-4);
         CHECK(redone > 0);
+        // Step 1 on the device with the environment variable `var` set to `value`.
+        auto directions_with = [&](const char* var, const char* value) {
+            setenv(var, value, 1);
+            std::vector<float> y = SignedHeatGrid(src, g, gpu_one).diffused_directions();
+            unsetenv(var);
+            return y;
+        };
         // Each lane walking alone, as on GPUs.
-        setenv("GSD_SHM_WALK", "alone", 1);
-        const std::vector<float> alone = SignedHeatGrid(src, g, gpu_one).diffused_directions();
-        unsetenv("GSD_SHM_WALK");
+        const std::vector<float> alone = directions_with("GSD_SHM_WALK", "alone");
         const double apart = largest_gap(a, alone);
         MESSAGE("step 1, each lane walking alone: max |Y_gpu − Y_cpu| = " << apart);
         CHECK(apart < 1e-4);
         // The kernel as GPUs run it (storage buffers, the walk taken together), beside the one
         // shaped for software devices (gpu::software_shaped: texel buffers, each lane's walk
         // listing what it sums) that ran above.
-        setenv("GSD_SOFTWARE_SHAPED", "0", 1);
-        const std::vector<float> as_gpus = SignedHeatGrid(src, g, gpu_one).diffused_directions();
-        unsetenv("GSD_SOFTWARE_SHAPED");
+        const std::vector<float> as_gpus = directions_with("GSD_SOFTWARE_SHAPED", "0");
         const double gpus = largest_gap(a, as_gpus);
         MESSAGE("step 1, the GPUs' kernel: max |Y_gpu − Y_cpu| = " << gpus);
         CHECK(gpus < 1e-4);

@@ -54,11 +54,10 @@ struct BlendPush {  // `Push` in blend_eval.comp
     float r_eval, C, dmin;
 };
 
-/// blend_eval for these specialization constants: on software devices its variant that reads
-/// the tree's points, terms and nodes (bindings 0–2) as texel buffers (gpu::software_shaped).
+/// blend_eval for these specialization constants: on software devices its build that reads the
+/// tree's points, terms and nodes (bindings 0–2) as texel buffers (gpu::shaped_kernel).
 const gpu::Kernel& blend_kernel(gpu::Context& c, std::initializer_list<std::int32_t> constants) {
-    const bool shaped = gpu::software_shaped(c) && c.info().subgroup_arithmetic;
-    return c.kernel(shaped ? "blend_eval_software" : "blend_eval", 5, sizeof(BlendPush), constants, 0, shaped ? 0b111u : 0u);
+    return gpu::shaped_kernel(c, "blend_eval", 5, sizeof(BlendPush), constants, 0, 0b111u);
 }
 
 std::vector<float> jet_records(const Points& points, const Points& normals, const Points& tangents,
@@ -257,10 +256,9 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
         BlendPush blend;
         std::uint32_t pixel_count;
     };
-    const bool shaped = gpu::software_shaped(*ctx_);  // the tree's buffers as texel buffers
-    const gpu::Kernel& k = ctx_->kernel(shaped ? "render_pat_software" : "render_pat", 5, sizeof(RenderPush),
-                                        {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)},
-                                        gpu::loop_capped_workgroup(*ctx_), shaped ? 0b111u : 0u);
+    const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, "render_pat", 5, sizeof(RenderPush),  // the tree as texel buffers
+                                              {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)},
+                                              gpu::loop_capped_workgroup(*ctx_), 0b111u);
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
                           pixel_count};

@@ -880,8 +880,16 @@ std::uint32_t software_loop_cap(const Context& ctx) {
 }
 
 bool software_shaped(const Context& ctx) {
+    if (!ctx.info().subgroup_arithmetic) return false;
     if (const char* v = std::getenv("GSD_SOFTWARE_SHAPED"); v && (v[0] == '0' || v[0] == '1') && v[1] == 0) return v[0] == '1';
     return ctx.info().is_software();
+}
+
+const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
+                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
+                            std::uint32_t texel_bindings) {
+    if (software_shaped(ctx)) return ctx.kernel(shader + "_software", bindings, push_bytes, constants, workgroup, texel_bindings);
+    return ctx.kernel(shader, bindings, push_bytes, constants, workgroup);
 }
 
 std::uint32_t loop_capped_workgroup(const Context& ctx) {

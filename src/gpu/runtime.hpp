@@ -226,8 +226,15 @@ std::uint32_t software_loop_cap(const Context& ctx);
 /// vector gather), list their work on every lane unmasked and sum it in loops of their own.
 /// Software devices use them; GPUs keep the kernels written for GPUs. A shader built both ways
 /// (GSD_SOFTWARE_SHAPED, cmake/EmbedShaders.cmake) is NAME and NAME_software.
-/// $GSD_SOFTWARE_SHAPED=0|1 overrides (tests run both against the CPU).
+/// $GSD_SOFTWARE_SHAPED=0|1 overrides (tests run both against the CPU). The software builds use
+/// subgroup arithmetic: a device without it keeps the GPUs' kernels.
 bool software_shaped(const Context& ctx);
+/// The kernel of a shader built both ways: NAME_software with `texel_bindings` read as texel
+/// buffers where software_shaped(ctx), else NAME with storage buffers only (Context::kernel's
+/// other arguments as there).
+const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
+                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
+                            std::uint32_t texel_bindings);
 /// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
 /// default) elsewhere.
 std::uint32_t loop_capped_workgroup(const Context& ctx);

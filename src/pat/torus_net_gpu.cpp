@@ -228,17 +228,16 @@ const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
     // so 64 invocations left half of lavapipe's lanes idle, and its barriers switch between
     // the subgroups of a workgroup. The bound of net_loop_iterations is kept under half the
     // limit; a model too big for that runs at 64 as before.
-    const bool shaped = gpu::software_shaped(ctx);
     std::uint32_t workgroup = 0;
     if (ctx.info().is_software()) {
         workgroup = std::max(8u, ctx.info().subgroup_size);
         while (workgroup < 64 && 2 * net_loop_iterations(p, workgroup) > 65535) workgroup *= 2;
         workgroup = std::min(workgroup, 64u);
     }
-    return ctx.kernel(shaped ? "torus_net_software" : "torus_net", 7, 4,
-                      {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
-                       p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
-                      workgroup, shaped ? 0b1u : 0u);
+    return gpu::shaped_kernel(ctx, "torus_net", 7, 4,
+                              {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
+                               p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
+                              workgroup, 0b1u);
 }
 
 // Records the network over n points whose tokens are in `tokens`.
