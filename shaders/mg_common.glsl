@@ -1,25 +1,20 @@
-// Shared by the multigrid kernels (mirrors src/shm/multigrid.hpp and grid_poisson.cpp).
-// A level is a grid of cells nx × ny × nz, C order. Its per-axis tables hold each cell's size
-// in finest cells, its prolongation sources on the coarser level (c0, c1, w0, w1) and its
-// restriction gather range on the finer level [g_begin, g_end) into `gathers`.
-
-struct AxisEntry {
-    float size;
-    int c0;
-    int c1;
-    float w0;
-    float w1;
-    int g_begin;
-    int g_end;
-    float center;
-};
-
-struct Gather { int index; float weight; };
+// Shared by the multigrid kernels (mirrors src/shm/multigrid.hpp and poisson_gpu.cpp).
+// A level is a grid of cells nx × ny × nz, C order. Binding 0 holds the axis tables of every
+// level: four vec4s per cell of each axis (`AxisCell` in poisson_gpu.cpp):
+//   [0] the cell's size in finest cells, its coupling factors toward the previous and the next
+//       cell (1/(Δ² · the distance between their centers); 0 where there is none), unused
+//   [1] prolongation from the coarser level: source cells c0, c1 (as floats) and weights w0, w1
+//   [2] restriction from the finer level: the 4 cells gathered (as floats; spare slots weigh 0)
+//   [3] their weights
+// The build shaped for software devices (GSD_SOFTWARE_SHAPED, gpu::software_shaped) reads the
+// tables and the grids through texel buffers: llvmpipe reads a storage buffer one lane and one
+// scalar at a time, behind a branch each, and a texel buffer as one gather of all its lanes.
+// The kernels have no branch around their loads (llvmpipe runs both sides of every branch).
 
 layout(push_constant) uniform Push {
     uvec3 dims;      // this level
     uint color;      // red-black color for the smoother
-    uvec3 axes_off;  // where this level's x, y, z tables start in `axes`
+    uvec3 axes_off;  // where this level's x, y, z tables start, in cells
     uint pad0;
     uvec3 odims;     // the other level (coarser for prolongation, finer for restriction)
     uint pad1;
@@ -29,8 +24,28 @@ layout(push_constant) uniform Push {
     uint pad3;
 } pc;
 
-// Needs `layout(local_size_x_id = 0) in;` before this file is included.
-uint linear_id() { return gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x; }
+#ifndef MG_NO_AXIS_TABLE
+#ifdef GSD_SOFTWARE_SHAPED
+layout(binding = 0) uniform samplerBuffer axis_table;
+vec4 axis_cell(uint a, uint c, uint part) { return texelFetch(axis_table, int(4u * (pc.axes_off[a] + c) + part)); }
+#else
+layout(std430, binding = 0) readonly buffer Axes { vec4 axis_table[]; };
+vec4 axis_cell(uint a, uint c, uint part) { return axis_table[4u * (pc.axes_off[a] + c) + part]; }
+#endif
+#endif
 
-uvec3 cell_of(uint p, uvec3 d) { return uvec3(p / (d.y * d.z), (p / d.z) % d.y, p % d.z); }
 uint index_of(uvec3 c, uvec3 d) { return (c.x * d.y + c.y) * d.z + c.z; }
+
+// The kernels take rows of cells along z: a workgroup's x lanes walk along a row and its y
+// lanes take consecutive rows j of one slab i (gl_WorkGroupID.z), so that no division finds a
+// cell. GPUs run a row per workgroup; llvmpipe several (MG_ROWS), as it pays an allocation for
+// every workgroup. `inside` is false on lanes past the grid's end; they work on its last row or
+// cell and store nothing.
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+
+uvec3 row_cell(out bool inside) {
+    uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, gl_GlobalInvocationID.x);
+    inside = c.z < pc.dims.z && c.y < pc.dims.y;
+    c.yz = min(c.yz, pc.dims.yz - 1u);
+    return c;
+}

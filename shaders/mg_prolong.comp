@@ -1,26 +1,36 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// e_fine += P e_coarse (cell-centered linear interpolation, tensor product). This level is the
-// fine one; the other level (odims) is the coarse one. A workgroup takes a row of cells along
-// z, as mg_smooth.
-// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
-layout(local_size_x_id = 0) in;
+// Prolongation: e_fine += P e_coarse, trilinear from the coarse cells' centers (each axis's
+// sources c0, c1 and weights w0, w1). Rows of fine cells along z (mg_common.glsl); pc.dims is the fine level, pc.odims the coarse. The fine e is bound twice,
+// read and written (each cell its own).
 #include "mg_common.glsl"
-layout(std430, binding = 0) readonly buffer Axes { AxisEntry axes[]; };
+#ifdef GSD_SOFTWARE_SHAPED
+layout(binding = 1) uniform samplerBuffer ec_texels;
+layout(binding = 2) uniform samplerBuffer ef_texels;
+float ec_at(uint q) { return texelFetch(ec_texels, int(q)).x; }
+float ef_at(uint q) { return texelFetch(ef_texels, int(q)).x; }
+#else
 layout(std430, binding = 1) readonly buffer EC { float ec[]; };
-layout(std430, binding = 2) buffer EF { float ef[]; };
+layout(std430, binding = 2) readonly buffer EF { float ef[]; };
+float ec_at(uint q) { return ec[q]; }
+float ef_at(uint q) { return ef[q]; }
+#endif
+layout(std430, binding = 3) writeonly buffer EFOut { float ef_out[]; };
+
+// The two z sources of the coarse row (ci, cj).
+float along_z(uint ci, uint cj, uvec2 ck, vec2 wk) {
+    uint row = (ci * pc.odims.y + cj) * pc.odims.z;
+    return wk.x * ec_at(row + ck.x) + wk.y * ec_at(row + ck.y);
+}
 
 void main() {
-    uvec3 d = pc.dims;
-    uvec3 c = uvec3(gl_WorkGroupID.z, gl_WorkGroupID.y, gl_GlobalInvocationID.x);  // a row per workgroup (mg_smooth)
-    if (c.z >= d.z) return;
-    uint p = index_of(c, d);
-    AxisEntry ax = axes[pc.axes_off.x + c.x], ay = axes[pc.axes_off.y + c.y], az = axes[pc.axes_off.z + c.z];
-    int ci[2] = int[2](ax.c0, ax.c1), cj[2] = int[2](ay.c0, ay.c1), ck[2] = int[2](az.c0, az.c1);
-    float wi[2] = float[2](ax.w0, ax.w1), wj[2] = float[2](ay.w0, ay.w1), wk[2] = float[2](az.w0, az.w1);
-    float s = 0.0;
-    for (int a = 0; a < 2; ++a)
-        for (int b = 0; b < 2; ++b)
-            for (int g = 0; g < 2; ++g) s += wi[a] * wj[b] * wk[g] * ec[index_of(uvec3(ci[a], cj[b], ck[g]), pc.odims)];
-    ef[p] += s;
+    bool inside;
+    uvec3 c = row_cell(inside);
+    uint p = index_of(c, pc.dims);
+    vec4 x = axis_cell(0u, c.x, 1u), y = axis_cell(1u, c.y, 1u), z = axis_cell(2u, c.z, 1u);  // (c0, c1, w0, w1)
+    uvec2 ci = uvec2(x.xy), cj = uvec2(y.xy), ck = uvec2(z.xy);
+    float s = x.z * (y.z * along_z(ci.x, cj.x, ck, z.zw) + y.w * along_z(ci.x, cj.y, ck, z.zw)) +
+              x.w * (y.z * along_z(ci.y, cj.x, ck, z.zw) + y.w * along_z(ci.y, cj.y, ck, z.zw));
+    float here = ef_at(p);
+    if (inside) ef_out[p] = here + s;
 }

@@ -1,39 +1,36 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// r_coarse = Pᵀ t_fine: each coarse cell gathers its fine cells with the transposed
-// prolongation weights (tensor product of per-axis lists). This level is the coarse one;
-// the other level (odims) is the fine one. A workgroup takes a row of cells along z, as
-// mg_smooth: the x and y lists are the same on every lane, and each lane reads its own z list
-// once (at most MAX_TAPS entries, missing ones weighing 0), not once per (x, y) pair.
-// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
-layout(local_size_x_id = 0) in;
-layout(constant_id = 1) const int MAX_TAPS = 4;  // the longest gather list of any axis and level
+// Restriction (Pᵀ): each coarse cell gathers the finer level's residual t over the product of
+// its axes' gather lists (4 slots each; spare slots weigh 0). Rows of coarse cells along z
+// (mg_common.glsl); pc.dims is the coarse level, pc.odims the finer.
 #include "mg_common.glsl"
-layout(std430, binding = 0) readonly buffer Axes { AxisEntry axes[]; };
-layout(std430, binding = 1) readonly buffer Gathers { Gather gathers[]; };
-layout(std430, binding = 2) readonly buffer T { float t[]; };
-layout(std430, binding = 3) writeonly buffer R { float rc[]; };
+#ifdef GSD_SOFTWARE_SHAPED
+layout(binding = 1) uniform samplerBuffer t_texels;
+float t_at(uint q) { return texelFetch(t_texels, int(q)).x; }
+#else
+layout(std430, binding = 1) readonly buffer T { float t[]; };
+float t_at(uint q) { return t[q]; }
+#endif
+layout(std430, binding = 2) writeonly buffer R { float rc[]; };
+
+// Σ over the z slots of the finer level's row (ix, iy).
+float gather_z(uint ix, uint iy, uvec4 iz, vec4 wz) {
+    uint row = (ix * pc.odims.y + iy) * pc.odims.z;
+    return dot(wz, vec4(t_at(row + iz.x), t_at(row + iz.y), t_at(row + iz.z), t_at(row + iz.w)));
+}
+
+// Σ over the y and z slots of the finer level's slab ix.
+float gather_yz(uint ix, uvec4 iy, vec4 wy, uvec4 iz, vec4 wz) {
+    return dot(wy, vec4(gather_z(ix, iy.x, iz, wz), gather_z(ix, iy.y, iz, wz), gather_z(ix, iy.z, iz, wz),
+                        gather_z(ix, iy.w, iz, wz)));
+}
 
 void main() {
-    uvec3 d = pc.dims;
-    uvec3 c = uvec3(gl_WorkGroupID.z, gl_WorkGroupID.y, gl_GlobalInvocationID.x);
-    if (c.z >= d.z) return;
-    uint p = index_of(c, d);
-    AxisEntry ax = axes[pc.axes_off.x + c.x], ay = axes[pc.axes_off.y + c.y], az = axes[pc.axes_off.z + c.z];
-    uint iz[MAX_TAPS];
-    float wz[MAX_TAPS];
-    for (int g = 0; g < MAX_TAPS; ++g) {
-        bool has = az.g_begin + g < az.g_end;
-        Gather e = gathers[has ? az.g_begin + g : az.g_begin];
-        iz[g] = uint(e.index);
-        wz[g] = has ? e.weight : 0.0;
-    }
-    float s = 0.0;
-    for (int a = ax.g_begin; a < ax.g_end; ++a)
-        for (int b = ay.g_begin; b < ay.g_end; ++b) {
-            float wab = gathers[a].weight * gathers[b].weight;
-            uint row = (uint(gathers[a].index) * pc.odims.y + uint(gathers[b].index)) * pc.odims.z;
-            for (int g = 0; g < MAX_TAPS; ++g) s += wab * wz[g] * t[row + iz[g]];
-        }
-    rc[p] = s;
+    bool inside;
+    uvec3 c = row_cell(inside);
+    uvec4 ix = uvec4(axis_cell(0u, c.x, 2u)), iy = uvec4(axis_cell(1u, c.y, 2u)), iz = uvec4(axis_cell(2u, c.z, 2u));
+    vec4 wx = axis_cell(0u, c.x, 3u), wy = axis_cell(1u, c.y, 3u), wz = axis_cell(2u, c.z, 3u);
+    float s = dot(wx, vec4(gather_yz(ix.x, iy, wy, iz, wz), gather_yz(ix.y, iy, wy, iz, wz),
+                           gather_yz(ix.z, iy, wy, iz, wz), gather_yz(ix.w, iy, wy, iz, wz)));
+    if (inside) rc[index_of(c, pc.dims)] = s;
 }

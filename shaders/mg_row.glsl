@@ -1,22 +1,27 @@
-// The couplings of cell (i, j, k) to its six neighbours on the level of pc.dims / pc.axes_off
-// (mg_common.glsl's coupling(), in the order −x, +x, −y, +y, −z, +z), for the kernels that take
-// a row of cells along z per workgroup (mg_smooth, mg_residual). A coupling across a face is the
-// face's area (the other two axes' sizes) over the distance between the two cells' centers,
-// times 1/Δ² of its axis. Couplings to missing neighbours are left unset; callers test bounds.
-// Requires `AxisEntry axes[]` declared by the including shader.
-struct Couplings { float w[6]; };
+// The 7-point stencil of cell c at index p of the level in pc.dims / pc.axes_off, for mg_smooth
+// and mg_residual: the couplings to its six neighbours (in the order −x, +x, −y, +y, −z, +z) and
+// their indices. A coupling is the face's area (the other two axes' sizes) times the axis's
+// factor toward that neighbour. Toward a missing neighbour it is 0 and the index is p itself,
+// so that the kernels load all six without a branch.
+struct Stencil { float w[6]; uint q[6]; };
 
-float axis_size(uint a, uint c) { return axes[pc.axes_off[a] + c].size; }
-
-Couplings couplings(uint i, uint j, uint k) {
+Stencil stencil(uvec3 c, uint p) {
     uvec3 d = pc.dims;
-    float sx = axis_size(0u, i), sy = axis_size(1u, j), sz = axis_size(2u, k);
-    Couplings c;
-    if (i > 0u) c.w[0] = sy * sz / (0.5 * (axis_size(0u, i - 1u) + sx)) * pc.inv_h2.x;
-    if (i + 1u < d.x) c.w[1] = sy * sz / (0.5 * (sx + axis_size(0u, i + 1u))) * pc.inv_h2.x;
-    if (j > 0u) c.w[2] = sz * sx / (0.5 * (axis_size(1u, j - 1u) + sy)) * pc.inv_h2.y;
-    if (j + 1u < d.y) c.w[3] = sz * sx / (0.5 * (sy + axis_size(1u, j + 1u))) * pc.inv_h2.y;
-    if (k > 0u) c.w[4] = sx * sy / (0.5 * (axis_size(2u, k - 1u) + sz)) * pc.inv_h2.z;
-    if (k + 1u < d.z) c.w[5] = sx * sy / (0.5 * (sz + axis_size(2u, k + 1u))) * pc.inv_h2.z;
-    return c;
+    vec4 x = axis_cell(0u, c.x, 0u), y = axis_cell(1u, c.y, 0u), z = axis_cell(2u, c.z, 0u);
+    float yz = y.x * z.x, zx = z.x * x.x, xy = x.x * y.x;
+    Stencil s;
+    s.w[0] = yz * x.y;
+    s.w[1] = yz * x.z;
+    s.w[2] = zx * y.y;
+    s.w[3] = zx * y.z;
+    s.w[4] = xy * z.y;
+    s.w[5] = xy * z.z;
+    uint slab = d.y * d.z;
+    s.q[0] = c.x > 0u ? p - slab : p;
+    s.q[1] = c.x + 1u < d.x ? p + slab : p;
+    s.q[2] = c.y > 0u ? p - d.z : p;
+    s.q[3] = c.y + 1u < d.y ? p + d.z : p;
+    s.q[4] = c.z > 0u ? p - 1u : p;
+    s.q[5] = c.z + 1u < d.z ? p + 1u : p;
+    return s;
 }

@@ -1,32 +1,36 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// One red-black Gauss–Seidel sweep of one color: e_p = (r_p + Σ c e_q) / Σ c.
-// A workgroup takes a row of cells along z (gl_WorkGroupID.z = i, .y = j) and its lanes the
-// row's cells of this color (k = 2·x + parity): no division finds a cell, no lane idles on the
-// other color, and the row's x and y factors of the couplings are the same on every lane (read
-// once there, where llvmpipe reads an address that differs across lanes one lane at a time).
-// The workgroup size must be declared before mg_common.glsl uses gl_WorkGroupSize.
-layout(local_size_x_id = 0) in;
+// One red-black Gauss–Seidel sweep of one color: e_p = (r_p + Σ c e_q) / Σ c. Rows of cells
+// along z as mg_common.glsl's row_cell, but a row's lanes take its cells of this color only
+// (k = 2·x + parity), so that no lane idles on the other color. e is bound twice: read (the other color's cells)
+// and written (this color's); no cell is both in one sweep.
 #include "mg_common.glsl"
-layout(std430, binding = 0) readonly buffer Axes { AxisEntry axes[]; };
+#ifdef GSD_SOFTWARE_SHAPED
+layout(binding = 1) uniform samplerBuffer r_texels;
+layout(binding = 2) uniform samplerBuffer e_texels;
+float r_at(uint q) { return texelFetch(r_texels, int(q)).x; }
+float e_at(uint q) { return texelFetch(e_texels, int(q)).x; }
+#else
 layout(std430, binding = 1) readonly buffer R { float r[]; };
-layout(std430, binding = 2) buffer E { float e[]; };
+layout(std430, binding = 2) readonly buffer E { float e[]; };
+float r_at(uint q) { return r[q]; }
+float e_at(uint q) { return e[q]; }
+#endif
+layout(std430, binding = 3) writeonly buffer EOut { float e_out[]; };
 #include "mg_row.glsl"
 
 void main() {
     uvec3 d = pc.dims;
-    uint i = gl_WorkGroupID.z, j = gl_WorkGroupID.y;
-    uint k = 2u * gl_GlobalInvocationID.x + ((i + j + pc.color) & 1u);
-    if (k >= d.z) return;
-    uint p = (i * d.y + j) * d.z + k;
-    Couplings c = couplings(i, j, k);
-    uint slab = d.y * d.z;
-    float s = r[p], diag = 0.0;
-    if (i > 0u) { s += c.w[0] * e[p - slab]; diag += c.w[0]; }
-    if (i + 1u < d.x) { s += c.w[1] * e[p + slab]; diag += c.w[1]; }
-    if (j > 0u) { s += c.w[2] * e[p - d.z]; diag += c.w[2]; }
-    if (j + 1u < d.y) { s += c.w[3] * e[p + d.z]; diag += c.w[3]; }
-    if (k > 0u) { s += c.w[4] * e[p - 1u]; diag += c.w[4]; }
-    if (k + 1u < d.z) { s += c.w[5] * e[p + 1u]; diag += c.w[5]; }
-    if (diag > 0.0) e[p] = s / diag;
+    uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, 2u * gl_GlobalInvocationID.x);
+    c.z += (c.x + c.y + pc.color) & 1u;
+    bool inside = c.z < d.z && c.y < d.y;
+    c.yz = min(c.yz, d.yz - 1u);  // past the grid: a real cell, nothing stored
+    uint p = index_of(c, d);
+    Stencil s = stencil(c, p);
+    float sum = r_at(p), diag = 0.0;
+    for (int n = 0; n < 6; ++n) {
+        sum += s.w[n] * e_at(s.q[n]);
+        diag += s.w[n];
+    }
+    if (inside && diag > 0.0) e_out[p] = sum / diag;
 }

@@ -39,6 +39,17 @@ class BaselineField;
 namespace gpu {
 
 struct Kernel;
+
+/// The bindings of a kernel that it reads as uniform texel buffers (software_shaped kernels),
+/// by what one texel of the view is. A plain mask means vec4s.
+struct TexelBindings {
+    TexelBindings(std::uint32_t vec4_mask = 0) : vec4(vec4_mask) {}  // NOLINT: a mask is the common case
+    std::uint32_t vec4 = 0;     ///< a vec4 of float32 (R32G32B32A32_SFLOAT): trees, tables
+    std::uint32_t float1 = 0;   ///< one float32 (R32_SFLOAT): a grid's values
+    std::uint32_t double1 = 0;  ///< one float64, fetched as a uvec2 (R32G32_UINT) for packDouble2x32
+    std::uint32_t all() const { return vec4 | float1 | double1; }
+};
+
 struct DeviceFunctions;
 struct InstanceFunctions;
 enum class Memory;
@@ -95,10 +106,10 @@ public:
     VkDeviceSize device_memory_bytes() const;
     /// The kernel for a shader and its specialization constants (1..n), built once and cached.
     /// `workgroup`: its workgroup size (constant 0); 0 takes workgroup_size(). `texel_bindings`:
-    /// bit i set when binding i is a uniform texel buffer (runtime.hpp, Kernel).
+    /// the bindings that are uniform texel buffers, and what a texel of each is.
     const Kernel& kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                          std::initializer_list<std::int32_t> constants = {}, std::uint32_t workgroup = 0,
-                         std::uint32_t texel_bindings = 0);
+                         TexelBindings texel_bindings = {});
     std::uint32_t memory_type(std::uint32_t type_bits, Memory memory) const;
     /// Held around every vkQueueSubmit gsd makes (Vulkan requires queue access to be serialized).
     std::mutex& queue_mutex();

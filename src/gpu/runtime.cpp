@@ -517,10 +517,11 @@ std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
 
 const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                               std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                              std::uint32_t texel_bindings) {
+                              TexelBindings texel_bindings) {
     State& st = *s_;
     if (workgroup == 0) workgroup = st.workgroup;
-    std::string key = shader + "@" + std::to_string(workgroup) + "/" + std::to_string(texel_bindings);
+    std::string key = shader + "@" + std::to_string(workgroup) + "/" + std::to_string(texel_bindings.vec4) + "." +
+                      std::to_string(texel_bindings.float1) + "." + std::to_string(texel_bindings.double1);
     for (auto c : constants) key.append(",").append(std::to_string(c));
     std::lock_guard<std::mutex> lock(st.kernels_mutex);
     if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
@@ -545,7 +546,7 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     k->texel_bindings = texel_bindings;
     std::vector<VkDescriptorSetLayoutBinding> b(bindings);
     for (std::uint32_t i = 0; i < bindings; ++i)
-        b[i] = {i, (texel_bindings >> i) & 1u ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
+        b[i] = {i, (texel_bindings.all() >> i) & 1u ? VK_DESCRIPTOR_TYPE_UNIFORM_TEXEL_BUFFER : VK_DESCRIPTOR_TYPE_STORAGE_BUFFER, 1,
                 VK_SHADER_STAGE_COMPUTE_BIT, nullptr};
     VkDescriptorSetLayoutCreateInfo dl{VK_STRUCTURE_TYPE_DESCRIPTOR_SET_LAYOUT_CREATE_INFO};
     dl.flags = VK_DESCRIPTOR_SET_LAYOUT_CREATE_PUSH_DESCRIPTOR_BIT_KHR;
@@ -736,7 +737,7 @@ void Recorder::bind(const Kernel& k, std::initializer_list<Binding> bindings, co
     std::vector<VkBufferView> views(bindings.size(), VK_NULL_HANDLE);
     infos.reserve(bindings.size());
     for (const Binding& b : bindings) {
-        if ((k.texel_bindings >> infos.size()) & 1u) views[infos.size()] = texel_view(k, b);
+        if ((k.texel_bindings.all() >> infos.size()) & 1u) views[infos.size()] = texel_view(k, b, std::uint32_t(infos.size()));
         infos.push_back({b.buffer, b.offset, b.range});
     }
     std::vector<VkWriteDescriptorSet> writes(infos.size());
@@ -756,17 +757,22 @@ void Recorder::bind(const Kernel& k, std::initializer_list<Binding> bindings, co
     if (push_bytes) ctx_.vk().vkCmdPushConstants(cmd_, k.layout, VK_SHADER_STAGE_COMPUTE_BIT, 0, push_bytes, push);
 }
 
-VkBufferView Recorder::texel_view(const Kernel& k, const Binding& b) {
+VkBufferView Recorder::texel_view(const Kernel& k, const Binding& b, std::uint32_t binding) {
     const VkPhysicalDeviceLimits& lim = ctx_.limits();
+    const TexelBindings& t = k.texel_bindings;
+    VkFormat format = VK_FORMAT_R32G32B32A32_SFLOAT;
+    VkDeviceSize texel = 16;
+    if ((t.float1 >> binding) & 1u) format = VK_FORMAT_R32_SFLOAT, texel = 4;
+    if ((t.double1 >> binding) & 1u) format = VK_FORMAT_R32G32_UINT, texel = 8;
     if (b.size == 0) throw Error("gpu", "kernel " + k.name + ": a texel binding needs a buffer gsd owns");
-    const VkDeviceSize bytes = b.range == VK_WHOLE_SIZE ? (b.size - b.offset) / 16 * 16 : b.range;
-    if (b.offset % std::max<VkDeviceSize>(lim.minTexelBufferOffsetAlignment, 1) != 0 || bytes % 16 != 0 ||
-        bytes / 16 > lim.maxTexelBufferElements)
+    const VkDeviceSize bytes = b.range == VK_WHOLE_SIZE ? (b.size - b.offset) / texel * texel : b.range;
+    if (b.offset % std::max<VkDeviceSize>(lim.minTexelBufferOffsetAlignment, 1) != 0 || bytes % texel != 0 ||
+        bytes / texel > lim.maxTexelBufferElements)
         throw Error("gpu", "kernel " + k.name + ": a texel binding of " + std::to_string(bytes) + " bytes at " +
                                std::to_string(b.offset) + " is more than or not aligned as the device allows");
     VkBufferViewCreateInfo vi{VK_STRUCTURE_TYPE_BUFFER_VIEW_CREATE_INFO};
     vi.buffer = b.buffer;
-    vi.format = VK_FORMAT_R32G32B32A32_SFLOAT;
+    vi.format = format;
     vi.offset = b.offset;
     vi.range = bytes;
     VkBufferView view = VK_NULL_HANDLE;
@@ -887,7 +893,7 @@ bool software_shaped(const Context& ctx) {
 
 const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                             std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                            std::uint32_t texel_bindings) {
+                            TexelBindings texel_bindings) {
     if (software_shaped(ctx)) return ctx.kernel(shader + "_software", bindings, push_bytes, constants, workgroup, texel_bindings);
     return ctx.kernel(shader, bindings, push_bytes, constants, workgroup);
 }

@@ -56,9 +56,8 @@ private:
 struct Kernel {
     std::string name;
     std::uint32_t bindings = 0;      ///< buffers at set 0, bindings 0..n−1
-    /// Bit i set: binding i is a uniform texel buffer of vec4 floats (software_shaped kernels),
-    /// not a storage buffer.
-    std::uint32_t texel_bindings = 0;
+    /// The bindings that are uniform texel buffers, not storage buffers.
+    TexelBindings texel_bindings;
     std::uint32_t push_bytes = 0;
     std::uint32_t workgroup = 0;
     VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
@@ -209,7 +208,7 @@ private:
     /// Texel views of the bindings recorded since begin(): alive until the submission is done.
     std::vector<VkBufferView> views_;
     void release_views();
-    VkBufferView texel_view(const Kernel& k, const Binding& b);
+    VkBufferView texel_view(const Kernel& k, const Binding& b, std::uint32_t binding);
 };
 
 /// llvmpipe (lavapipe) ends every loop of a shader, silently, once the SIMD group running it has
@@ -234,7 +233,7 @@ bool software_shaped(const Context& ctx);
 /// other arguments as there).
 const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                             std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                            std::uint32_t texel_bindings);
+                            TexelBindings texel_bindings);
 /// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
 /// default) elsewhere.
 std::uint32_t loop_capped_workgroup(const Context& ctx);

@@ -18,19 +18,39 @@ namespace gsd::shm_detail {
 
 namespace {
 
-struct AxisEntry {  // `AxisEntry` in shaders/mg_common.glsl
-    float size;
-    std::int32_t c0, c1;
-    float w0, w1;
-    std::int32_t g_begin, g_end;
-    float center;
+// One cell of one axis of a level: four vec4s (`AxisCell` in shaders/mg_common.glsl). Integers
+// are stored as floats (exact below 2²⁴), so that one table is one vec4 texel buffer.
+struct AxisCell {
+    float size, link_prev, link_next, unused;  // couplings toward the previous / next cell (0: none)
+    float c0, c1, w0, w1;                      // prolongation from the coarser level
+    float g[4], gw[4];                         // restriction: finer cells gathered, their weights
 };
-static_assert(sizeof(AxisEntry) == 32);
+static_assert(sizeof(AxisCell) == 64);
 
-struct GatherEntry {
-    std::int32_t index;
-    float weight;
-};
+// Restriction gathers at most 4 finer cells per axis: coarse cell I's sources are finer cells
+// whose interpolation pair includes I, and pairs merge, so they lie in 2I−1 … 2I+2.
+constexpr int kMaxTaps = 4;
+
+// Invocations per workgroup of the stencil kernels on a software device (RowShape).
+constexpr std::uint32_t kSoftwareInvocations = 512;
+
+AxisCell axis_cell(const AxisLevel& ax, int i) {
+    const auto u = std::size_t(i);
+    AxisCell e{};
+    e.size = float(ax.size[u]);
+    e.link_prev = i > 0 ? float(ax.link[u - 1]) : 0.0f;
+    e.link_next = i + 1 < ax.n ? float(ax.link[u]) : 0.0f;
+    if (!ax.c0.empty()) e.c0 = float(ax.c0[u]), e.c1 = float(ax.c1[u]), e.w0 = float(ax.w0[u]), e.w1 = float(ax.w1[u]);
+    if (!ax.offsets.empty()) {
+        const int first = ax.offsets[u], taps = ax.offsets[u + 1] - first;
+        for (int t = 0; t < kMaxTaps; ++t) {  // unused slots gather the first source with weight 0
+            const auto g = std::size_t(first + (t < taps ? t : 0));
+            e.g[t] = float(ax.gather_index[g]);
+            e.gw[t] = t < taps ? float(ax.gather_weight[g]) : 0.0f;
+        }
+    }
+    return e;
+}
 
 struct MgPush {  // `Push` in shaders/mg_common.glsl
     std::uint32_t dims[3], color;
@@ -44,45 +64,20 @@ static_assert(sizeof(MgPush) == 80);
 
 class VulkanMultigrid final : public GpuMultigrid {
 public:
-    VulkanMultigrid(std::shared_ptr<gpu::Context> ctx, const Hierarchy& h) : ctx_(std::move(ctx)), H_(h) {
+    VulkanMultigrid(std::shared_ptr<gpu::Context> ctx, const Hierarchy& h, bool software)
+        : ctx_(std::move(ctx)), H_(h), software_(software) {
         gpu::Context& c = *ctx_;
-        // Axis tables of every level, and the restriction gathers.
-        std::vector<AxisEntry> axes;
-        std::vector<GatherEntry> gathers;
-        for (std::size_t l = 0; l < H_.levels.size(); ++l) {
+        // The axis tables of every level, one after the other.
+        std::vector<AxisCell> axes;
+        for (const Level& lv : H_.levels) {
             std::array<std::uint32_t, 3> off{};
             for (std::size_t a = 0; a < 3; ++a) {
-                const AxisLevel& ax = H_.levels[l].axis[a];
                 off[a] = std::uint32_t(axes.size());
-                for (int i = 0; i < ax.n; ++i) {
-                    AxisEntry e{};
-                    e.size = float(ax.size[std::size_t(i)]);
-                    e.center = float(ax.center[std::size_t(i)]);
-                    if (!ax.c0.empty()) {
-                        e.c0 = ax.c0[std::size_t(i)];
-                        e.c1 = ax.c1[std::size_t(i)];
-                        e.w0 = float(ax.w0[std::size_t(i)]);
-                        e.w1 = float(ax.w1[std::size_t(i)]);
-                    }
-                    if (!ax.offsets.empty()) {
-                        e.g_begin = std::int32_t(gathers.size()) + ax.offsets[std::size_t(i)];
-                        e.g_end = std::int32_t(gathers.size()) + ax.offsets[std::size_t(i) + 1];
-                    }
-                    axes.push_back(e);
-                }
-                // The entries above point into this block (their g_begin counted from here).
-                for (std::size_t g = 0; g < ax.gather_index.size(); ++g)
-                    gathers.push_back({ax.gather_index[g], float(ax.gather_weight[g])});
+                for (int i = 0; i < lv.axis[a].n; ++i) axes.push_back(axis_cell(lv.axis[a], i));
             }
             axes_off_.push_back(off);
         }
-        if (gathers.empty()) gathers.push_back({0, 0});
-        for (const Level& lv : H_.levels)
-            for (const AxisLevel& ax : lv.axis)
-                for (std::size_t i = 0; i + 1 < ax.offsets.size(); ++i)
-                    max_taps_ = std::max(max_taps_, ax.offsets[i + 1] - ax.offsets[i]);
-        axes_ = gpu::upload(c, axes.data(), axes.size() * sizeof(AxisEntry));
-        gathers_ = gpu::upload(c, gathers.data(), gathers.size() * sizeof(GatherEntry));
+        axes_ = gpu::upload(c, axes.data(), axes.size() * sizeof(AxisCell));
         std::vector<float> pinv(H_.coarse_pinv.begin(), H_.coarse_pinv.end());
         pinv_ = gpu::upload(c, pinv.data(), pinv.size() * 4);
         for (const Level& lv : H_.levels) {
@@ -95,10 +90,11 @@ public:
         const std::size_t n0 = H_.levels[0].count();
         phi_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
         b_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
-        // mg_refine's workgroups: a row of cells along z each (dispatch_rows), one partial sum each.
+        // mg_refine's workgroups (dispatch_rows), one partial sum each.
         const Level& fine = H_.levels[0];
-        const auto row_groups = std::uint32_t((fine.axis[2].n + c.workgroup_size() - 1) / c.workgroup_size());
-        groups0_ = row_groups * std::uint32_t(fine.axis[1].n) * std::uint32_t(fine.axis[0].n);
+        const auto nz = std::uint32_t(fine.axis[2].n), ny = std::uint32_t(fine.axis[1].n);
+        const RowShape shape = row_shape(nz, ny);
+        groups0_ = ((nz + shape.x - 1) / shape.x) * ((ny + shape.rows - 1) / shape.rows) * std::uint32_t(fine.axis[0].n);
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
     }
@@ -157,24 +153,67 @@ private:
         return std::uint32_t((H_.levels[l].count() + ctx_->workgroup_size() - 1) / ctx_->workgroup_size());
     }
 
-    // The stencil kernels take a row of cells along z per workgroup (x: `cells` of the row,
-    // y: j, z: i), so that they need no division to find a cell (mg_smooth.comp).
+    // The stencil kernels take rows of cells along z (x: `cells` of a row, y: rows j, z: slabs
+    // i), so that they need no division to find a cell (mg_common.glsl). GPUs run a row per
+    // workgroup. llvmpipe allocates and frees memory for every workgroup it runs, so there a
+    // workgroup takes several rows, each no wider than it needs (rounded up to the SIMD width):
+    // the coarse levels' rows are short.
+    struct RowShape {
+        std::uint32_t x, rows;
+    };
+    RowShape row_shape(std::uint32_t cells, std::uint32_t rows) const {
+        const std::uint32_t widest = ctx_->workgroup_size();
+        if (!software_) return {widest, 1};
+        const std::uint32_t simd = std::max<std::uint32_t>(ctx_->info().subgroup_size, 1);
+        std::uint32_t x = simd;
+        while (x < cells && x < widest) x *= 2;
+        x = std::min(x, widest);
+        // mg_refine keeps one partial sum per subgroup in shared memory, 256 of them.
+        const std::uint32_t most = std::min(kSoftwareInvocations, 256 * simd);
+        std::uint32_t y = 1;
+        while (y < rows && x * y * 2 <= most) y *= 2;
+        return {x, y};
+    }
+
+    // A stencil kernel for rows of `cells` on a level of `rows` rows per slab: the build shaped
+    // for software devices where software_ (its `texels` bindings read as texel buffers), else
+    // the GPUs' build.
+    const gpu::Kernel& row_kernel(const std::string& name, std::uint32_t bindings, gpu::TexelBindings texels,
+                                  std::uint32_t cells, std::uint32_t rows) {
+        const RowShape shape = row_shape(cells, rows);
+        if (software_) return ctx_->kernel(name + "_software", bindings, sizeof(MgPush), {std::int32_t(shape.rows)}, shape.x, texels);
+        return ctx_->kernel(name, bindings, sizeof(MgPush), {std::int32_t(shape.rows)}, shape.x);
+    }
+
+    // `k` (from row_kernel) over the level of `p` with rows of `cells`.
     void dispatch_rows(gpu::Recorder& rec, const gpu::Kernel& k, std::initializer_list<gpu::Binding> bindings,
                        const MgPush& p, std::uint32_t cells) {
-        rec.dispatch_grid(k, bindings, &p, sizeof(p), (cells + k.workgroup - 1) / k.workgroup, p.dims[1], p.dims[0]);
+        const std::uint32_t rows = row_shape(cells, p.dims[1]).rows;
+        rec.dispatch_grid(k, bindings, &p, sizeof(p), (cells + k.workgroup - 1) / k.workgroup, (p.dims[1] + rows - 1) / rows,
+                          p.dims[0]);
+    }
+
+    // Texel views of the kernels' bindings on a software device: the axis table as vec4s (binding
+    // 0), the grids of floats at `floats`.
+    static gpu::TexelBindings table_and_floats(std::uint32_t floats) {
+        gpu::TexelBindings t(1u);
+        t.float1 = floats;
+        return t;
     }
 
     void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color) {
-        const gpu::Kernel& k = ctx_->kernel("mg_smooth", 3, sizeof(MgPush));
         MgPush p = push_for(l, l);
         p.color = color;
-        dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}}, p, (p.dims[2] + 1) / 2);  // the row's cells of one color
+        const std::uint32_t cells = (p.dims[2] + 1) / 2;  // the row's cells of one color
+        // e twice: read (the other color) and written (this one).
+        const gpu::Kernel& k = row_kernel("mg_smooth", 4, table_and_floats(0b110u), cells, p.dims[1]);
+        dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, cells);
         rec.barrier();
     }
 
     void residual(gpu::Recorder& rec, std::size_t l) {
-        const gpu::Kernel& k = ctx_->kernel("mg_residual", 4, sizeof(MgPush));
         const MgPush p = push_for(l, l);
+        const gpu::Kernel& k = row_kernel("mg_residual", 4, table_and_floats(0b110u), p.dims[2], p.dims[1]);
         dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
         rec.barrier();
     }
@@ -193,9 +232,9 @@ private:
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 0); smooth(rec, l, 1); }
         residual(rec, l);
         {
-            const gpu::Kernel& k = ctx_->kernel("mg_restrict", 4, sizeof(MgPush), {max_taps_});
             const MgPush p = push_for(l + 1, l);
-            dispatch_rows(rec, k, {{&axes_}, {&gathers_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
+            const gpu::Kernel& k = row_kernel("mg_restrict", 3, table_and_floats(0b10u), p.dims[2], p.dims[1]);
+            dispatch_rows(rec, k, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
             rec.barrier();
         }
         record_cycle(rec, l + 1, f_cycle);
@@ -213,28 +252,32 @@ private:
             rec.barrier();
         }
         {
-            const gpu::Kernel& k = ctx_->kernel("mg_prolong", 3, sizeof(MgPush));
             const MgPush p = push_for(l, l + 1);
-            dispatch_rows(rec, k, {{&axes_}, {&e_[l + 1]}, {&e_[l]}}, p, p.dims[2]);
+            // e of level l twice: read and written (each cell its own).
+            const gpu::Kernel& k = row_kernel("mg_prolong", 4, table_and_floats(0b110u), p.dims[2], p.dims[1]);
+            dispatch_rows(rec, k, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, p.dims[2]);
             rec.barrier();
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
     }
 
-    // Residual of φ (+ e when `with_correction`) in float64, then φ += e; partial norms read back.
+    // φ += e when `with_correction` (after a cycle), then the residual b − Lφ in float64 and its
+    // partial norms, read back.
     void record_refine(gpu::Recorder& rec, bool with_correction) {
-        const std::size_t n0 = H_.levels[0].count();
-        const gpu::Kernel& k = ctx_->kernel("mg_refine", 5, sizeof(MgPush));
-        MgPush p = push_for(0, 0);
-        p.color = with_correction ? 1 : 0;
-        dispatch_rows(rec, k, {{&phi_}, {&b_}, {&e_[0]}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
-        rec.barrier();
+        const MgPush p = push_for(0, 0);
         if (with_correction) {
-            const gpu::Kernel& u = ctx_->kernel("mg_update", 2, 4);
-            const std::uint32_t m = std::uint32_t(n0);
-            rec.dispatch(u, {{&phi_}, {&e_[0]}}, &m, 4, groups(0));
+            gpu::TexelBindings update;  // φ as doubles, e as floats
+            update.double1 = 0b1u;
+            update.float1 = 0b10u;
+            const gpu::Kernel& u = row_kernel("mg_update", 3, update, p.dims[2], p.dims[1]);
+            dispatch_rows(rec, u, {{&phi_}, {&e_[0]}, {&phi_}}, p, p.dims[2]);  // φ read and written
             rec.barrier();
         }
+        gpu::TexelBindings texels;  // φ and b as doubles
+        texels.double1 = 0b11u;
+        const gpu::Kernel& k = row_kernel("mg_refine", 4, texels, p.dims[2], p.dims[1]);
+        dispatch_rows(rec, k, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
+        rec.barrier();
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
         rec.barrier();
     }
@@ -249,10 +292,10 @@ private:
     std::shared_ptr<gpu::Context> ctx_;
     const Hierarchy& H_;
     std::vector<std::array<std::uint32_t, 3>> axes_off_;
-    gpu::Buffer axes_, gathers_, pinv_, phi_, b_, partial_, partial_down_;
+    bool software_;  // the kernels shaped for software devices (gpu::software_shaped)
+    gpu::Buffer axes_, pinv_, phi_, b_, partial_, partial_down_;
     std::vector<gpu::Buffer> r_, e_, t_, save_;
     std::uint32_t groups0_ = 0;  // mg_refine's workgroups (its partial sums)
-    std::int32_t max_taps_ = 1;  // the longest restriction gather list (mg_restrict's MAX_TAPS)
 };
 
 }  // namespace
@@ -277,7 +320,14 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
         why_not = "the grid does not fit in " + ctx->info().name + "'s memory; the multigrid runs on the CPU";
         return nullptr;
     }
-    return std::make_unique<VulkanMultigrid>(ctx, h);
+    for (const Level& lv : h.levels)
+        for (const AxisLevel& ax : lv.axis)
+            for (std::size_t i = 0; i + 1 < ax.offsets.size(); ++i)
+                if (ax.offsets[i + 1] - ax.offsets[i] > kMaxTaps)
+                    throw Error("shm", "internal: a restriction gathers more than 4 cells per axis");
+    // The software build reads the finest grid's φ and b through texel buffers.
+    const bool software = gpu::software_shaped(*ctx) && n0 <= ctx->limits().maxTexelBufferElements;
+    return std::make_unique<VulkanMultigrid>(ctx, h, software);
 }
 
 }  // namespace gsd::shm_detail

@@ -173,7 +173,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     // Software devices: the walk that lists and sums apart, the tree and the elements read as
     // texel buffers (bindings 0 and 1).
     const gpu::Kernel& k = gpu::shaped_kernel(*ctx, "sums_winding", 4, sizeof(WindingPush), {d.element_kinds}, workgroup, 0b11u);
-    const bool shaped = k.texel_bindings != 0;
+    const bool shaped = k.texel_bindings.all() != 0;
     // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
     // elements, or (software-shaped) a round's sums: 32 expansions and 32 leaves.
     const std::uint32_t step = shaped ? 1024u + 32u * (d.widest_leaf + 1u) : 64u + d.widest_leaf;
