@@ -4,6 +4,7 @@
 #extension GL_KHR_shader_subgroup_ballot : require
 #ifdef GSD_SOFTWARE_SHAPED
 #extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_EXT_control_flow_attributes : require
 #endif
 // The blend engine on the GPU (mirrors src/blend/blend_cpu.cpp): for each query, choose the
 // summed set (all points, the ball of radius r_eval, or the k nearest), then blend the

@@ -223,6 +223,123 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
     }
 }
 
+#ifdef GSD_SOFTWARE_SHAPED
+// The k-nearest fallback shaped for llvmpipe (docs/gpu.md, "Kernels shaped for software
+// devices"). knn() keeps its stack and its list in private arrays indexed per lane, which
+// llvmpipe reads and writes one lane at a time, and shifts the list at each lane's own place.
+// Here the list lives in registers: K_MAX slots, sorted, with constant indices only; a k < K_MAX
+// list takes the last k slots, the first ones holding −1 (nothing passes them). Each lane seeds
+// it with the points of the deepest node on its way down that still holds k points (a bound
+// near the k-th distance at once), then walks the tree on its own as sum_ball does, listing the
+// leaves that its current k-th distance reaches; every BALL_ROUND steps the listed leaves'
+// points nearer than it are inserted, in loops of their own. The same k nearest as knn(); only
+// points tied at the k-th distance may differ, and those weigh T(1) ≈ 1e-9.
+
+// Inserts distance c of point ci into the sorted list (d, id): a compare-and-swap at every slot
+// (a candidate at +∞ changes nothing). Ties keep the entry already there.
+void list_insert(inout float d[K_MAX], inout uint id[K_MAX], float c, uint ci) {
+    [[unroll]] for (int s = 0; s < K_MAX; ++s) {
+        float ds = d[s];
+        uint is = id[s];
+        bool before = c < ds;
+        d[s] = before ? c : ds;
+        id[s] = before ? ci : is;
+        c = before ? ds : c;
+        ci = before ? is : ci;
+    }
+}
+
+// Inserts the points [begin, begin + count) nearer to x than the list's k-th, in index order,
+// 32 at a time: a lane marks its candidates in a bit mask (no private array), then inserts them
+// in loops that run to the most any lane has. TICK_UNIFORM: the renderer's loop guard.
+void insert_nearer(vec3 x, uint begin, uint count, inout float d[K_MAX], inout uint id[K_MAX]) {
+    uint longest = subgroupMax(count);
+    TICK_UNIFORM(longest / 32u + 1u);
+    for (uint first = 0u; first < longest; first += 32u) {
+        float worst = d[K_MAX - 1];
+        uint n = min(longest - first, 32u);
+        TICK_UNIFORM(n + 1u);
+        uint bits = 0u;
+        for (uint j = 0u; j < n; ++j) {
+            uint p = begin + min(first + j, max(count, 1u) - 1u);
+            float dj = distance(x, point_at(p).xyz);
+            bits |= first + j < count && dj < worst ? 1u << j : 0u;
+        }
+        uint rounds = subgroupMax(uint(bitCount(bits)));
+        TICK_UNIFORM(rounds + 1u);
+        for (uint r = 0u; r < rounds; ++r) {
+            int j = findLSB(bits);  // −1 when this lane has no more
+            bits &= bits - 1u;
+            uint p = begin + first + uint(max(j, 0));
+            float c = j >= 0 ? distance(x, point_at(p).xyz) : 3.0e38;
+            list_insert(d, id, c, p);
+        }
+    }
+}
+
+void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MAX]) {
+    float d[K_MAX];
+    uint id[K_MAX];
+    [[unroll]] for (int s = 0; s < K_MAX; ++s) {
+        d[s] = s < K_MAX - int(k) ? -1.0 : 3.0e38;
+        id[s] = 0u;
+    }
+    const uint first_leaf = pc.first_leaf;  // push constants: read outside the loops
+    // The seed: down the nearer child while it holds at least k points.
+    uint seed = 0u;
+    bool descending = live;
+    TICK_UNIFORM(uint(STACK) + 1u);
+    for (int depth = 0; depth < STACK; ++depth) {
+        if (!descending || seed >= first_leaf) break;
+        uint l = 2u * seed + 1u, r = l + 1u;
+        uint child = node_distance2(x, l) <= node_distance2(x, r) ? l : r;
+        descending = node_end(child) - node_begin(child) >= k;
+        seed = descending ? child : seed;
+    }
+    uint seed_begin = node_begin(seed);
+    insert_nearer(x, seed_begin, live ? node_end(seed) - seed_begin : 0u, d, id);
+    // The rest of the tree, the seed's subtree skipped.
+    uint node = 0u;
+    bool walking = live && seed != 0u;
+    uint listed[BALL_ROUND];
+    while (true) {
+        TICK_UNIFORM(BALL_ROUND + 2u);
+        float worst = d[K_MAX - 1];
+        float w2 = worst * worst;
+        uint n_listed = 0u;
+        for (uint step = 0u; step < BALL_ROUND; ++step) {
+            if (!walking) break;
+            bool near = node != seed && node_distance2(x, node) <= w2;
+            bool leaf = node >= first_leaf;
+            listed[n_listed] = node;
+            n_listed += near && leaf ? 1u : 0u;
+            if (near && !leaf) {
+                node = 2u * node + 1u;
+            } else {
+                node = next_in_depth_first(node);
+                walking = node != 0u;
+            }
+        }
+        uint passes = subgroupMax(n_listed);
+        TICK_UNIFORM(passes + 1u);
+        for (uint i = 0u; i < passes; ++i) {
+            uint leaf = listed[min(i, BALL_ROUND - 1u)];
+            uint begin = node_begin(leaf);
+            insert_nearer(x, begin, i < n_listed ? node_end(leaf) - begin : 0u, d, id);
+        }
+        if (!subgroupAny(walking)) break;
+    }
+    // Out nearest first, in knn()'s layout (a constant index on the registers' side).
+    [[unroll]] for (int s = 0; s < K_MAX; ++s) {
+        int m = s - (K_MAX - int(k));
+        if (m >= 0) {
+            kd[m] = d[s];
+            ki[m] = id[s];
+        }
+    }
+}
+#endif
+
 // Uniform control flow (sum_ball); a lane with live = false gets sums of nothing.
 void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, out bool rho_varies, out vec3 far_p) {
     a = acc_zero();
@@ -241,9 +358,16 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
         knn_together(x, fallback, pc.k_fallback, kd, ki);
         if (!fallback) return;
     } else {
+#ifdef GSD_SOFTWARE_SHAPED
+        // Each lane on its own, its list in registers (uniform control flow: subgroup maxima).
+        if (!subgroupAny(fallback)) return;
+        knn_listed(x, fallback, pc.k_fallback, kd, ki);
+        if (!fallback) return;
+#else
         // Each lane on its own, best first from its own position.
         if (!fallback) return;
         knn(x, pc.k_fallback, 0xffffffffu, pc.first_leaf, kd, ki);  // (its first loop: counted below)
+#endif
     }
     a = acc_zero();
     uint k = pc.k_fallback;

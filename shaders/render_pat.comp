@@ -3,6 +3,7 @@
 #extension GL_KHR_shader_subgroup_vote : require
 #extension GL_KHR_shader_subgroup_ballot : require
 #extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_EXT_control_flow_attributes : require
 // Sphere-traces a blended field (PAT, SSPD, SHC; the accelerated sum) per pixel: the renderer's
 // GPU path (src/render/render_gpu.cpp). Bindings 0–2 and the first push constants are those of
 // blend_eval.comp, so the field's device data serves both.

@@ -205,6 +205,19 @@ TEST_CASE("PAT's k-nearest fallback walked per subgroup (the hardware GPUs' path
         CHECK(compare(gpu_spread.phi, cpu_spread.phi, 1e-4).max_abs < 1e-4);
         CHECK(compare(gpu_spread.gradient, cpu_spread.gradient, 1e-3).max_abs < 1e-3);
     }
+    // A fallback of fewer than K_MAX points: the software kernel's list then holds its k in the
+    // last slots of its registers (blend_field.glsl, knn_listed).
+    for (const int k : {1, 7}) {
+        CAPTURE(k);
+        BlendOptions cpu_k = on("cpu", false), gpu_k = on("gpu", false);
+        cpu_k.fallback_k = gpu_k.fallback_k = k;
+        const FieldValues want = TorusField(f, cpu_k).evaluate(spread, true);
+        ::setenv("GSD_SOFTWARE_SHAPED", "1", 1);
+        const FieldValues got = TorusField(f, gpu_k).evaluate(spread, true);
+        ::unsetenv("GSD_SOFTWARE_SHAPED");
+        CHECK(compare(got.phi, want.phi, 1e-4).max_abs < 1e-4);
+        CHECK(compare(got.gradient, want.gradient, 1e-3).max_abs < 1e-3);
+    }
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 

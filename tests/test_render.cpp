@@ -310,6 +310,13 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
     SUBCASE("PAT, the kernel as GPUs run it (storage buffers, the ball walked together)") {
         torus_pat("PAT, GPUs' kernel", "GSD_SOFTWARE_SHAPED", "0");
     }
+    SUBCASE("PAT, the k-nearest fallback walked by the subgroup together") {
+        torus_pat("PAT, fallback together", "GSD_SHARED_KNN", "1");
+    }
+    SUBCASE("PAT, a low loop cap: the subgroups cut short, their rays marched on the CPU") {
+        // On a software device (render_march.glsl's past_loop_limit); elsewhere no cap applies.
+        torus_pat("PAT, loop cap 3000", "GSD_LOOP_CAP", "3000");
+    }
     SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
         const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});

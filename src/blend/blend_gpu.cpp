@@ -35,15 +35,15 @@ int shared_knn(const gpu::Context& c) {
     return shared_knn_override(c.info().is_software() ? 0 : 1);
 }
 
-/// The renderer's choice is the other way round. On a hardware GPU each lane walks its own:
-/// rays of a tile reach the fallback at different points of their march, and walked together
-/// the render took twice as long on an H200 (4.1 s against 2.0 s at 1920×1080). On a software
-/// device the walk together: its loops are counted exactly there, so fewer rays pass the loop
-/// guard of render_march.glsl (3.8 % against 5.2 % of the bench's rays went to the CPU, and
-/// the device rate rose from 0.38× to 0.44× the CPU path's on lavapipe). $GSD_SHARED_KNN
-/// overrides it too.
-int render_shared_knn(const gpu::Context& c) {
-    return shared_knn_override(c.info().is_software() ? 1 : 0);
+/// The renderer walks each lane's own fallback everywhere. On a hardware GPU rays of a tile
+/// reach the fallback at different points of their march, and walked together the render took
+/// twice as long on an H200 (4.1 s against 2.0 s at 1920×1080). On a software device each
+/// lane's walk is knn_listed (blend_field.glsl), whose loops the guard of render_march.glsl
+/// counts as exactly as the walk together's: on the bench's 320×240 picture no ray passed it
+/// (11 868 of 76 800 did walked together) and the device rate rose from 0.51× to 0.69× the CPU
+/// path's on lavapipe. $GSD_SHARED_KNN=1 walks it together, to measure.
+int render_shared_knn() {
+    return shared_knn_override(0);
 }
 
 
@@ -257,7 +257,7 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
         std::uint32_t pixel_count;
     };
     const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, "render_pat", 5, sizeof(RenderPush),  // the tree as texel buffers
-                                              {int(kind_), render_shared_knn(*ctx_), std::int32_t(loop_cap)},
+                                              {int(kind_), render_shared_knn(), std::int32_t(loop_cap)},
                                               gpu::loop_capped_workgroup(*ctx_), 0b111u);
     const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                            float(p.C), dmin_},
