@@ -131,16 +131,30 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
             uint leaf = opened[min(i, BALL_ROUND - 1u)];
             uint begin = node_begin(leaf), count = i < n_opened ? node_end(leaf) - begin : 0u;
             uint longest = subgroupMax(count);
-            TICK_UNIFORM(longest + 1u);
-            for (uint j = 0u; j < longest; ++j) {
-                uint p = begin + min(j, max(count, 1u) - 1u);
-                vec3 pp = point_at(p).xyz, dv = x - pp;
-                float d2 = dot(dv, dv);
-                vec4 t0, t1, t2;
-                point_terms(p, t0, t1, t2);
-                if (j < count && d2 <= r2) {
-                    add_term(a, x, pp, t0, t1, t2, sqrt(d2), lambda, sigma, r_eval, true, grad);
-                    ++found;
+            TICK_UNIFORM(longest / 32u + 1u);
+            // 32 points at a time: the ones in the ball as bits, then those summed in a loop
+            // that runs to the most any lane has (a point's terms are read only if it counts).
+            for (uint first = 0u; first < longest; first += 32u) {
+                uint n = min(longest - first, 32u);
+                TICK_UNIFORM(n + 1u);
+                uint bits = 0u;
+                for (uint j = 0u; j < n; ++j) {
+                    vec3 dv = x - point_at(begin + min(first + j, max(count, 1u) - 1u)).xyz;
+                    bits |= first + j < count && dot(dv, dv) <= r2 ? 1u << j : 0u;
+                }
+                uint rounds = subgroupMax(uint(bitCount(bits)));
+                TICK_UNIFORM(rounds + 1u);
+                for (uint r = 0u; r < rounds; ++r) {
+                    int j = findLSB(bits);  // −1 when this lane has no more
+                    bits &= bits - 1u;
+                    uint p = begin + first + uint(max(j, 0));
+                    vec3 pp = point_at(p).xyz, dv = x - pp;
+                    vec4 t0, t1, t2;
+                    point_terms(p, t0, t1, t2);
+                    if (j >= 0) {
+                        add_term(a, x, pp, t0, t1, t2, sqrt(dot(dv, dv)), lambda, sigma, r_eval, true, grad);
+                        ++found;
+                    }
                 }
             }
         }
@@ -228,11 +242,13 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
 // devices"). knn() keeps its stack and its list in private arrays indexed per lane, which
 // llvmpipe reads and writes one lane at a time, and shifts the list at each lane's own place.
 // Here the list lives in registers: K_MAX slots, sorted, with constant indices only; a k < K_MAX
-// list takes the last k slots, the first ones holding −1 (nothing passes them). Each lane seeds
-// it with the points of the deepest node on its way down that still holds k points (a bound
-// near the k-th distance at once), then walks the tree on its own as sum_ball does, listing the
-// leaves that its current k-th distance reaches; every BALL_ROUND steps the listed leaves'
-// points nearer than it are inserted, in loops of their own. The same k nearest as knn(); only
+// list takes the last k slots, the first ones holding −1 (nothing passes them). Each lane walks
+// the tree on its own, depth first and the nearer child first as knn() does, but with no stack:
+// `trail` holds, for each level of its path (aligned with the bits of the node's 1-based index),
+// whether it took the right child first, so the walk climbs past the children it took second
+// and steps to the sibling of the first one it meets. It lists the leaves that its current k-th
+// distance reaches; every BALL_ROUND steps the listed leaves' points nearer than it are
+// inserted, in loops of their own. The same k nearest as knn(); only
 // points tied at the k-th distance may differ, and those weigh T(1) ≈ 1e-9.
 
 // Inserts distance c of point ci into the sorted list (d, id): a compare-and-swap at every slot
@@ -285,22 +301,9 @@ void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MA
         id[s] = 0u;
     }
     const uint first_leaf = pc.first_leaf;  // push constants: read outside the loops
-    // The seed: down the nearer child while it holds at least k points.
-    uint seed = 0u;
-    bool descending = live;
-    TICK_UNIFORM(uint(STACK) + 1u);
-    for (int depth = 0; depth < STACK; ++depth) {
-        if (!descending || seed >= first_leaf) break;
-        uint l = 2u * seed + 1u, r = l + 1u;
-        uint child = node_distance2(x, l) <= node_distance2(x, r) ? l : r;
-        descending = node_end(child) - node_begin(child) >= k;
-        seed = descending ? child : seed;
-    }
-    uint seed_begin = node_begin(seed);
-    insert_nearer(x, seed_begin, live ? node_end(seed) - seed_begin : 0u, d, id);
-    // The rest of the tree, the seed's subtree skipped.
-    uint node = 0u;
-    bool walking = live && seed != 0u;
+    uint node = 0u, trail = 0u;
+    float node_d2 = node_distance2(x, 0u);  // carried from step to step: two boxes read a step
+    bool walking = live;
     uint listed[BALL_ROUND];
     while (true) {
         TICK_UNIFORM(BALL_ROUND + 2u);
@@ -309,16 +312,25 @@ void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MA
         uint n_listed = 0u;
         for (uint step = 0u; step < BALL_ROUND; ++step) {
             if (!walking) break;
-            bool near = node != seed && node_distance2(x, node) <= w2;
+            bool near = node_d2 <= w2;
             bool leaf = node >= first_leaf;
             listed[n_listed] = node;
             n_listed += near && leaf ? 1u : 0u;
-            if (near && !leaf) {
-                node = 2u * node + 1u;
-            } else {
-                node = next_in_depth_first(node);
-                walking = node != 0u;
-            }
+            bool descend = near && !leaf;
+            // Else climb past the levels taken second and step to the sibling.
+            uint k1 = node + 1u;
+            int depth = findMSB(k1);
+            uint second = (k1 ^ trail) & ((1u << uint(depth)) - 1u);
+            int up = descend ? 0 : findLSB(~second);
+            walking = descend || up < depth;
+            uint next = walking ? ((k1 >> uint(up)) ^ 1u) - 1u : 0u;
+            // The boxes of the children, or twice that of the next node.
+            uint a = descend ? 2u * node + 1u : next, b = descend ? a + 1u : next;
+            float da = node_distance2(x, a), db = node_distance2(x, b);
+            bool right_first = db < da;
+            node = descend && right_first ? b : a;
+            node_d2 = descend && right_first ? db : da;
+            trail = descend ? 2u * trail + (right_first ? 1u : 0u) : trail >> uint(up);
         }
         uint passes = subgroupMax(n_listed);
         TICK_UNIFORM(passes + 1u);
