@@ -102,6 +102,26 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
 // same order as the walk above. Needs GL_KHR_shader_subgroup_arithmetic.
 const uint BALL_ROUND = 32u;
 
+// Points [first, first + n) of a leaf's `count` from `begin` that lie within `bound` of x, as bits
+// by their offset from `first` (n ≤ 32): squared distances up to bound where `squared`, else
+// distances below bound. A lane with fewer points reads its last one again.
+uint mark_points(vec3 x, uint begin, uint count, uint first, uint n, float bound, bool squared) {
+    uint bits = 0u;
+    for (uint j = 0u; j < n; ++j) {
+        vec3 dv = x - point_at(begin + min(first + j, max(count, 1u) - 1u)).xyz;
+        bool within = squared ? dot(dv, dv) <= bound : length(dv) < bound;
+        bits |= first + j < count && within ? 1u << j : 0u;
+    }
+    return bits;
+}
+
+// The offset of a lane's next marked point, taken off its mask; −1 when it has no more.
+int take_next(inout uint bits) {
+    int j = findLSB(bits);
+    bits &= bits - 1u;
+    return j;
+}
+
 uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     const float r_eval = pc.r_eval, r2 = r_eval * r_eval;  // push constants: read outside the loops
     const float sigma = 0.5 * r_eval, lambda = pc.C / sigma;
@@ -137,16 +157,11 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
             for (uint first = 0u; first < longest; first += 32u) {
                 uint n = min(longest - first, 32u);
                 TICK_UNIFORM(n + 1u);
-                uint bits = 0u;
-                for (uint j = 0u; j < n; ++j) {
-                    vec3 dv = x - point_at(begin + min(first + j, max(count, 1u) - 1u)).xyz;
-                    bits |= first + j < count && dot(dv, dv) <= r2 ? 1u << j : 0u;
-                }
+                uint bits = mark_points(x, begin, count, first, n, r2, true);
                 uint rounds = subgroupMax(uint(bitCount(bits)));
                 TICK_UNIFORM(rounds + 1u);
                 for (uint r = 0u; r < rounds; ++r) {
-                    int j = findLSB(bits);  // −1 when this lane has no more
-                    bits &= bits - 1u;
+                    int j = take_next(bits);
                     uint p = begin + first + uint(max(j, 0));
                     vec3 pp = point_at(p).xyz, dv = x - pp;
                     vec4 t0, t1, t2;
@@ -272,20 +287,13 @@ void insert_nearer(vec3 x, uint begin, uint count, inout float d[K_MAX], inout u
     uint longest = subgroupMax(count);
     TICK_UNIFORM(longest / 32u + 1u);
     for (uint first = 0u; first < longest; first += 32u) {
-        float worst = d[K_MAX - 1];
         uint n = min(longest - first, 32u);
         TICK_UNIFORM(n + 1u);
-        uint bits = 0u;
-        for (uint j = 0u; j < n; ++j) {
-            uint p = begin + min(first + j, max(count, 1u) - 1u);
-            float dj = distance(x, point_at(p).xyz);
-            bits |= first + j < count && dj < worst ? 1u << j : 0u;
-        }
+        uint bits = mark_points(x, begin, count, first, n, d[K_MAX - 1], false);
         uint rounds = subgroupMax(uint(bitCount(bits)));
         TICK_UNIFORM(rounds + 1u);
         for (uint r = 0u; r < rounds; ++r) {
-            int j = findLSB(bits);  // −1 when this lane has no more
-            bits &= bits - 1u;
+            int j = take_next(bits);
             uint p = begin + first + uint(max(j, 0));
             float c = j >= 0 ? distance(x, point_at(p).xyz) : 3.0e38;
             list_insert(d, id, c, p);
