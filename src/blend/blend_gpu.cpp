@@ -49,6 +49,14 @@ int render_shared_knn() {
 
 constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 
+/// Points per leaf of the kd-tree a software device walks (BoxTree's leaf_size; the CPU path and
+/// GPUs keep 8). There each lane walks the tree on its own (the listed walks of blend_field.glsl),
+/// and a step of a walk, or a pass over a leaf, costs about as much as a point in it: fewer,
+/// larger leaves did better. gsd-gpu-bench --device gpu --stages pat,render on lavapipe, leaves of
+/// 8, 16, 24, 32: PAT 3.4, 3.9, 3.9–4.0, 3.9–4.0·10⁵ queries/s; the render 8.6, 9.4, 9.8–10, 9.7·10⁴
+/// pixels/s.
+constexpr std::uint32_t kSoftwareLeafSize = 24;
+
 struct BlendPush {  // `Push` in blend_eval.comp
     std::uint32_t query_count, point_count, first_leaf, k_fallback;
     float r_eval, C, dmin;
@@ -290,6 +298,10 @@ std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ct
     if (ctx->device_memory_bytes() && 3 * (term_bytes + jet_bytes + n * 16) > ctx->device_memory_bytes()) {
         why_not = "the cloud does not fit in " + ctx->info().name + "'s memory; using the CPU path";
         return nullptr;
+    }
+    if (gpu::software_shaped(*ctx)) {
+        const detail::BoxTree wide(src.points, kSoftwareLeafSize);
+        return std::make_shared<GpuField>(ctx, src, wide);
     }
     return std::make_shared<GpuField>(ctx, src, tree);
 }
