@@ -148,10 +148,10 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
         uint passes = subgroupMax(n_opened);
         TICK_UNIFORM(passes + 1u);
         for (uint i = 0u; i < passes; ++i) {
-            uint leaf = opened[min(i, BALL_ROUND - 1u)];
+            uint leaf = i < n_opened ? opened[min(i, BALL_ROUND - 1u)] : 0u;  // (unset past the count)
             uint begin = node_begin(leaf), count = i < n_opened ? node_end(leaf) - begin : 0u;
             uint longest = subgroupMax(count);
-            TICK_UNIFORM(longest / 32u + 1u);
+            TICK_UNIFORM((longest + 31u) / 32u + 1u);
             // 32 points at a time: the ones in the ball as bits, then those summed in a loop
             // that runs to the most any lane has (a point's terms are read only if it counts).
             for (uint first = 0u; first < longest; first += 32u) {
@@ -266,17 +266,20 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
 // inserted, in loops of their own. The same k nearest as knn(); only
 // points tied at the k-th distance may differ, and those weigh T(1) ≈ 1e-9.
 
-// Inserts distance c of point ci into the sorted list (d, id): a compare-and-swap at every slot
-// (a candidate at +∞ changes nothing). Ties keep the entry already there.
+// Inserts distance c of point ci into the sorted list (d, id): from the first slot it goes
+// before, every later entry moves down one, as knn() shifts them (so among equal distances the
+// entry found first stays first, and the one pushed out is the last). A candidate at +∞
+// changes nothing.
 void list_insert(inout float d[K_MAX], inout uint id[K_MAX], float c, uint ci) {
+    bool moved = false;
     [[unroll]] for (int s = 0; s < K_MAX; ++s) {
         float ds = d[s];
         uint is = id[s];
-        bool before = c < ds;
-        d[s] = before ? c : ds;
-        id[s] = before ? ci : is;
-        c = before ? ds : c;
-        ci = before ? is : ci;
+        moved = moved || c < ds;
+        d[s] = moved ? c : ds;
+        id[s] = moved ? ci : is;
+        c = moved ? ds : c;
+        ci = moved ? is : ci;
     }
 }
 
@@ -285,7 +288,7 @@ void list_insert(inout float d[K_MAX], inout uint id[K_MAX], float c, uint ci) {
 // in loops that run to the most any lane has. TICK_UNIFORM: the renderer's loop guard.
 void insert_nearer(vec3 x, uint begin, uint count, inout float d[K_MAX], inout uint id[K_MAX]) {
     uint longest = subgroupMax(count);
-    TICK_UNIFORM(longest / 32u + 1u);
+    TICK_UNIFORM((longest + 31u) / 32u + 1u);
     for (uint first = 0u; first < longest; first += 32u) {
         uint n = min(longest - first, 32u);
         TICK_UNIFORM(n + 1u);
@@ -343,7 +346,7 @@ void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MA
         uint passes = subgroupMax(n_listed);
         TICK_UNIFORM(passes + 1u);
         for (uint i = 0u; i < passes; ++i) {
-            uint leaf = listed[min(i, BALL_ROUND - 1u)];
+            uint leaf = i < n_listed ? listed[min(i, BALL_ROUND - 1u)] : 0u;  // (unset past the count)
             uint begin = node_begin(leaf);
             insert_nearer(x, begin, i < n_listed ? node_end(leaf) - begin : 0u, d, id);
         }

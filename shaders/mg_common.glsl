@@ -38,9 +38,9 @@ uint index_of(uvec3 c, uvec3 d) { return (c.x * d.y + c.y) * d.z + c.z; }
 
 // The kernels take rows of cells along z: a workgroup's x lanes walk along a row and its y
 // lanes take consecutive rows j of one slab i (gl_WorkGroupID.z), so that no division finds a
-// cell. GPUs run a row per workgroup; llvmpipe several (MG_ROWS), as it pays an allocation for
-// every workgroup. `inside` is false on lanes past the grid's end; they work on its last row or
-// cell and store nothing.
+// cell. GPUs run a row per workgroup; llvmpipe several (specialization constant 1, the rows per
+// workgroup), as it pays an allocation for every workgroup. `inside` is false on lanes past the
+// grid's end; they work on its last row or cell and store nothing.
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 uvec3 row_cell(out bool inside) {

@@ -311,6 +311,13 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
         why_not = "the grid has more than 65535 nodes along x or y; the multigrid runs on the CPU";
         return nullptr;
     }
+    // The axis tables hold cell indices as float32 (AxisCell), exact below 2^24; a row's
+    // workgroups along x must fit one dispatch.
+    const auto nz = std::uint32_t(h.levels[0].axis[2].n);
+    if (nz > (1u << 24) || (nz + ctx->workgroup_size() - 1) / ctx->workgroup_size() > ctx->max_groups_x()) {
+        why_not = "the grid has too many nodes along z for the device's multigrid; it runs on the CPU";
+        return nullptr;
+    }
     if (n0 * 8 > ctx->max_binding_bytes()) {
         why_not = "the grid (" + std::to_string(n0) + " nodes) exceeds " + ctx->info().name +
                   "'s storage buffer range; the multigrid runs on the CPU";
