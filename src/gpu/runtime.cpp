@@ -898,7 +898,13 @@ bool software_shaped(const Context& ctx) {
 const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                             std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
                             TexelBindings texel_bindings) {
-    if (software_shaped(ctx)) return ctx.kernel(shader + "_software", bindings, push_bytes, constants, workgroup, texel_bindings);
+    return shaped_kernel(ctx, shader, bindings, push_bytes, constants, workgroup, texel_bindings, software_shaped(ctx));
+}
+
+const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
+                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
+                            TexelBindings texel_bindings, bool software) {
+    if (software) return ctx.kernel(shader + "_software", bindings, push_bytes, constants, workgroup, texel_bindings);
     return ctx.kernel(shader, bindings, push_bytes, constants, workgroup);
 }
 

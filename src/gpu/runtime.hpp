@@ -234,6 +234,11 @@ bool software_shaped(const Context& ctx);
 const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                             std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
                             TexelBindings texel_bindings);
+/// The same with the build chosen by the caller (`software`: NAME_software), for work that
+/// decides once, for its own limits, which build all its dispatches take.
+const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
+                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
+                            TexelBindings texel_bindings, bool software);
 /// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
 /// default) elsewhere.
 std::uint32_t loop_capped_workgroup(const Context& ctx);

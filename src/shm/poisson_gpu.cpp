@@ -90,11 +90,10 @@ public:
         const std::size_t n0 = H_.levels[0].count();
         phi_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
         b_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
-        // mg_refine's workgroups (dispatch_rows), one partial sum each.
-        const Level& fine = H_.levels[0];
-        const auto nz = std::uint32_t(fine.axis[2].n), ny = std::uint32_t(fine.axis[1].n);
-        const RowShape shape = row_shape(nz, ny);
-        groups0_ = ((nz + shape.x - 1) / shape.x) * ((ny + shape.rows - 1) / shape.rows) * std::uint32_t(fine.axis[0].n);
+        // mg_refine's workgroups (run_rows), one partial sum each.
+        const MgPush fine = push_for(0, 0);
+        const RowGroups g = row_groups(fine, fine.dims[2]);
+        groups0_ = g.x * g.y * g.z;
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
     }
@@ -175,22 +174,26 @@ private:
         return {x, y};
     }
 
-    // A stencil kernel for rows of `cells` on a level of `rows` rows per slab: the build shaped
-    // for software devices where software_ (its `texels` bindings read as texel buffers), else
-    // the GPUs' build.
-    const gpu::Kernel& row_kernel(const std::string& name, std::uint32_t bindings, gpu::TexelBindings texels,
-                                  std::uint32_t cells, std::uint32_t rows) {
-        const RowShape shape = row_shape(cells, rows);
-        if (software_) return ctx_->kernel(name + "_software", bindings, sizeof(MgPush), {std::int32_t(shape.rows)}, shape.x, texels);
-        return ctx_->kernel(name, bindings, sizeof(MgPush), {std::int32_t(shape.rows)}, shape.x);
+    // The workgroups over the level of `p` with rows of `cells` (row_shape).
+    struct RowGroups {
+        std::uint32_t x, y, z;
+    };
+    RowGroups row_groups(const MgPush& p, std::uint32_t cells) const {
+        const RowShape shape = row_shape(cells, p.dims[1]);
+        return {(cells + shape.x - 1) / shape.x, (p.dims[1] + shape.rows - 1) / shape.rows, p.dims[0]};
     }
 
-    // `k` (from row_kernel) over the level of `p` with rows of `cells`.
-    void dispatch_rows(gpu::Recorder& rec, const gpu::Kernel& k, std::initializer_list<gpu::Binding> bindings,
-                       const MgPush& p, std::uint32_t cells) {
-        const std::uint32_t rows = row_shape(cells, p.dims[1]).rows;
-        rec.dispatch_grid(k, bindings, &p, sizeof(p), (cells + k.workgroup - 1) / k.workgroup, (p.dims[1] + rows - 1) / rows,
-                          p.dims[0]);
+    // Runs the stencil kernel `name` over the level of `p` with rows of `cells`: the build shaped
+    // for software devices where software_ (its `texels` bindings read as texel buffers), else
+    // the GPUs' build; then a barrier.
+    void run_rows(gpu::Recorder& rec, const std::string& name, gpu::TexelBindings texels,
+                  std::initializer_list<gpu::Binding> bindings, const MgPush& p, std::uint32_t cells) {
+        const RowShape shape = row_shape(cells, p.dims[1]);
+        const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, name, std::uint32_t(bindings.size()), sizeof(MgPush),
+                                                  {std::int32_t(shape.rows)}, shape.x, texels, software_);
+        const RowGroups g = row_groups(p, cells);
+        rec.dispatch_grid(k, bindings, &p, sizeof(p), g.x, g.y, g.z);
+        rec.barrier();
     }
 
     // Texel views of the kernels' bindings on a software device: the axis table as vec4s (binding
@@ -206,16 +209,12 @@ private:
         p.color = color;
         const std::uint32_t cells = (p.dims[2] + 1) / 2;  // the row's cells of one color
         // e twice: read (the other color) and written (this one).
-        const gpu::Kernel& k = row_kernel("mg_smooth", 4, table_and_floats(0b110u), cells, p.dims[1]);
-        dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, cells);
-        rec.barrier();
+        run_rows(rec, "mg_smooth", table_and_floats(0b110u), {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, cells);
     }
 
     void residual(gpu::Recorder& rec, std::size_t l) {
         const MgPush p = push_for(l, l);
-        const gpu::Kernel& k = row_kernel("mg_residual", 4, table_and_floats(0b110u), p.dims[2], p.dims[1]);
-        dispatch_rows(rec, k, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
-        rec.barrier();
+        run_rows(rec, "mg_residual", table_and_floats(0b110u), {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
     }
 
     void record_cycle(gpu::Recorder& rec, std::size_t l, bool f_cycle) {
@@ -233,9 +232,7 @@ private:
         residual(rec, l);
         {
             const MgPush p = push_for(l + 1, l);
-            const gpu::Kernel& k = row_kernel("mg_restrict", 3, table_and_floats(0b10u), p.dims[2], p.dims[1]);
-            dispatch_rows(rec, k, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
-            rec.barrier();
+            run_rows(rec, "mg_restrict", table_and_floats(0b10u), {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
         }
         record_cycle(rec, l + 1, f_cycle);
         if (f_cycle && l + 2 <= last) {
@@ -254,9 +251,7 @@ private:
         {
             const MgPush p = push_for(l, l + 1);
             // e of level l twice: read and written (each cell its own).
-            const gpu::Kernel& k = row_kernel("mg_prolong", 4, table_and_floats(0b110u), p.dims[2], p.dims[1]);
-            dispatch_rows(rec, k, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, p.dims[2]);
-            rec.barrier();
+            run_rows(rec, "mg_prolong", table_and_floats(0b110u), {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, p.dims[2]);
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
     }
@@ -269,15 +264,11 @@ private:
             gpu::TexelBindings update;  // φ as doubles, e as floats
             update.double1 = 0b1u;
             update.float1 = 0b10u;
-            const gpu::Kernel& u = row_kernel("mg_update", 3, update, p.dims[2], p.dims[1]);
-            dispatch_rows(rec, u, {{&phi_}, {&e_[0]}, {&phi_}}, p, p.dims[2]);  // φ read and written
-            rec.barrier();
+            run_rows(rec, "mg_update", update, {{&phi_}, {&e_[0]}, {&phi_}}, p, p.dims[2]);  // φ read and written
         }
         gpu::TexelBindings texels;  // φ and b as doubles
         texels.double1 = 0b11u;
-        const gpu::Kernel& k = row_kernel("mg_refine", 4, texels, p.dims[2], p.dims[1]);
-        dispatch_rows(rec, k, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
-        rec.barrier();
+        run_rows(rec, "mg_refine", texels, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
         rec.barrier();
     }
@@ -307,7 +298,7 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
         return nullptr;
     }
     const std::uint64_t n0 = h.levels[0].count();
-    if (h.levels[0].axis[0].n > 65535 || h.levels[0].axis[1].n > 65535) {  // rows are workgroups (dispatch_rows)
+    if (h.levels[0].axis[0].n > 65535 || h.levels[0].axis[1].n > 65535) {  // rows are workgroups (run_rows)
         why_not = "the grid has more than 65535 nodes along x or y; the multigrid runs on the CPU";
         return nullptr;
     }
