@@ -271,15 +271,15 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
 // entry found first stays first, and the one pushed out is the last). A candidate at +∞
 // changes nothing.
 void list_insert(inout float d[K_MAX], inout uint id[K_MAX], float c, uint ci) {
-    bool moved = false;
     [[unroll]] for (int s = 0; s < K_MAX; ++s) {
+        // c carries the entry being placed: the candidate, then each one it moved down.
         float ds = d[s];
         uint is = id[s];
-        moved = moved || c < ds;
-        d[s] = moved ? c : ds;
-        id[s] = moved ? ci : is;
-        c = moved ? ds : c;
-        ci = moved ? is : ci;
+        bool before = c < ds;
+        d[s] = min(c, ds);
+        c = max(c, ds);
+        id[s] = before ? ci : is;
+        ci = before ? is : ci;
     }
 }
 
