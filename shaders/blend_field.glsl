@@ -102,15 +102,14 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, 
 // same order as the walk above. Needs GL_KHR_shader_subgroup_arithmetic.
 const uint BALL_ROUND = 32u;
 
-// Points [first, first + n) of a leaf's `count` from `begin` that lie within `bound` of x, as bits
-// by their offset from `first` (n ≤ 32): squared distances up to bound where `squared`, else
-// distances below bound. A lane with fewer points reads its last one again.
-uint mark_points(vec3 x, uint begin, uint count, uint first, uint n, float bound, bool squared) {
+// Points [first, first + n) of a leaf's `count` from `begin` whose squared distance to x is at
+// most bound2, as bits by their offset from `first` (n ≤ 32). A lane with fewer points reads its
+// last one again.
+uint mark_points(vec3 x, uint begin, uint count, uint first, uint n, float bound2) {
     uint bits = 0u;
     for (uint j = 0u; j < n; ++j) {
         vec3 dv = x - point_at(begin + min(first + j, max(count, 1u) - 1u)).xyz;
-        bool within = squared ? dot(dv, dv) <= bound : length(dv) < bound;
-        bits |= first + j < count && within ? 1u << j : 0u;
+        bits |= first + j < count && dot(dv, dv) <= bound2 ? 1u << j : 0u;
     }
     return bits;
 }
@@ -157,7 +156,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
             for (uint first = 0u; first < longest; first += 32u) {
                 uint n = min(longest - first, 32u);
                 TICK_UNIFORM(n + 1u);
-                uint bits = mark_points(x, begin, count, first, n, r2, true);
+                uint bits = mark_points(x, begin, count, first, n, r2);
                 uint rounds = subgroupMax(uint(bitCount(bits)));
                 TICK_UNIFORM(rounds + 1u);
                 for (uint r = 0u; r < rounds; ++r) {
@@ -292,7 +291,10 @@ void insert_nearer(vec3 x, uint begin, uint count, inout float d[K_MAX], inout u
     for (uint first = 0u; first < longest; first += 32u) {
         uint n = min(longest - first, 32u);
         TICK_UNIFORM(n + 1u);
-        uint bits = mark_points(x, begin, count, first, n, d[K_MAX - 1], false);
+        // Marked by squared distance with a margin of a few float steps, so that every point
+        // nearer than the list's k-th is marked; one marked but not nearer changes nothing.
+        float worst = d[K_MAX - 1];
+        uint bits = mark_points(x, begin, count, first, n, worst * worst * 1.000001);
         uint rounds = subgroupMax(uint(bitCount(bits)));
         TICK_UNIFORM(rounds + 1u);
         for (uint r = 0u; r < rounds; ++r) {

@@ -47,6 +47,7 @@ float field_phi(vec3 x, bool live, bool grad, out vec3 g) {
     return mix(b0, b1, f.z);
 }
 
+const bool SHADE_HITS = true;  // a trilinear gradient costs little: the march writes it
 #define RENDER_PARAMS_BINDING 1
 #define RENDER_OUT_BINDING 2
 #include "render_march.glsl"

@@ -2,8 +2,10 @@
 // tests hold this to). The including shader defines, before including this,
 //   float field_phi(vec3 x, bool live, bool grad, out vec3 g)   the field (called by every lane
 //   together, live = false on lanes with nothing to evaluate), and ∇φ into g when `grad`,
-// RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below, the
-// specialization constant LOOP_CAP, the counters lane_ticks and subgroup_ticks and the macros
+// RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below,
+// SHADE_HITS (a constant: true, the kernel writes ∇φ at each hit — a shading turn per hit; false,
+// it writes the hit alone and the host evaluates ∇φ there, so that the march's evaluations carry
+// no gradient sums: render_gpu.cpp), the specialization constant LOOP_CAP, the counters lane_ticks and subgroup_ticks and the macros
 // TICK_LANE / TICK_UNIFORM that its field's loops count into (see past_loop_limit), and enables
 // the subgroup vote, ballot and arithmetic extensions.
 // Each ray (render_main() says how the lanes of a subgroup share them) is clipped to the box,
@@ -23,8 +25,8 @@ struct RenderParams {
 };
 
 layout(std430, binding = RENDER_PARAMS_BINDING) readonly buffer Params { RenderParams rp; };
-// Per ray of the chunk, in tile order: (t, ∇φ at the hit), t < 0 for a miss. The host fills it
-// with t = −2 first: a ray left so was cut short by llvmpipe's loop limit (below), and the
+// Per ray of the chunk, in tile order: (t, ∇φ at the hit; 0 unless SHADE_HITS), t < 0 for a
+// miss. The host fills it with t = −2 first: a ray left so was cut short by llvmpipe's loop limit (below), and the
 // host marches it on the CPU.
 layout(std430, binding = RENDER_OUT_BINDING) writeonly buffer Hits { vec4 hits[]; };
 
@@ -183,14 +185,17 @@ void render_main(uint first_pixel, uint pixel_count) {
             if (want && index < end) start_ray(r, index, first_pixel);
         }
         if (past_loop_limit() || !subgroupAny(r.phase != IDLE)) break;
-        float p = field_phi(r.o + next_sample(r) * r.d, r.phase != IDLE, r.phase == SHADE, g);
+        float p = field_phi(r.o + next_sample(r) * r.d, r.phase != IDLE, SHADE_HITS && r.phase == SHADE, g);
         if (past_loop_limit()) break;  // p may be cut short: this turn writes nothing
         if (r.phase == SHADE) {
             hits[r.index] = vec4(r.t0 + r.hit, g);
             r.phase = IDLE;
         } else if (r.phase != IDLE && advance(r, p)) {
-            if (r.hit >= 0.0) r.phase = SHADE;
-            else {
+            if (r.hit >= 0.0 && SHADE_HITS) r.phase = SHADE;
+            else if (r.hit >= 0.0) {
+                hits[r.index] = vec4(r.t0 + r.hit, 0.0, 0.0, 0.0);
+                r.phase = IDLE;
+            } else {
                 hits[r.index] = vec4(-1.0, 0.0, 0.0, 0.0);
                 r.phase = IDLE;
             }

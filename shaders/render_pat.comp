@@ -5,8 +5,9 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 #extension GL_EXT_control_flow_attributes : require
 // Sphere-traces a blended field (PAT, SSPD, SHC; the accelerated sum) per pixel: the renderer's
-// GPU path (src/render/render_gpu.cpp). Bindings 0–2 and the first push constants are those of
-// blend_eval.comp, so the field's device data serves both.
+// GPU path (src/render/render_gpu.cpp): the hits (t), at which the host then has blend_eval.comp
+// evaluate ∇φ. Bindings 0–2 and the first push constants are those of blend_eval.comp, so the
+// field's device data serves both.
 #include "box_tree.glsl"
 #include "torus.glsl"
 
@@ -41,6 +42,9 @@ uint lane_ticks = 0u, subgroup_ticks = 0u;
 
 float field_phi(vec3 x, bool live, bool grad, out vec3 g) { return blend_field(x, live, grad, g); }
 
+// The march evaluates φ alone (the blend's gradient sums would be paid at every step, the
+// condition being a lane's own); the host evaluates ∇φ at the hits (render_gpu.cpp).
+const bool SHADE_HITS = false;
 #define RENDER_PARAMS_BINDING 3
 #define RENDER_OUT_BINDING 4
 #include "render_march.glsl"

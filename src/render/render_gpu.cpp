@@ -127,6 +127,32 @@ void march_chunks(gpu::Context& ctx, const Camera& cam, const March& m, const Ti
     }
 }
 
+// ∇φ at the rays' hits, into hits[4p + 1..3]: render_pat.comp marches φ alone (its march would
+// otherwise carry the blend's gradient sums at every step, a lane's own condition deciding), and
+// the hits, about a fifth of the rays, are evaluated here as queries (blend_eval.comp, in Morton
+// order). Rays the kernel left unfinished (t = −2) are marched, and shaded, on the CPU.
+void gradients_at_hits(blend::GpuField& field, blend::Params p, const Camera& cam, std::vector<float>& hits,
+                       const ProgressFn& progress) {
+    p.exact = false;
+    p.gradient = true;
+    std::vector<std::size_t> hit;
+    for (std::size_t i = 0; 4 * i < hits.size(); ++i)
+        if (hits[4 * i] >= 0.0f) hit.push_back(i);
+    if (hit.empty()) return;
+    Points at(Eigen::Index(hit.size()), 3);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t j = 0; j < std::ptrdiff_t(hit.size()); ++j) {
+        const std::size_t i = hit[std::size_t(j)];
+        const Eigen::Vector3d d = cam.ray(int(i % std::size_t(cam.width)), int(i / std::size_t(cam.width)));
+        at.row(j) = (cam.eye + double(hits[4 * i]) * d).transpose();
+    }
+    std::vector<float> phi(hit.size()), grad(3 * hit.size());
+    blend::evaluate_gpu(field, p, blend::Queries(PointsView(at)), blend::Output{phi.data(), grad.data()}, 0,
+                        progress ? ProgressFn([&](std::string_view, double f) { progress("shade", f); }) : ProgressFn());
+    for (std::size_t j = 0; j < hit.size(); ++j)
+        for (int c = 0; c < 3; ++c) hits[4 * hit[j] + 1 + std::size_t(c)] = grad[3 * j + std::size_t(c)];
+}
+
 bool subgroups_ready(const gpu::Context& ctx, std::string& why_not) {
     if (ctx.info().subgroup_arithmetic) return true;
     why_not = ctx.info().name + " has no subgroup arithmetic in compute shaders (the renderer's kernels need it)";
@@ -152,6 +178,7 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
     march_chunks(*ctx, cam, m, tiles, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
         blend::record_render(*field, rec, p, params, out, first, count, tiles.rays_per_lane, gpu::software_loop_cap(*ctx));
     });
+    gradients_at_hits(*field, engine.params(true), cam, hits, progress);
     return true;
 }
 
