@@ -262,8 +262,9 @@ void knn_together(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_
 // whether it took the right child first, so the walk climbs past the children it took second
 // and steps to the sibling of the first one it meets. It lists the leaves that its current k-th
 // distance reaches; every BALL_ROUND steps the listed leaves' points nearer than it are
-// inserted, in loops of their own. The same k nearest as knn(); only
-// points tied at the k-th distance may differ, and those weigh T(1) ≈ 1e-9.
+// inserted, in loops of their own. The same k nearest as knn(), out in kd, ki from index
+// K_MAX − k on, nearest first; only points tied at the k-th distance may differ, and those weigh
+// T(1) ≈ 1e-9.
 
 // Inserts distance c of point ci into the sorted list (d, id): from the first slot it goes
 // before, every later entry moves down one, as knn() shifts them (so among equal distances the
@@ -354,13 +355,11 @@ void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MA
         }
         if (!subgroupAny(walking)) break;
     }
-    // Out nearest first, in knn()'s layout (a constant index on the registers' side).
+    // Out as the registers hold them: nearest first from slot K_MAX − k (constant indices on both
+    // sides; the caller reads from there).
     [[unroll]] for (int s = 0; s < K_MAX; ++s) {
-        int m = s - (K_MAX - int(k));
-        if (m >= 0) {
-            kd[m] = d[s];
-            ki[m] = id[s];
-        }
+        kd[s] = d[s];
+        ki[s] = id[s];
     }
 }
 #endif
@@ -378,6 +377,7 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     // Fewer than k points within r_eval: the k nearest, ρ = d_k.
     float kd[K_MAX];
     uint ki[K_MAX];
+    uint first = 0u;  // where the k nearest start in kd, ki
     if (SHARED_KNN == 1) {
         if (!subgroupAny(fallback)) return;
         knn_together(x, fallback, pc.k_fallback, kd, ki);
@@ -387,6 +387,7 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
         // Each lane on its own, its list in registers (uniform control flow: subgroup maxima).
         if (!subgroupAny(fallback)) return;
         knn_listed(x, fallback, pc.k_fallback, kd, ki);
+        first = uint(K_MAX) - pc.k_fallback;
         if (!fallback) return;
 #else
         // Each lane on its own, best first from its own position.
@@ -396,11 +397,11 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     }
     a = acc_zero();
     uint k = pc.k_fallback;
-    rho = max(kd[k - 1], 1e-30);
+    rho = max(kd[first + k - 1], 1e-30);
     rho_varies = true;
-    far_p = point_at(ki[k - 1]).xyz;
+    far_p = point_at(ki[first + k - 1]).xyz;
     float sigma = 0.5 * rho, lambda = pc.C / sigma;
-    for (uint m = 0; m < k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
+    for (uint m = first; m < first + k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
 }
 
 // φ from the sums (and ∇φ into g when `grad`; SHC has none).
