@@ -54,8 +54,10 @@ constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 /// and a step of a walk, or a pass over a leaf, costs about as much as a point in it: fewer,
 /// larger leaves did better. gsd-gpu-bench --device gpu --stages pat,render on lavapipe, leaves of
 /// 8, 16, 24, 32: PAT 3.4, 3.9, 3.9–4.0, 3.9–4.0·10⁵ queries/s; the render 8.6, 9.4, 9.8–10, 9.7·10⁴
-/// pixels/s.
-constexpr std::uint32_t kSoftwareLeafSize = 24;
+/// pixels/s (d3208d6). Once the render's march stopped carrying gradient sums (5440a81), 16, 24,
+/// 32: the render 0.91–0.95, 0.96–0.99, 1.00 of the CPU path's rate; PAT alike. 32 is the most a
+/// pass of mark_points takes.
+constexpr std::uint32_t kSoftwareLeafSize = 32;
 
 struct BlendPush {  // `Push` in blend_eval.comp
     std::uint32_t query_count, point_count, first_leaf, k_fallback;
