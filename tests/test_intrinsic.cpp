@@ -3,8 +3,8 @@
 // checked against the plane exactly; curved ones are checked through intrinsic invariants.
 #include <doctest/doctest.h>
 
-#include "surface/geometry.hpp"
-#include "surface/intrinsic.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/intrinsic.hpp"
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>

@@ -10,9 +10,9 @@
 #include <gsd/surface.hpp>
 
 #include "support.hpp"
-#include "surface/cholesky.hpp"
-#include "surface/operators.hpp"
-#include "surface/topology.hpp"
+#include "surface_shm/cholesky.hpp"
+#include "surface_shm/operators.hpp"
+#include "mesh/topology.hpp"
 
 #include <Eigen/Geometry>
 

@@ -1,4 +1,4 @@
-// Cutting a mesh along curve pieces (src/surface/split): every input triangle is exactly tiled
+// Cutting a mesh along curve pieces (src/mesh/split): every input triangle is exactly tiled
 // by same-oriented new triangles, the new mesh is conforming (no T-junctions, also across
 // nonmanifold edges), and every piece becomes a path of new edges lying on it. Cases: pieces
 // across triangles, along edges, through vertices, of zero length, overlapping, crossing (also
@@ -9,9 +9,9 @@
 #include <gsd/shapes.hpp>
 #include <gsd/surface.hpp>
 
-#include "surface/curves.hpp"
-#include "surface/split.hpp"
-#include "surface/topology.hpp"
+#include "surface_shm/curves.hpp"
+#include "mesh/split.hpp"
+#include "mesh/topology.hpp"
 
 #include <Eigen/Geometry>
 

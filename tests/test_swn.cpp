@@ -11,7 +11,7 @@
 #include <gsd/swn.hpp>
 
 #include "support.hpp"
-#include "surface/tension.hpp"
+#include "swn/tension.hpp"
 
 #include <Eigen/Geometry>
 

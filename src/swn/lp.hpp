@@ -1,4 +1,4 @@
-// lp.hpp — sparse linear programs solved with COIN-OR CLP (dual simplex). Private to src/surface.
+// lp.hpp — sparse linear programs solved with COIN-OR CLP (dual simplex). Private to src/swn.
 #pragma once
 
 #include <cstdint>

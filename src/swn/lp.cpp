@@ -1,5 +1,5 @@
 // CLP behind the LinearProgram description: column-major assembly, dual simplex, quiet.
-#include "surface/lp.hpp"
+#include "swn/lp.hpp"
 
 #include <gsd/core.hpp>
 

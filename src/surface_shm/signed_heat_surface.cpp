@@ -11,12 +11,12 @@
 // singular, unlike a direct factorization of the saddle-point matrix.
 #include <gsd/surface.hpp>
 
-#include "surface/cholesky.hpp"
-#include "surface/curves.hpp"
-#include "surface/intrinsic.hpp"
-#include "surface/operators.hpp"
-#include "surface/sources.hpp"
-#include "surface/topology.hpp"
+#include "surface_shm/cholesky.hpp"
+#include "surface_shm/curves.hpp"
+#include "mesh/intrinsic.hpp"
+#include "surface_shm/operators.hpp"
+#include "surface_shm/sources.hpp"
+#include "mesh/topology.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/Sparse>

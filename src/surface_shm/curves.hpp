@@ -1,13 +1,14 @@
 // curves.hpp — curves and points on a surface resolved into what the operators consume: straight
 // pieces inside single faces (a piece between nodes that share no face follows the shortest
 // path through the faces that join them), constraint nodes, point sources, the curve components
-// and the open ends of unsigned curves. Private to src/surface.
+// and the open ends of unsigned curves. Private to src/surface_shm (and
+// src/swn, which uses it).
 #pragma once
 
 #include <gsd/surface.hpp>
 
-#include "surface/topology.hpp"
-#include "surface/triangulation.hpp"
+#include "mesh/topology.hpp"
+#include "mesh/triangulation.hpp"
 
 #include <cstdint>
 #include <vector>

@@ -2,8 +2,8 @@
 // adjacency lists, areas; and gsd::SurfaceMesh on top of it.
 #include <gsd/surface.hpp>
 
-#include "surface/operators.hpp"
-#include "surface/topology.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/topology.hpp"
 
 #include <algorithm>
 #include <numeric>

@@ -1,7 +1,7 @@
 // Source terms of the vector heat step. Every vector is built in one face's plane (FaceFrame
 // coordinates) and stored at an edge as conj(r)·v, r the edge's direction in that face: the
 // complex encoding of the Crouzeix–Raviart connection Laplacian.
-#include "surface/sources.hpp"
+#include "surface_shm/sources.hpp"
 
 #include <cmath>
 #include <numbers>

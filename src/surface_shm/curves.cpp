@@ -2,10 +2,10 @@
 // files are made that way); when they do not, the piece follows the shortest path between them
 // within the strip of faces found by Dijkstra on the face graph (unfolded into the plane, the
 // "funnel" algorithm), split where it crosses edges.
-#include "surface/curves.hpp"
+#include "surface_shm/curves.hpp"
 
-#include "surface/geometry.hpp"
-#include "surface/operators.hpp"
+#include "mesh/geometry.hpp"
+#include "surface_shm/operators.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -5,9 +5,9 @@
 // c·max(0, x_l − x_r + d) of our objective is an arc r → l with cost −d and capacity c, and a
 // bound J ≤ hi an arc r → l with cost hi − d and a capacity larger than any flow that could use
 // it (an exact penalty). LEMON's optimal potentials are then an optimal x.
-#include "surface/tension.hpp"
+#include "swn/tension.hpp"
 
-#include "surface/lp.hpp"
+#include "swn/lp.hpp"
 
 #include <gsd/core.hpp>
 

@@ -2,8 +2,8 @@
 // triangles"), and damaged copies of curves for tests and demos.
 #include <gsd/surface.hpp>
 
-#include "surface/geometry.hpp"
-#include "surface/topology.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/topology.hpp"
 
 #include <algorithm>
 #include <random>

@@ -1,11 +1,11 @@
 // sources.hpp — the right-hand side X₀ of the vector heat step (thesis eq. 4.9) from resolved
 // curves and points, and the rows that keep the diffused field normal to the curves
-// ("preserve source normals"). Private to src/surface.
+// ("preserve source normals"). Private to src/surface_shm.
 #pragma once
 
-#include "surface/curves.hpp"
-#include "surface/operators.hpp"
-#include "surface/topology.hpp"
+#include "surface_shm/curves.hpp"
+#include "surface_shm/operators.hpp"
+#include "mesh/topology.hpp"
 
 #include <vector>
 

@@ -3,7 +3,7 @@
 #include <gsd/io.hpp>
 #include <gsd/surface.hpp>
 
-#include "surface/topology.hpp"
+#include "mesh/topology.hpp"
 
 #include <cmath>
 #include <cstdio>

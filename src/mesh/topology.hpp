@@ -1,11 +1,11 @@
 // topology.hpp — the mesh-topology room shared by the surface methods (surface SHM, SWN): the
 // triangulated input with the edge numbering of curve files, edge and vertex adjacency, areas.
-// Private to src/surface; users see it through gsd::SurfaceMesh.
+// Private to src/mesh and the surface methods above it (src/surface_shm, src/swn); users see it through gsd::SurfaceMesh.
 #pragma once
 
 #include <gsd/core.hpp>
 
-#include "surface/triangulation.hpp"
+#include "mesh/triangulation.hpp"
 
 #include <cstdint>
 #include <string>

@@ -1,6 +1,6 @@
 // tension.hpp — L1 "tension" problems: choose a value per node so that the jumps across edges
 // are small in the weighted L1 sense. Surface Winding Numbers' residual function is one (nodes:
-// faces, or groups of faces; edges: mesh edges). Private to src/surface.
+// faces, or groups of faces; edges: mesh edges). Private to src/swn.
 //
 // The problem is a linear program, and the dual of a minimum-cost circulation, so it can be
 // solved two ways: as a general LP with COIN-OR CLP (solve_tension_lp, the thesis' formulation)

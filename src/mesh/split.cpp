@@ -8,9 +8,9 @@
 //   3. every triangle with pieces or side points is re-triangulated in its planar layout: its
 //      pieces are cut at their crossings (an arrangement with snapping), then a constrained
 //      Delaunay triangulation is built with exact orientation tests. Other triangles are copied.
-#include "surface/split.hpp"
+#include "mesh/split.hpp"
 
-#include "surface/geometry.hpp"
+#include "mesh/geometry.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // split.hpp — a mesh cut along curve pieces, so that every piece runs along edges of the new
 // mesh (what Surface Winding Numbers need: curves as integer 1-chains on edges). Private to
-// src/surface.
+// src/mesh and the surface methods above it (src/swn).
 //
 // Each input triangle holding pieces (or points that other triangles put on its sides) is
 // replaced by a triangulation of itself, made in its planar layout: its sides with their points,
@@ -34,8 +34,8 @@
 
 #include <gsd/core.hpp>
 
-#include "surface/topology.hpp"
-#include "surface/triangulation.hpp"
+#include "mesh/topology.hpp"
+#include "mesh/triangulation.hpp"
 
 #include <cstdint>
 #include <vector>

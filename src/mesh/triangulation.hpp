@@ -1,7 +1,8 @@
 // triangulation.hpp — the one description of a triangulated surface that the surface operators
 // read: faces, edges with a direction, and edge lengths (the intrinsic metric). The input mesh is
 // one (lengths from its vertex positions); an intrinsic Delaunay triangulation is another (same
-// vertices, other edges, lengths measured along the input surface). Private to src/surface.
+// vertices, other edges, lengths measured along the input surface). Private to src/mesh and the surface methods above
+// it (src/surface_shm, src/swn).
 #pragma once
 
 #include <array>

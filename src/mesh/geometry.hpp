@@ -1,15 +1,17 @@
 // geometry.hpp — intrinsic triangle geometry from edge lengths: areas, angles, cotangents and a
 // planar layout of each face. Everything the surface operators need is computed from lengths,
-// so the same code serves the input mesh and intrinsic triangulations. Private to src/surface.
+// so the same code serves the input mesh and intrinsic triangulations. Private to src/mesh and the surface methods above
+// it (src/surface_shm, src/swn).
 #pragma once
 
-#include "surface/triangulation.hpp"
+#include "mesh/triangulation.hpp"
 
 #include <Eigen/Core>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <vector>
 
 namespace gsd::surface {
 
@@ -56,5 +58,12 @@ inline double corner_angle(const std::array<double, 3>& l, int k) {
     const double q = (b * b + c * c - a * a) / (2 * b * c);
     return std::acos(std::clamp(q, -1.0, 1.0));
 }
+
+/// Face areas, 0 for degenerate faces (area below kDegenerateRelativeArea × longest side², or a
+/// side longer than kDegenerateSpan typical edges: src/mesh/topology.hpp).
+std::vector<double> face_areas(const Triangulation& T);
+
+/// Mean length of the edges of non-degenerate faces (each edge once); 0 if there are none.
+double mean_edge_length(const Triangulation& T, const std::vector<double>& areas);
 
 }  // namespace gsd::surface

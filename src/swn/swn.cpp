@@ -9,12 +9,12 @@
 // do not add up to zero (interior ends of open curves) are left out of the system.
 #include <gsd/swn.hpp>
 
-#include "surface/cholesky.hpp"
-#include "surface/curves.hpp"
-#include "surface/operators.hpp"
-#include "surface/split.hpp"
-#include "surface/tension.hpp"
-#include "surface/topology.hpp"
+#include "surface_shm/cholesky.hpp"
+#include "surface_shm/curves.hpp"
+#include "surface_shm/operators.hpp"
+#include "mesh/split.hpp"
+#include "swn/tension.hpp"
+#include "mesh/topology.hpp"
 
 #include <algorithm>
 #include <chrono>

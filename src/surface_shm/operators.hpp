@@ -5,12 +5,13 @@
 //    at edge e is a tangent vector in the frame (ê, ê⊥) of e, ê its direction) and CR mass M;
 //  - face fields from CR fields, and the divergence of a face field onto vertices.
 // Everything reads only lengths (intrinsic), so the same code serves intrinsic triangulations.
-// Private to src/surface.
+// Private to src/surface_shm (and
+// src/swn, which uses it).
 #pragma once
 
-#include "surface/cholesky.hpp"
-#include "surface/geometry.hpp"
-#include "surface/triangulation.hpp"
+#include "surface_shm/cholesky.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/triangulation.hpp"
 
 #include <Eigen/Core>
 
@@ -20,13 +21,6 @@
 namespace gsd::surface {
 
 using Complex = std::complex<double>;
-
-/// Face areas, 0 for degenerate faces (area below kDegenerateRelativeArea × longest side², or a
-/// side longer than kDegenerateSpan typical edges).
-std::vector<double> face_areas(const Triangulation& T);
-
-/// Mean length of the edges of non-degenerate faces (each edge once); 0 if there are none.
-double mean_edge_length(const Triangulation& T, const std::vector<double>& areas);
 
 /// One face seen in its own plane (geometry::layout): corner positions, the unit direction of
 /// each halfedge's *edge* (its canonical direction, as a complex number), corner cotangents.

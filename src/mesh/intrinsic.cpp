@@ -13,10 +13,10 @@
 // non-degenerate faces around them (a disk or a half-disk). Faces that touch any other vertex
 // (nonmanifold, nonorientable, degenerate neighbourhoods) are never rewritten, so their faces
 // stay exactly the input's and curves inside them map as they are.
-#include "surface/intrinsic.hpp"
+#include "mesh/intrinsic.hpp"
 
-#include "surface/geometry.hpp"
-#include "surface/topology.hpp"
+#include "mesh/geometry.hpp"
+#include "mesh/topology.hpp"
 
 #include <gsd/core.hpp>
 

@@ -2,10 +2,11 @@
 // Crane 2019, "Navigating intrinsic triangulations"; Gillespie et al. 2021): the same surface
 // (the same metric) triangulated by other edges, found by edge flips and optional vertex
 // insertion, without changing the input mesh. Curves drawn on the input are traced into the new
-// triangulation. Private to src/surface.
+// triangulation. Private to src/mesh and the surface methods above
+// it (src/surface_shm, src/swn).
 #pragma once
 
-#include "surface/triangulation.hpp"
+#include "mesh/triangulation.hpp"
 
 #include <cstddef>
 #include <memory>

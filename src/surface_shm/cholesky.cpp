@@ -1,6 +1,6 @@
 // CHOLMOD behind the small Cholesky<Scalar> interface: 64-bit indices (large meshes), supernodal
 // or simplicial as CHOLMOD judges best, its default ordering (AMD, METIS when AMD fills badly).
-#include "surface/cholesky.hpp"
+#include "surface_shm/cholesky.hpp"
 
 #include <gsd/core.hpp>
 

@@ -1,7 +1,8 @@
 // cholesky.hpp — sparse Cholesky factorizations (CHOLMOD) of the surface operators: real
 // symmetric or complex Hermitian positive definite matrices given by their lower triangle.
 // Analysed once, factored once, reused for every right-hand side; a matrix with the same
-// pattern (different values) is refactored without a new analysis. Private to src/surface.
+// pattern (different values) is refactored without a new analysis. Private to src/surface_shm (and
+// src/swn, which uses it).
 #pragma once
 
 #include <complex>
