@@ -17,7 +17,7 @@
 #include <utility>
 #include <vector>
 
-using namespace gsd::surface;
+using namespace gsd::mesh;
 using Eigen::Vector2d;
 using Eigen::Vector3d;
 using Bary = std::array<double, 3>;

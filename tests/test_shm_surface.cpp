@@ -189,11 +189,11 @@ TEST_CASE("mesh summary: boundary, nonmanifold and misoriented edges, components
 TEST_CASE("operators on a flat mesh: the cotan Laplacian kills linear functions, a parallel field has no energy") {
     const PolygonMesh m = shapes::grid_mesh(6, 0.3, true, 3);
     const SurfaceMesh s(m);
-    const surface::Topology& t = s.topology();
-    const surface::Triangulation& T = t.mesh;
+    const mesh::Topology& t = s.topology();
+    const mesh::Triangulation& T = t.mesh;
 
     // K (x + 2y) vanishes at interior vertices; K·1 vanishes everywhere.
-    const surface::SparseLower<double> K = surface::cotan_laplacian(T, t.face_areas);
+    const surface_shm::SparseLower<double> K = surface_shm::cotan_laplacian(T, t.face_areas);
     std::vector<double> Kf(T.vertex_count, 0.0), K1(T.vertex_count, 0.0);
     for (std::size_t k = 0; k < K.entries(); ++k) {
         const auto r = std::size_t(K.rows[k]), c = std::size_t(K.cols[k]);
@@ -214,13 +214,13 @@ TEST_CASE("operators on a flat mesh: the cotan Laplacian kills linear functions,
 
     // The connection Laplacian: the field (1, 0.5) expressed in every edge's frame has zero energy,
     // a rotating field has positive energy. (M + tL) must factor (Hermitian positive definite).
-    const surface::SparseLower<surface::Complex> A = surface::vector_heat_operator(T, t.face_areas, 0.0);
-    const surface::SparseLower<surface::Complex> L = surface::vector_heat_operator(T, t.face_areas, 1.0);
-    auto energy = [&](const std::vector<surface::Complex>& X) {
+    const surface_shm::SparseLower<surface_shm::Complex> A = surface_shm::vector_heat_operator(T, t.face_areas, 0.0);
+    const surface_shm::SparseLower<surface_shm::Complex> L = surface_shm::vector_heat_operator(T, t.face_areas, 1.0);
+    auto energy = [&](const std::vector<surface_shm::Complex>& X) {
         double e = 0;
         for (std::size_t k = 0; k < L.entries(); ++k) {
             const auto r = std::size_t(L.rows[k]), c = std::size_t(L.cols[k]);
-            const surface::Complex v = L.values[k] - (r == c ? A.values[k] : surface::Complex(0, 0));
+            const surface_shm::Complex v = L.values[k] - (r == c ? A.values[k] : surface_shm::Complex(0, 0));
             e += (std::conj(X[r]) * v * X[c]).real();
             if (r != c) e += (std::conj(X[c]) * std::conj(v) * X[r]).real();
         }
@@ -229,24 +229,24 @@ TEST_CASE("operators on a flat mesh: the cotan Laplacian kills linear functions,
     // Mass on the diagonal of A (t = 0) comes first among each diagonal's triplets: both
     // operators list the same entries in the same order, so subtracting them leaves L alone.
     REQUIRE(A.entries() == L.entries());
-    std::vector<surface::Complex> parallel(T.edge_count()), rotating(T.edge_count());
+    std::vector<surface_shm::Complex> parallel(T.edge_count()), rotating(T.edge_count());
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         const Eigen::Vector3d d = (m.vertices.row(T.edges[e][1]) - m.vertices.row(T.edges[e][0])).transpose().normalized();
-        const surface::Complex frame(d.x(), d.y());  // the edge's direction; faces are counter-clockwise
-        parallel[e] = std::conj(frame) * surface::Complex(1.0, 0.5);
+        const surface_shm::Complex frame(d.x(), d.y());  // the edge's direction; faces are counter-clockwise
+        parallel[e] = std::conj(frame) * surface_shm::Complex(1.0, 0.5);
         const Eigen::Vector3d mid = 0.5 * (m.vertices.row(T.edges[e][1]) + m.vertices.row(T.edges[e][0])).transpose();
-        rotating[e] = std::conj(frame) * surface::Complex(-mid.y(), mid.x());
+        rotating[e] = std::conj(frame) * surface_shm::Complex(-mid.y(), mid.x());
     }
     CHECK(std::abs(energy(parallel)) < 1e-10);
     CHECK(energy(rotating) > 0.1);
-    CHECK_NOTHROW(surface::Cholesky<surface::Complex>{L});
+    CHECK_NOTHROW(surface_shm::Cholesky<surface_shm::Complex>{L});
 }
 
 TEST_CASE("divergence of the gradient of a piecewise-linear function is its cotan Laplacian") {
     const PolygonMesh m = shapes::icosphere(2);
     const SurfaceMesh s(m);
-    const surface::Topology& t = s.topology();
-    const surface::Triangulation& T = t.mesh;
+    const mesh::Topology& t = s.topology();
+    const mesh::Triangulation& T = t.mesh;
     std::mt19937_64 rng(4);
     std::normal_distribution<double> n(0, 1);
     std::vector<double> phi(T.vertex_count);
@@ -254,7 +254,7 @@ TEST_CASE("divergence of the gradient of a piecewise-linear function is its cota
     // ∇φ in each face's plane: Σ_i φ_i ∇λ_i, ∇λ_i = J(p_k − p_j)/(2A).
     std::vector<Eigen::Vector2d> Y(T.face_count());
     for (std::size_t f = 0; f < T.face_count(); ++f) {
-        const surface::FaceFrame F = surface::face_frame(T, f, t.face_areas[f]);
+        const surface_shm::FaceFrame F = surface_shm::face_frame(T, f, t.face_areas[f]);
         Eigen::Vector2d g = Eigen::Vector2d::Zero();
         for (int i = 0; i < 3; ++i) {
             const Eigen::Vector2d d = F.p[std::size_t((i + 2) % 3)] - F.p[std::size_t((i + 1) % 3)];
@@ -262,8 +262,8 @@ TEST_CASE("divergence of the gradient of a piecewise-linear function is its cota
         }
         Y[f] = g;
     }
-    const std::vector<double> div = surface::face_field_divergence(T, t.face_areas, Y);
-    const surface::SparseLower<double> K = surface::cotan_laplacian(T, t.face_areas);
+    const std::vector<double> div = surface_shm::face_field_divergence(T, t.face_areas, Y);
+    const surface_shm::SparseLower<double> K = surface_shm::cotan_laplacian(T, t.face_areas);
     std::vector<double> Kphi(T.vertex_count, 0.0);
     for (std::size_t k = 0; k < K.entries(); ++k) {
         const auto r = std::size_t(K.rows[k]), c = std::size_t(K.cols[k]);

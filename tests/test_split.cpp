@@ -23,9 +23,9 @@
 #include <set>
 
 using namespace gsd;
-using surface::FaceSegment;
-using surface::SplitMesh;
-using surface::Topology;
+using mesh::FaceSegment;
+using mesh::SplitMesh;
+using mesh::Topology;
 using Bary = std::array<double, 3>;
 
 namespace {
@@ -50,7 +50,7 @@ double segment_distance(const Eigen::Vector3d& x, const Eigen::Vector3d& a, cons
 
 /// Barycentric weights of the point at parameter t along edge e (its direction), in triangle f.
 Bary on_edge(const Topology& t, std::uint32_t f, std::uint32_t e, double s) {
-    const surface::Triangulation& T = t.mesh;
+    const mesh::Triangulation& T = t.mesh;
     for (int k = 0; k < 3; ++k)
         if (T.face_edges[f][std::size_t(k)] == e) {
             Bary b{0, 0, 0};
@@ -118,7 +118,7 @@ std::array<double, 3> special_edge_length(const SurfaceMesh& s) {
         const std::size_t n = t.edge_halfedges.count(e);
         const std::uint32_t* h = t.edge_halfedges.begin(e);
         auto aligned = [&](std::uint32_t c) {
-            return t.mesh.aligned[surface::corner_face(c)][std::size_t(surface::corner_index(c))];
+            return t.mesh.aligned[mesh::corner_face(c)][std::size_t(mesh::corner_index(c))];
         };
         if (n == 1) length[0] += t.mesh.edge_lengths[e];
         if (n >= 3) length[1] += t.mesh.edge_lengths[e];
@@ -176,7 +176,7 @@ void check_paths(const Topology& t, const std::vector<FaceSegment>& pieces, cons
 
 /// Splits and checks everything; returns the split and its mesh.
 std::pair<SplitMesh, SurfaceMesh> split_checked(const SurfaceMesh& in, const std::vector<FaceSegment>& pieces) {
-    SplitMesh cut = surface::split_along(in.topology(), pieces);
+    SplitMesh cut = mesh::split_along(in.topology(), pieces);
     check_tiling(in.topology(), cut);
     SurfaceMesh out(cut.mesh, "split");
     check_conforming(in, out);
@@ -184,9 +184,9 @@ std::pair<SplitMesh, SurfaceMesh> split_checked(const SurfaceMesh& in, const std
     return {std::move(cut), std::move(out)};
 }
 
-std::vector<FaceSegment> segments_of(const surface::ResolvedSources& r) {
+std::vector<FaceSegment> segments_of(const surface_shm::ResolvedSources& r) {
     std::vector<FaceSegment> s;
-    for (const surface::CurvePiece& p : r.pieces) s.push_back(p.segment);
+    for (const surface_shm::CurvePiece& p : r.pieces) s.push_back(p.segment);
     return s;
 }
 
@@ -239,7 +239,7 @@ TEST_CASE("split: pieces along edges map onto the (split) edges, pieces through 
         // neighbour across that edge; piece 2 along part of side 0 in f itself.
         const std::uint32_t e = t.mesh.face_edges[f][0];
         const std::uint32_t* h = t.edge_halfedges.begin(e);
-        const std::uint32_t g = surface::corner_face(h[0]) == f ? surface::corner_face(h[1]) : surface::corner_face(h[0]);
+        const std::uint32_t g = mesh::corner_face(h[0]) == f ? mesh::corner_face(h[1]) : mesh::corner_face(h[0]);
         const std::vector<FaceSegment> pieces{{f, {0.6, 0.4, 0}, {0.2, 0.2, 0.6}},
                                               {g, on_edge(t, g, e, 0), on_edge(t, g, e, 1)},
                                               {f, {0.9, 0.1, 0}, {0, 1, 0}}};
@@ -430,7 +430,7 @@ TEST_CASE("split: points near vertices and edges snap to them") {
     const std::uint32_t V = std::uint32_t(mesh.vertex_count());
     const std::uint32_t e = t.mesh.face_edges[f][0];
     const std::uint32_t* h = t.edge_halfedges.begin(e);
-    const std::uint32_t g = surface::corner_face(h[0]) == f ? surface::corner_face(h[1]) : surface::corner_face(h[0]);
+    const std::uint32_t g = mesh::corner_face(h[0]) == f ? mesh::corner_face(h[1]) : mesh::corner_face(h[0]);
 
     SUBCASE("a point 1e-13 from a corner is the corner") {
         const auto [cut, out] = split_checked(mesh, {{f, {1 - 1e-13, 5e-14, 5e-14}, {0.2, 0.3, 0.5}}});
@@ -469,7 +469,7 @@ TEST_CASE("split: a closed level-set curve on a sphere becomes a closed edge loo
     SurfaceSources src;
     src.curves = level_set_curves(mesh, f, 0);
     REQUIRE(src.curves.size() == 1);
-    const surface::ResolvedSources r = surface::resolve_sources(mesh.topology(), src);
+    const surface_shm::ResolvedSources r = surface_shm::resolve_sources(mesh.topology(), src);
     const std::vector<FaceSegment> pieces = segments_of(r);
     const auto [cut, out] = split_checked(mesh, pieces);
     CHECK(out.summary().boundary_edges == 0);
@@ -500,7 +500,7 @@ TEST_CASE("split: two crossing level-set loops share exactly their two crossings
     for (SurfaceCurve& c : level_set_curves(mesh, g, 0)) src.curves.push_back(std::move(c));
     REQUIRE(first_curves == 1);
     REQUIRE(src.curves.size() == 2);
-    const surface::ResolvedSources r = surface::resolve_sources(mesh.topology(), src);
+    const surface_shm::ResolvedSources r = surface_shm::resolve_sources(mesh.topology(), src);
     std::size_t n_first = src.curves[0].nodes.size() - 1;
     const auto [cut, out] = split_checked(mesh, segments_of(r));
     std::set<std::uint32_t> on_f, on_g;
@@ -580,7 +580,7 @@ TEST_CASE("split: a triangle naming a vertex twice is kept; a piece in it runs a
     m.add_face({1, 0, 0});  // the segment 0–1: its sides 1→0 and 0→1 are both edge 0–1
     const SurfaceMesh mesh(m);
     const std::vector<FaceSegment> pieces{{1, {0.7, 0.3, 0}, {0.2, 0, 0.8}}};  // from 0.3 to 0.8 of 1→0
-    const SplitMesh cut = surface::split_along(mesh.topology(), pieces);
+    const SplitMesh cut = mesh::split_along(mesh.topology(), pieces);
     check_tiling(mesh.topology(), cut);
     const SurfaceMesh out(cut.mesh, "split");
     check_paths(mesh.topology(), pieces, cut, out);
@@ -602,8 +602,8 @@ TEST_CASE("split: polygon faces (fan diagonals get points too) and bad input") {
     const auto [cut, out] = split_checked(mesh, pieces);
     CHECK(cut.piece_paths[0].back() == cut.piece_paths[1].front());
 
-    CHECK_THROWS_AS(surface::split_along(t, {{7, {1, 0, 0}, {0, 1, 0}}}), Error);
-    CHECK_THROWS_AS(surface::split_along(t, {{0, {NAN, 0, 0}, {0, 1, 0}}}), Error);
+    CHECK_THROWS_AS(mesh::split_along(t, {{7, {1, 0, 0}, {0, 1, 0}}}), Error);
+    CHECK_THROWS_AS(mesh::split_along(t, {{0, {NAN, 0, 0}, {0, 1, 0}}}), Error);
 }
 
 TEST_CASE("split: timing on many level-set pieces") {
@@ -616,9 +616,9 @@ TEST_CASE("split: timing on many level-set pieces") {
             f[i] = std::sin(k * m.vertices(Eigen::Index(i), 0)) * std::sin(k * 1.1 * m.vertices(Eigen::Index(i), 1)) - 0.1;
         for (SurfaceCurve& c : level_set_curves(mesh, f, 0)) src.curves.push_back(std::move(c));
     }
-    const surface::ResolvedSources r = surface::resolve_sources(mesh.topology(), src);
+    const surface_shm::ResolvedSources r = surface_shm::resolve_sources(mesh.topology(), src);
     const auto start = std::chrono::steady_clock::now();
-    const SplitMesh cut = surface::split_along(mesh.topology(), segments_of(r));
+    const SplitMesh cut = mesh::split_along(mesh.topology(), segments_of(r));
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     MESSAGE(r.pieces.size() << " pieces on " << mesh.triangle_count() << " triangles: " << seconds << " s");
     const SurfaceMesh out(cut.mesh, "split");

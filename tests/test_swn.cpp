@@ -292,17 +292,17 @@ TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduc
 TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
     // By hand: three nodes in a row, x0 − x1 + 1 and x1 − x2 + 1 at cost 1, x0 − x2 at cost 3:
     // the cheapest is to jump on the two unit edges... unless they must stay below 0.5.
-    surface::TensionProblem p;
+    swn::TensionProblem p;
     p.nodes = 3;
     p.edges = {{0, 1, 1.0, 1.0}, {1, 2, 1.0, 1.0}, {0, 2, 0.0, 3.0}};
-    for (auto* solve : {&surface::solve_tension_network, &surface::solve_tension_lp}) {
-        const surface::TensionSolution s = solve(p);
+    for (auto* solve : {&swn::solve_tension_network, &swn::solve_tension_lp}) {
+        const swn::TensionSolution s = solve(p);
         CHECK(s.objective == doctest::Approx(2.0).epsilon(1e-6));  // x equal: J = 1, 1, 0
     }
     p.edges[0].hi = 0.5;
     p.edges[1].hi = 0.5;
-    for (auto* solve : {&surface::solve_tension_network, &surface::solve_tension_lp}) {
-        const surface::TensionSolution s = solve(p);
+    for (auto* solve : {&swn::solve_tension_network, &swn::solve_tension_lp}) {
+        const swn::TensionSolution s = solve(p);
         CHECK(s.violation < 1e-6);
         CHECK(s.objective == doctest::Approx(4.0).epsilon(1e-6));  // J = ½, ½ and 1 on the costly edge: 1 + 3
     }
@@ -310,10 +310,10 @@ TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> u(0, 1);
     for (int trial = 0; trial < 20; ++trial) {
-        surface::TensionProblem q;
+        swn::TensionProblem q;
         q.nodes = 40;
         for (int e = 0; e < 120; ++e) {
-            surface::TensionProblem::Edge edge;
+            swn::TensionProblem::Edge edge;
             edge.left = std::uint32_t(rng() % 40);
             edge.right = std::uint32_t((edge.left + 1 + rng() % 39) % 40);
             edge.offset = 4 * u(rng) - 2;
@@ -327,13 +327,13 @@ TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
         }
         CAPTURE(trial);
         bool lp_feasible = true;
-        surface::TensionSolution b;
+        swn::TensionSolution b;
         try {
-            b = surface::solve_tension_lp(q);
+            b = swn::solve_tension_lp(q);
         } catch (const Error&) {
             lp_feasible = false;  // bounds that contradict each other: the network solver still answers
         }
-        const surface::TensionSolution a = surface::solve_tension_network(q);
+        const swn::TensionSolution a = swn::solve_tension_network(q);
         if (lp_feasible) {
             CHECK(a.violation < 1e-6);
             CHECK(b.violation < 1e-6);

@@ -27,7 +27,7 @@
 
 namespace gsd {
 
-namespace surface {
+namespace mesh {
 struct Topology;
 }
 
@@ -75,10 +75,10 @@ public:
     };
     Summary summary() const;
 
-    const surface::Topology& topology() const { return *topology_; }
+    const mesh::Topology& topology() const { return *topology_; }
 
 private:
-    std::shared_ptr<const surface::Topology> topology_;
+    std::shared_ptr<const mesh::Topology> topology_;
 };
 
 /// A point on the surface: a vertex, a point on an edge, or a point inside a triangle.

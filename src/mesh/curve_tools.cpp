@@ -21,8 +21,8 @@ struct Piece {
 }  // namespace
 
 std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::vector<double>& f, double level) {
-    const surface::Topology& t = mesh.topology();
-    const surface::Triangulation& T = t.mesh;
+    const mesh::Topology& t = mesh.topology();
+    const mesh::Triangulation& T = t.mesh;
     if (f.size() != T.vertex_count) throw Error("level_set_curves", "expected one value per vertex");
     auto above = [&](std::uint32_t v) { return !(f[v] < level); };
     std::vector<Piece> pieces;
@@ -35,7 +35,7 @@ std::vector<SurfaceCurve> level_set_curves(const SurfaceMesh& mesh, const std::v
             if (above(c[std::size_t(k)]) != above(c[std::size_t((k + 1) % 3)])) cut[std::size_t(n++)] = k;
         if (n != 2) continue;
         // Orient so the corner below the level lies on the left (in the face's own plane).
-        const auto p = surface::layout(surface::face_lengths(T, fi));
+        const auto p = mesh::layout(mesh::face_lengths(T, fi));
         auto crossing = [&](int k) {
             const double a = f[c[std::size_t(k)]] - level, b = f[c[std::size_t((k + 1) % 3)]] - level;
             const double s = a / (a - b);

@@ -10,7 +10,7 @@
 #include <cmath>
 #include <cstdint>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 std::vector<double> face_areas(const Triangulation& T) {
     // Degenerate: flat to rounding relative to its own sides, or so small against the mesh
@@ -48,4 +48,4 @@ double mean_edge_length(const Triangulation& T, const std::vector<double>& areas
     return robust_mean(std::move(lengths));  // one stray vertex must not set the diffusion time
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

@@ -13,7 +13,7 @@
 #include <cmath>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 /// Area of a triangle with sides a, b, c (Kahan's stable form of Heron's formula). 0 when the
 /// sides violate the triangle inequality (degenerate or inconsistent lengths).
@@ -66,4 +66,4 @@ std::vector<double> face_areas(const Triangulation& T);
 /// Mean length of the edges of non-degenerate faces (each edge once); 0 if there are none.
 double mean_edge_length(const Triangulation& T, const std::vector<double>& areas);
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

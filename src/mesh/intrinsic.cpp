@@ -33,7 +33,7 @@
 #include <tuple>
 #include <utility>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 namespace {
 
@@ -1092,4 +1092,4 @@ FacePoint IntrinsicTriangulation::locate(const FacePoint& p) const {
     return {c.face, c.bary};
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

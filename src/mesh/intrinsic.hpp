@@ -12,7 +12,7 @@
 #include <memory>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 class IntrinsicTriangulation {
 public:
@@ -47,4 +47,4 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

@@ -18,7 +18,7 @@
 #include <string>
 #include <unordered_map>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 namespace {
 
@@ -1445,4 +1445,4 @@ SplitMesh split_along(const Topology& t, const std::vector<FaceSegment>& pieces)
     return Assembler(t, pieces).run();
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

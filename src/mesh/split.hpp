@@ -40,7 +40,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 /// Relative distance below which two points are one (see the file comment).
 constexpr double kSplitTolerance = 1e-9;
@@ -60,4 +60,4 @@ struct SplitMesh {
 /// non-finite coordinates.
 SplitMesh split_along(const Topology& t, const std::vector<FaceSegment>& pieces);
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

@@ -56,7 +56,7 @@ SurfaceSources read_surface_curves(const std::string& path, const SurfaceMesh& m
     points.reserve(file.points.size());
     for (const auto& p : file.points) points.push_back(to_point(p, mesh, path));
     SurfaceSources s;
-    const surface::Topology& t = mesh.topology();
+    const mesh::Topology& t = mesh.topology();
     for (const auto& line : file.lines) {
         SurfaceCurve c;
         std::uint32_t previous = UINT32_MAX;
@@ -167,7 +167,7 @@ Eigen::Vector3d position(const SurfaceMesh& mesh, const SurfacePoint& p) {
 }
 
 std::vector<double> vertex_areas(const SurfaceMesh& mesh) {
-    const surface::Topology& t = mesh.topology();
+    const mesh::Topology& t = mesh.topology();
     std::vector<double> a(t.mesh.vertex_count, 0.0);
     for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
         for (std::uint32_t v : t.mesh.faces[f]) a[v] += t.face_areas[f] / 3;

@@ -9,7 +9,7 @@
 #include <numeric>
 #include <unordered_map>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 namespace {
 
@@ -215,17 +215,17 @@ Topology build_topology(PolygonMesh mesh) {
     return t;
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh
 
 namespace gsd {
 
-using surface::Topology;
+using mesh::Topology;
 
 SurfaceMesh::SurfaceMesh(PolygonMesh mesh, const std::string& where) {
     validate(mesh, where);
     if (mesh.indices.size() >= std::size_t(UINT32_MAX) / 4)
         throw Error(where, "mesh too large for the surface methods (more than 10⁹ face corners)");
-    auto t = std::make_shared<Topology>(surface::build_topology(std::move(mesh)));
+    auto t = std::make_shared<Topology>(mesh::build_topology(std::move(mesh)));
     if (t->mean_edge_length <= 0) throw Error(where, "every triangle of the mesh is degenerate (zero area)");
     topology_ = std::move(t);
 }
@@ -251,7 +251,7 @@ PolygonMesh SurfaceMesh::triangles() const {
 
 SurfaceMesh::Summary SurfaceMesh::summary() const {
     const Topology& t = *topology_;
-    const surface::Triangulation& T = t.mesh;
+    const mesh::Triangulation& T = t.mesh;
     Summary s;
     for (std::size_t e = 0; e < T.edges.size(); ++e) {
         const std::size_t n = t.edge_halfedges.count(e);
@@ -259,8 +259,8 @@ SurfaceMesh::Summary SurfaceMesh::summary() const {
         if (n >= 3) ++s.nonmanifold_edges;
         if (n == 2) {
             const std::uint32_t h0 = t.edge_halfedges.begin(e)[0], h1 = t.edge_halfedges.begin(e)[1];
-            const bool a0 = T.aligned[surface::corner_face(h0)][std::size_t(surface::corner_index(h0))];
-            const bool a1 = T.aligned[surface::corner_face(h1)][std::size_t(surface::corner_index(h1))];
+            const bool a0 = T.aligned[mesh::corner_face(h0)][std::size_t(mesh::corner_index(h0))];
+            const bool a1 = T.aligned[mesh::corner_face(h1)][std::size_t(mesh::corner_index(h1))];
             if (a0 == a1) ++s.misoriented_edges;
         }
     }
@@ -275,7 +275,7 @@ SurfaceMesh::Summary SurfaceMesh::summary() const {
     for (std::size_t e = 0; e < T.edges.size(); ++e) {
         const std::uint32_t* h = t.edge_halfedges.begin(e);
         for (std::size_t i = 1; i < t.edge_halfedges.count(e); ++i)
-            parent[root(surface::corner_face(h[i]))] = root(surface::corner_face(h[0]));
+            parent[root(mesh::corner_face(h[i]))] = root(mesh::corner_face(h[0]));
     }
     for (std::uint32_t f = 0; f < T.faces.size(); ++f) s.components += root(f) == f;
     std::size_t referenced = 0;

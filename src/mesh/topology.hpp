@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 /// Compressed lists: item i owns ids[offsets[i] .. offsets[i+1]).
 struct Adjacency {
@@ -68,4 +68,4 @@ constexpr double kDegenerateAbsoluteArea = 1e-12;
 /// (10¹⁸ apart for a vertex 10⁹ edges away) makes the operators impossible to factor in double.
 constexpr double kDegenerateSpan = 1e6;
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::mesh {
 
 /// A triangulation given by connectivity and edge lengths only.
 ///
@@ -49,4 +49,4 @@ struct FaceSegment {
     std::array<double, 3> b{0, 1, 0};
 };
 
-}  // namespace gsd::surface
+}  // namespace gsd::mesh

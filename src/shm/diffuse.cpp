@@ -7,7 +7,7 @@
 #include <chrono>
 #include <cmath>
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 namespace {
 
@@ -202,4 +202,4 @@ detail::UninitializedVector<float> diffuse(const GridSpec& grid, DirectionEvalua
     return std::move(coarse.y);
 }
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

@@ -21,7 +21,7 @@
 
 namespace gsd::gpu { class Context; }
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 struct KernelParams {
     double lambda = 0;  ///< 1/√t
@@ -63,4 +63,4 @@ struct DiffuseStats {
 detail::UninitializedVector<float> diffuse(const GridSpec& grid, DirectionEvaluator& eval, double interpolation_cells,
                                            DiffuseStats& stats, const ProgressFn& progress);
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

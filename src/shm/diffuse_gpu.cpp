@@ -11,7 +11,7 @@
 #include <cstdlib>
 #include <string>
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 namespace {
 
@@ -24,7 +24,7 @@ struct DiffusePush {  // `Push` in shm_diffuse.comp
 class GpuEvaluator final : public DirectionEvaluator {
 public:
     GpuEvaluator(std::shared_ptr<gpu::Context> ctx, detail::SumTree tree, const KernelParams& k, std::size_t chunk)
-        : ctx_(std::move(ctx)), k_(k), chunk_(chunk), host_(std::move(tree)), tree_(sums_detail::upload(*ctx_, host_)) {}
+        : ctx_(std::move(ctx)), k_(k), chunk_(chunk), host_(std::move(tree)), tree_(sums::upload(*ctx_, host_)) {}
 
     std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
                          const ProgressFn& progress) override {
@@ -100,7 +100,7 @@ private:
     KernelParams k_;
     std::size_t chunk_ = 0;
     detail::SumTree host_;
-    sums_detail::DeviceSumTree tree_;
+    sums::DeviceSumTree tree_;
 };
 
 }  // namespace
@@ -112,9 +112,9 @@ std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu
         return nullptr;
     }
     detail::SumTree tree(src.elements);
-    why_not = sums_detail::gpu_unfit(*ctx, tree);
+    why_not = sums::gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return nullptr;
     return std::make_unique<GpuEvaluator>(ctx, std::move(tree), k, chunk_size);
 }
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

@@ -15,8 +15,8 @@
 
 namespace gsd {
 
-using shm_detail::Hierarchy;
-using shm_detail::Level;
+using shm::Hierarchy;
+using shm::Level;
 
 namespace {
 
@@ -238,18 +238,18 @@ struct GridPoissonSolver::Impl {
     PoissonSolver kind;
     Device device_choice;
     Hierarchy H;
-    mutable std::unique_ptr<shm_detail::GpuMultigrid> gpu;
+    mutable std::unique_ptr<shm::GpuMultigrid> gpu;
     mutable bool gpu_tried = false;
     mutable std::string device_name = "cpu";
 
     Impl(GridSpec g, PoissonSolver k, Device d) : grid(g), kind(k), device_choice(std::move(d)), H(g) {}
 
     // The GPU multigrid if the device choice gives one (once), else null.
-    shm_detail::GpuMultigrid* gpu_multigrid() const {
+    shm::GpuMultigrid* gpu_multigrid() const {
         if (!gpu_tried) {
             gpu_tried = true;
             const gpu::DeviceRun run = gpu::on_device(device_choice, [&](const auto& ctx, std::string& why_not) {
-                gpu = shm_detail::make_gpu_multigrid(ctx, H, why_not);
+                gpu = shm::make_gpu_multigrid(ctx, H, why_not);
                 return gpu != nullptr;
             });
             if (run) device_name = run.device;
@@ -259,7 +259,7 @@ struct GridPoissonSolver::Impl {
 
     std::vector<double> multigrid(const std::vector<double>& b, double tol, int max_it, std::vector<double>* history,
                                   bool f_cycle, const ProgressFn& progress) const {
-        if (shm_detail::GpuMultigrid* g = gpu_multigrid()) return g->solve(b, tol, max_it, history, f_cycle, progress);
+        if (shm::GpuMultigrid* g = gpu_multigrid()) return g->solve(b, tol, max_it, history, f_cycle, progress);
         CpuMultigrid mg(H);
         const std::size_t n = b.size();
         std::vector<double> x(n, 0.0), r = b, Ax(n);

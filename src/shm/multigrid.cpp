@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 namespace {
 
@@ -116,4 +116,4 @@ Hierarchy::Hierarchy(const GridSpec& g) {
 }
 
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

@@ -11,7 +11,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 /// One axis of one level: per cell, its size in finest cells and its coupling to the next cell.
 struct AxisLevel {
@@ -74,4 +74,4 @@ inline double Hierarchy::coupling(int l, int a, int i, int j, int k) const {
     return face * lv.axis[std::size_t(a)].link[std::size_t(ijk[a])];
 }
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

@@ -14,7 +14,7 @@
 #include <cstring>
 #include <numeric>
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 namespace {
 
@@ -328,4 +328,4 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
     return std::make_unique<VulkanMultigrid>(ctx, h, software);
 }
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

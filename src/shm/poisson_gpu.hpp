@@ -13,7 +13,7 @@
 
 namespace gsd::gpu { class Context; }
 
-namespace gsd::shm_detail {
+namespace gsd::shm {
 
 class GpuMultigrid {
 public:
@@ -26,4 +26,4 @@ public:
 std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Context>& ctx, const Hierarchy& h,
                                                  std::string& why_not);
 
-}  // namespace gsd::shm_detail
+}  // namespace gsd::shm

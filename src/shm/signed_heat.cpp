@@ -46,8 +46,8 @@ struct SignedHeatGrid::Impl {
     GridSpec grid;
     ShmOptions opt;
 
-    shm_detail::KernelParams kernel() const {
-        shm_detail::KernelParams k;
+    shm::KernelParams kernel() const {
+        shm::KernelParams k;
         const double t = opt.t_coef * source.spacing * source.spacing;
         k.lambda = 1 / std::sqrt(t);
         k.cutoff = opt.cutoff;
@@ -56,18 +56,18 @@ struct SignedHeatGrid::Impl {
         return k;
     }
 
-    detail::UninitializedVector<float> directions(shm_detail::DiffuseStats& stats, std::string& device, const ProgressFn& progress,
+    detail::UninitializedVector<float> directions(shm::DiffuseStats& stats, std::string& device, const ProgressFn& progress,
                                   double* seconds_setup = nullptr) const {
         const auto t0 = std::chrono::steady_clock::now();
-        std::unique_ptr<shm_detail::DirectionEvaluator> eval;
+        std::unique_ptr<shm::DirectionEvaluator> eval;
         gpu::on_device(opt.device, [&](const auto& ctx, std::string& why_not) {
-            eval = shm_detail::make_gpu_evaluator(ctx, source, kernel(), opt.chunk_size, why_not);
+            eval = shm::make_gpu_evaluator(ctx, source, kernel(), opt.chunk_size, why_not);
             return eval != nullptr;
         });
-        if (!eval) eval = shm_detail::make_cpu_evaluator(source, kernel());
+        if (!eval) eval = shm::make_cpu_evaluator(source, kernel());
         device = eval->device();
         if (seconds_setup) *seconds_setup = seconds_since(t0);
-        return shm_detail::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
+        return shm::diffuse(grid, *eval, opt.interpolation_cells, stats, progress);
     }
 
     // Area samples of the source inside the box (triangles split to the grid spacing): their
@@ -75,7 +75,7 @@ struct SignedHeatGrid::Impl {
     template <class Emit>
     void samples(Emit&& emit) const {
         const double cell = grid.box.extent().maxCoeff() / double(std::max({grid.nx, grid.ny, grid.nz}) - 1);
-        shm_detail::for_each_sample(source, cell, grid.box, [&](const Eigen::Vector3d& p, double area) {
+        shm::for_each_sample(source, cell, grid.box, [&](const Eigen::Vector3d& p, double area) {
             std::size_t node[8];
             double w[8];
             if (trilinear(grid, p, node, w)) emit(node, w, area, p);
@@ -284,7 +284,7 @@ const GridSpec& SignedHeatGrid::grid() const { return impl_->grid; }
 const ShmSource& SignedHeatGrid::source() const { return impl_->source; }
 
 std::vector<float> SignedHeatGrid::diffused_directions(const ProgressFn& progress) const {
-    shm_detail::DiffuseStats stats;
+    shm::DiffuseStats stats;
     std::string device;
     const detail::UninitializedVector<float> y = impl_->directions(stats, device, progress);
     return std::vector<float>(y.begin(), y.end());
@@ -294,7 +294,7 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     const Impl& m = *impl_;
     ShmResult out;
     auto t0 = std::chrono::steady_clock::now();
-    shm_detail::DiffuseStats stats;
+    shm::DiffuseStats stats;
     std::string diffuse_device;
     const detail::UninitializedVector<float> Y = m.directions(stats, diffuse_device, progress, &out.seconds_setup);
     out.seconds_sums = stats.seconds_sums;

@@ -109,7 +109,7 @@ PoissonSolver poisson_solver_from_name(const std::string& name) {
     throw Error("solver", "unknown solver '" + name + "' (mg, cg, direct)");
 }
 
-namespace shm_detail {
+namespace shm {
 
 void for_each_sample(const ShmSource& source, double max_element, const Box& focus,
                      const std::function<void(const Eigen::Vector3d&, double)>& emit) {
@@ -135,6 +135,6 @@ void for_each_sample(const ShmSource& source, double max_element, const Box& foc
     }
 }
 
-}  // namespace shm_detail
+}  // namespace shm
 
 }  // namespace gsd

@@ -11,7 +11,7 @@
 #include <cstdio>
 #include <cstring>
 
-namespace gsd::sums_detail {
+namespace gsd::sums {
 
 namespace {
 
@@ -262,4 +262,4 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     return true;
 }
 
-}  // namespace gsd::sums_detail
+}  // namespace gsd::sums

@@ -11,7 +11,7 @@
 namespace gsd::gpu { class Context; }
 namespace gsd::detail { class SumTree; }
 
-namespace gsd::sums_detail {
+namespace gsd::sums {
 
 /// Why the device cannot hold the tree ("" when it can).
 std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree);
@@ -20,12 +20,12 @@ std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree);
 bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, PointsView queries,
                  const WindingOptions& options, WindingResult& out, const ProgressFn& progress, std::string& why_not);
 
-}  // namespace gsd::sums_detail
+}  // namespace gsd::sums
 
 #if defined(GSD_HAVE_VULKAN)
 #include "gpu/runtime.hpp"
 
-namespace gsd::sums_detail {
+namespace gsd::sums {
 
 struct DeviceSumTree {
     gpu::Buffer nodes, moments, elements;
@@ -33,5 +33,5 @@ struct DeviceSumTree {
 };
 DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree);
 
-}  // namespace gsd::sums_detail
+}  // namespace gsd::sums
 #endif

@@ -111,7 +111,7 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
     if (!opt.exact && largest > 1e15) {
         log_once("winding: queries beyond ±1e15 are outside float32's safe range; the sums run on the CPU");
     } else if (!opt.exact && gpu::on_device(opt.device, [&](const auto& ctx, std::string& why_not) {
-                   return sums_detail::gpu_winding(ctx, tree, queries, opt, out, progress, why_not);
+                   return sums::gpu_winding(ctx, tree, queries, opt, out, progress, why_not);
                })) {
         return out;
     }

@@ -11,7 +11,7 @@
 #include <string>
 #include <type_traits>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
 
 namespace {
 
@@ -154,4 +154,4 @@ std::size_t Cholesky<Scalar>::factor_entries() const {
 template class Cholesky<double>;
 template class Cholesky<std::complex<double>>;
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm

@@ -10,7 +10,7 @@
 #include <memory>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
 
 /// Lower-triangle entries (row ≥ col) of a symmetric or Hermitian matrix, as triplets;
 /// repeated entries are summed.
@@ -68,4 +68,4 @@ private:
 extern template class Cholesky<double>;
 extern template class Cholesky<std::complex<double>>;
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm

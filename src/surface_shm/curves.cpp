@@ -17,7 +17,10 @@
 #include <string>
 #include <unordered_map>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
+
+// The mesh module's types and geometry (src/mesh), which these methods are written over.
+using namespace mesh;
 
 namespace {
 
@@ -543,13 +546,13 @@ ResolvedSources resolve_sources(const Topology& t, const SurfaceSources& sources
     return r.finish();
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm
 
 namespace gsd {
 
 std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources) {
-    const surface::Topology& t = mesh.topology();
-    auto at = [&](const surface::FacePoint& p) {
+    const mesh::Topology& t = mesh.topology();
+    auto at = [&](const mesh::FacePoint& p) {
         Eigen::Vector3d x = Eigen::Vector3d::Zero();
         for (int k = 0; k < 3; ++k) x += p.bary[std::size_t(k)] * t.corner_position(p.face, k);
         return x;
@@ -558,9 +561,9 @@ std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& me
     for (const SurfaceCurve& c : sources.curves) {
         SurfaceSources one;
         one.curves.push_back(c);
-        const surface::ResolvedSources r = surface::resolve_sources(t, one, "curve");
+        const surface_shm::ResolvedSources r = surface_shm::resolve_sources(t, one, "curve");
         std::vector<Eigen::Vector3d> line;
-        for (const surface::CurvePiece& p : r.pieces) {
+        for (const surface_shm::CurvePiece& p : r.pieces) {
             const Eigen::Vector3d a = at({p.segment.face, p.segment.a}), b = at({p.segment.face, p.segment.b});
             // Pieces come in curve order; a gap (a skipped zero-length piece aside) starts a new line.
             if (!line.empty() && (line.back() - a).norm() > 1e-12 * (1 + a.norm())) {

@@ -13,10 +13,10 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
 
 struct CurvePiece {
-    FaceSegment segment;
+    mesh::FaceSegment segment;
     bool is_signed = true;
     std::uint32_t component = 0;  ///< connected component of the curve network
     bool open_a = false;          ///< a is a free end of an unsigned curve (gets an end cap)
@@ -25,20 +25,20 @@ struct CurvePiece {
 
 struct ResolvedSources {
     std::vector<CurvePiece> pieces;
-    std::vector<FacePoint> points;                  ///< isolated (unsigned) points
-    std::vector<FacePoint> nodes;                   ///< where the level-set constraints hold
+    std::vector<mesh::FacePoint> points;                  ///< isolated (unsigned) points
+    std::vector<mesh::FacePoint> nodes;                   ///< where the level-set constraints hold
     std::vector<std::uint32_t> node_components;     ///< component of each node (points: their own)
     std::uint32_t component_count = 0;
 };
 
 /// Resolves sources given on the input mesh into pieces of its triangulation. Throws gsd::Error
 /// (naming `where`) for a piece whose ends share no face and no path.
-ResolvedSources resolve_sources(const Topology& topology, const SurfaceSources& sources, const std::string& where = {});
+ResolvedSources resolve_sources(const mesh::Topology& topology, const SurfaceSources& sources, const std::string& where = {});
 
 /// The side of face f that a piece lies along (0..2, the halfedge), or −1 if it lies inside.
-int piece_side(const FaceSegment& s);
+int piece_side(const mesh::FaceSegment& s);
 
 /// Canonical FacePoint of a SurfacePoint in some non-degenerate face holding it (or any face).
-FacePoint face_point(const Topology& topology, const SurfacePoint& p);
+mesh::FacePoint face_point(const mesh::Topology& topology, const SurfacePoint& p);
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm

@@ -12,7 +12,10 @@
 #include <cmath>
 #include <numeric>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
+
+// The mesh module's types and geometry (src/mesh), which these methods are written over.
+using namespace mesh;
 
 FaceFrame face_frame(const Triangulation& T, std::size_t f, double area) {
     FaceFrame F;
@@ -149,4 +152,4 @@ std::vector<double> face_field_divergence(const Triangulation& T, const std::vec
     return g;
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm

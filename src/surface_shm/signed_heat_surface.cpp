@@ -29,13 +29,13 @@
 
 namespace gsd {
 
-using surface::Cholesky;
-using surface::Complex;
-using surface::FacePoint;
-using surface::ResolvedSources;
-using surface::SolveMesh;
-using surface::SparseLower;
-using surface::Triangulation;
+using surface_shm::Cholesky;
+using surface_shm::Complex;
+using mesh::FacePoint;
+using surface_shm::ResolvedSources;
+using surface_shm::SolveMesh;
+using surface_shm::SparseLower;
+using mesh::Triangulation;
 
 namespace {
 
@@ -91,7 +91,7 @@ struct SignedHeatSurface::Impl {
     SurfaceShmSetup setup;
 
     // The triangulation solved on: the input's, or an intrinsic Delaunay one (built lazily).
-    std::optional<surface::IntrinsicTriangulation> intrinsic;
+    std::optional<mesh::IntrinsicTriangulation> intrinsic;
     std::optional<SolveMesh> solve_mesh;
     std::size_t flips = 0;
     double mean_edge = 0, time = 0;
@@ -99,7 +99,7 @@ struct SignedHeatSurface::Impl {
     std::optional<Cholesky<Complex>> vector_heat;
     std::optional<SparseLower<double>> stiffness;       // K, lower triangle
     Eigen::SparseMatrix<double> stiffness_full;         // K, both triangles (residuals)
-    surface::StiffnessComponents components;            // where K's nullspace is constant
+    surface_shm::StiffnessComponents components;            // where K's nullspace is constant
     std::vector<double> pin_weight;                     // diagonal of K
     std::optional<Cholesky<double>> poisson;            // factor of K + a pin per component
     std::optional<Cholesky<double>> constrained;        // factor of K + pins + w CᵀC (same pattern)
@@ -115,7 +115,7 @@ struct SignedHeatSurface::Impl {
 
     void ensure_mesh(const ProgressFn& progress) {
         if (solve_mesh) return;
-        const surface::Topology& topo = mesh.topology();
+        const mesh::Topology& topo = mesh.topology();
         if (setup.intrinsic_delaunay) {
             if (progress) progress("intrinsic Delaunay", 0.0);
             intrinsic.emplace(topo.mesh);
@@ -128,20 +128,20 @@ struct SignedHeatSurface::Impl {
             solve_mesh.emplace(topo.mesh);
         }
         // h: half the mean edge length (the spacing of the CR nodes, edge midpoints).
-        mean_edge = surface::mean_edge_length(T(), solve_mesh->areas);
+        mean_edge = mesh::mean_edge_length(T(), solve_mesh->areas);
         if (!(mean_edge > 0)) throw Error("mesh", "every triangle is degenerate");
         time = setup.t_coef * 0.25 * mean_edge * mean_edge;
     }
 
     void ensure_vector_heat() {
         if (vector_heat) return;
-        vector_heat.emplace(surface::vector_heat_operator(T(), solve_mesh->areas, time));
+        vector_heat.emplace(surface_shm::vector_heat_operator(T(), solve_mesh->areas, time));
     }
 
     void ensure_poisson() {
         if (stiffness) return;
-        stiffness = surface::cotan_laplacian(T(), solve_mesh->areas);
-        components = surface::stiffness_components(T(), solve_mesh->areas);
+        stiffness = surface_shm::cotan_laplacian(T(), solve_mesh->areas);
+        components = surface_shm::stiffness_components(T(), solve_mesh->areas);
         const SparseLower<double>& K = *stiffness;
         std::vector<Eigen::Triplet<double>> trip;
         trip.reserve(2 * K.entries());
@@ -193,15 +193,15 @@ struct SignedHeatSurface::Impl {
 };
 
 ResolvedSources SignedHeatSurface::Impl::resolve(const SurfaceSources& sources) const {
-    ResolvedSources S = surface::resolve_sources(mesh.topology(), sources, "sources");
+    ResolvedSources S = surface_shm::resolve_sources(mesh.topology(), sources, "sources");
     if (!intrinsic) return S;
     // Carry everything drawn on the input mesh into the intrinsic triangulation.
     ResolvedSources out;
     out.component_count = S.component_count;
-    for (const surface::CurvePiece& c : S.pieces) {
-        const std::vector<surface::FaceSegment> traced = intrinsic->trace(c.segment);
+    for (const surface_shm::CurvePiece& c : S.pieces) {
+        const std::vector<mesh::FaceSegment> traced = intrinsic->trace(c.segment);
         for (std::size_t i = 0; i < traced.size(); ++i) {
-            surface::CurvePiece p = c;
+            surface_shm::CurvePiece p = c;
             p.segment = traced[i];
             p.open_a = c.open_a && i == 0;
             p.open_b = c.open_b && i + 1 == traced.size();
@@ -215,10 +215,10 @@ ResolvedSources SignedHeatSurface::Impl::resolve(const SurfaceSources& sources) 
 }
 
 std::vector<Complex> SignedHeatSurface::Impl::diffuse(const ResolvedSources& S, const SurfaceShmOptions& o) {
-    const std::vector<Complex> X0 = surface::vector_sources(*solve_mesh, S);
+    const std::vector<Complex> X0 = surface_shm::vector_sources(*solve_mesh, S);
     std::vector<Complex> X = vector_heat->solve(X0);
     if (!o.preserve_normals) return X;
-    const surface::NormalConstraints N = surface::normal_constraints(*solve_mesh, S);
+    const surface_shm::NormalConstraints N = surface_shm::normal_constraints(*solve_mesh, S);
     const std::size_t m = N.rows.size();
     if (m == 0) return X;
     // Minimize the heat energy subject to Re(c_m^H X) = 0: X = A⁻¹(X₀ − Σ μ_m c_m) with
@@ -279,7 +279,7 @@ SignedHeatSurface::Impl::Constraints SignedHeatSurface::Impl::constraint_rows(co
         }
     } else if (mode == LevelSetConstraint::Components) {
         // φ(a) = φ(b) along every piece: each connected component of the curves gets one level.
-        for (const surface::CurvePiece& c : S.pieces) {
+        for (const surface_shm::CurvePiece& c : S.pieces) {
             const FacePoint a{c.segment.face, c.segment.a}, b{c.segment.face, c.segment.b};
             auto row = interpolation_row(tri, a, 1.0);
             const auto rb = interpolation_row(tri, b, -1.0);
@@ -415,9 +415,9 @@ std::vector<std::uint32_t> SignedHeatSurface::Impl::free_components(const Constr
 double SignedHeatSurface::Impl::source_mean(const std::vector<double>& phi, const ResolvedSources& S) const {
     const Triangulation& tri = T();
     double sum = 0, weight = 0;
-    for (const surface::CurvePiece& c : S.pieces) {
+    for (const surface_shm::CurvePiece& c : S.pieces) {
         const std::size_t f = c.segment.face;
-        const surface::FaceFrame F = surface::face_frame(tri, f, solve_mesh->areas[f]);
+        const surface_shm::FaceFrame F = surface_shm::face_frame(tri, f, solve_mesh->areas[f]);
         Eigen::Vector2d a = Eigen::Vector2d::Zero(), b = Eigen::Vector2d::Zero();
         double mid = 0;
         for (int k = 0; k < 3; ++k) {
@@ -485,8 +485,8 @@ SurfaceShmResult SignedHeatSurface::solve(const SurfaceSources& sources, const S
     if (progress) progress("integrate", 0.9);
     const Triangulation& tri = m.T();
     std::vector<Eigen::Vector2d> Y;
-    surface::normalized_face_field(tri, m.solve_mesh->areas, X, Y);
-    const std::vector<double> g = surface::face_field_divergence(tri, m.solve_mesh->areas, Y);
+    surface_shm::normalized_face_field(tri, m.solve_mesh->areas, X, Y);
+    const std::vector<double> g = surface_shm::face_field_divergence(tri, m.solve_mesh->areas, Y);
     std::vector<double> phi = m.integrate(g, S, options, r);
     const double shift = m.source_mean(phi, S);
     for (double& x : phi) x -= shift;
@@ -497,7 +497,7 @@ SurfaceShmResult SignedHeatSurface::solve(const SurfaceSources& sources, const S
     r.seconds_integrate = seconds_since(t0);
 
     // Report on the input vertices; count those cut off from every source.
-    const surface::Topology& topo = m.mesh.topology();
+    const mesh::Topology& topo = m.mesh.topology();
     const std::size_t V = topo.mesh.vertex_count;
     r.phi.assign(phi.begin(), phi.begin() + std::ptrdiff_t(V));
     std::vector<std::uint8_t> reached(tri.vertex_count, 0);

@@ -7,7 +7,10 @@
 #include <numbers>
 #include <optional>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
+
+// The mesh module's types and geometry (src/mesh), which these methods are written over.
+using namespace mesh;
 
 namespace {
 
@@ -243,4 +246,4 @@ NormalConstraints normal_constraints(const SolveMesh& M, const ResolvedSources& 
     return out;
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm

@@ -9,20 +9,20 @@
 
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::surface_shm {
 
 /// A triangulation with what the source assembly reads besides lengths.
 struct SolveMesh {
-    const Triangulation* T = nullptr;
+    const mesh::Triangulation* T = nullptr;
     std::vector<double> areas;
-    Adjacency edge_halfedges;
-    Adjacency vertex_corners;
+    mesh::Adjacency edge_halfedges;
+    mesh::Adjacency vertex_corners;
 
-    explicit SolveMesh(const Triangulation& tri)
+    explicit SolveMesh(const mesh::Triangulation& tri)
         : T(&tri),
           areas(face_areas(tri)),
-          edge_halfedges(corner_adjacency(tri.edge_count(), tri.face_edges)),
-          vertex_corners(corner_adjacency(tri.vertex_count, tri.faces)) {}
+          edge_halfedges(mesh::corner_adjacency(tri.edge_count(), tri.face_edges)),
+          vertex_corners(mesh::corner_adjacency(tri.vertex_count, tri.faces)) {}
 };
 
 /// X₀: one complex per edge, in the edge's frame (ê, ê⊥).
@@ -40,4 +40,4 @@ struct NormalConstraints {
 };
 NormalConstraints normal_constraints(const SolveMesh& M, const ResolvedSources& S);
 
-}  // namespace gsd::surface
+}  // namespace gsd::surface_shm

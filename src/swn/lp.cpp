@@ -9,7 +9,7 @@
 #include <numeric>
 #include <string>
 
-namespace gsd::surface {
+namespace gsd::swn {
 
 LpSolution solve_lp(const LinearProgram& lp) {
     const auto cols = int(lp.columns()), rows = int(lp.rows());
@@ -59,4 +59,4 @@ LpSolution solve_lp(const LinearProgram& lp) {
     return s;
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::swn

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::swn {
 
 /// minimize Σ cost_j x_j subject to row_lo ≤ A x ≤ row_hi and col_lo ≤ x ≤ col_hi. Bounds may be
 /// ±infinity (use kInfinity). A is given by triplets; repeated entries are summed.
@@ -47,4 +47,4 @@ struct LpSolution {
 /// unbounded (callers build problems that are neither).
 LpSolution solve_lp(const LinearProgram& lp);
 
-}  // namespace gsd::surface
+}  // namespace gsd::swn

@@ -30,14 +30,14 @@ namespace gsd {
 
 namespace {
 
-using surface::Adjacency;
-using surface::Cholesky;
-using surface::corner_face;
-using surface::corner_id;
-using surface::corner_index;
-using surface::SparseLower;
-using surface::Topology;
-using surface::Triangulation;
+using mesh::Adjacency;
+using surface_shm::Cholesky;
+using mesh::corner_face;
+using mesh::corner_id;
+using mesh::corner_index;
+using surface_shm::SparseLower;
+using mesh::Topology;
+using mesh::Triangulation;
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
@@ -101,7 +101,7 @@ Halfedges build_halfedges(const Topology& t) {
     H.cot_weight.assign(3 * T.face_count(), 0.0);
     for (std::size_t f = 0; f < T.face_count(); ++f) {
         if (t.face_areas[f] <= 0) continue;
-        const surface::FaceFrame F = surface::face_frame(T, f, t.face_areas[f]);
+        const surface_shm::FaceFrame F = surface_shm::face_frame(T, f, t.face_areas[f]);
         for (int k = 0; k < 3; ++k) H.cot_weight[corner_id(f, k)] = 0.5 * F.cot[std::size_t((k + 2) % 3)];
     }
     // Fans: from each unvisited corner walk clockwise to the fan's first corner, then collect.
@@ -386,7 +386,7 @@ std::vector<double> curve_straightness(const Topology& t, const std::vector<doub
 /// the curve it stands for would) and the bounds of J (on curve edges, between 0 and the
 /// multiplicity).
 struct ResidualTerm {
-    double weight, lo = -surface::TensionProblem::kInfinity, hi = surface::TensionProblem::kInfinity;
+    double weight, lo = -swn::TensionProblem::kInfinity, hi = swn::TensionProblem::kInfinity;
 };
 ResidualTerm residual_term(std::size_t e, const std::vector<double>& chain, const std::vector<double>& straightness,
                            const SwnOptions& o) {
@@ -399,14 +399,14 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
                              std::size_t groups, const std::vector<double>& chain,
                              const std::vector<double>& straightness, const SwnOptions& o) {
     const Triangulation& T = t.mesh;
-    surface::TensionProblem p;
+    swn::TensionProblem p;
     p.nodes = groups;
     // Costs in units of the mean edge length: near 1 whatever the mesh's scale.
-    const double unit = 1.0 / surface::mean_edge_length(T, t.face_areas);
+    const double unit = 1.0 / mesh::mean_edge_length(T, t.face_areas);
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         const EdgeSides s = sides(t, e);
         if (s.left == kNone || s.right == kNone) continue;
-        surface::TensionProblem::Edge edge;
+        swn::TensionProblem::Edge edge;
         edge.left = group[s.left];
         edge.right = group[s.right];
         if (edge.left == edge.right) continue;
@@ -418,8 +418,8 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
         edge.hi = term.hi;
         p.edges.push_back(edge);
     }
-    const surface::TensionSolution s =
-        o.solver == SwnSolver::Clp ? surface::solve_tension_lp(p) : surface::solve_tension_network(p);
+    const swn::TensionSolution s =
+        o.solver == SwnSolver::Clp ? swn::solve_tension_lp(p) : swn::solve_tension_network(p);
     ResidualLp r;
     r.shift = s.x;
     r.variables = groups + 2 * p.edges.size();  // as a linear program: shifts and |J|'s two parts
@@ -1044,7 +1044,7 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
 
 /// The chain of pieces that all run along edges between vertices (1 per piece along its
 /// direction), or nothing if some piece does not.
-std::optional<std::vector<double>> edge_chain(const Topology& t, const surface::ResolvedSources& S) {
+std::optional<std::vector<double>> edge_chain(const Topology& t, const surface_shm::ResolvedSources& S) {
     const Triangulation& T = t.mesh;
     std::vector<double> chain(T.edge_count(), 0.0);
     auto vertex_of = [](const std::array<double, 3>& b) {
@@ -1053,8 +1053,8 @@ std::optional<std::vector<double>> edge_chain(const Topology& t, const surface::
             if (b[std::size_t(i)] == 1.0) k = i;
         return k;
     };
-    for (const surface::CurvePiece& p : S.pieces) {
-        const int side = surface::piece_side(p.segment);
+    for (const surface_shm::CurvePiece& p : S.pieces) {
+        const int side = surface_shm::piece_side(p.segment);
         const int a = vertex_of(p.segment.a), b = vertex_of(p.segment.b);
         if (side < 0 || a < 0 || b < 0 || a == b) return std::nullopt;
         const std::uint32_t f = p.segment.face;
@@ -1125,7 +1125,7 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
     const SurfaceMesh& mesh = impl_->mesh;
     validate(curves, mesh, "curves");
     const Topology& t = mesh.topology();
-    const surface::ResolvedSources S = surface::resolve_sources(t, curves, "curves");
+    const surface_shm::ResolvedSources S = surface_shm::resolve_sources(t, curves, "curves");
     if (S.pieces.empty()) throw Error("curves", "every curve has zero length");
     SwnResult result;
     if (const auto on_edges = edge_chain(t, S)) {
@@ -1150,9 +1150,9 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
         result.seconds_boundary = r.seconds_boundary;
     } else {
         // Curves off the edges: cut a copy of the mesh along them, solve there.
-        std::vector<surface::FaceSegment> pieces;
-        for (const surface::CurvePiece& p : S.pieces) pieces.push_back(p.segment);
-        const surface::SplitMesh cut = surface::split_along(t, pieces);
+        std::vector<mesh::FaceSegment> pieces;
+        for (const surface_shm::CurvePiece& p : S.pieces) pieces.push_back(p.segment);
+        const mesh::SplitMesh cut = mesh::split_along(t, pieces);
         const SurfaceMesh split_mesh(cut.mesh, "cut mesh");
         const Topology& st = split_mesh.topology();
         std::vector<double> chain(st.mesh.edge_count(), 0.0);

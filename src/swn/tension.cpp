@@ -18,7 +18,7 @@
 #include <cmath>
 #include <string>
 
-namespace gsd::surface {
+namespace gsd::swn {
 
 namespace {
 
@@ -119,4 +119,4 @@ TensionSolution solve_tension_lp(const TensionProblem& p) {
     return s;
 }
 
-}  // namespace gsd::surface
+}  // namespace gsd::swn

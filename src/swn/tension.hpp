@@ -12,7 +12,7 @@
 #include <limits>
 #include <vector>
 
-namespace gsd::surface {
+namespace gsd::swn {
 
 /// minimize Σ_e cost_e·|J_e| over x (one value per node), J_e = x[left_e] − x[right_e] + offset_e,
 /// subject to lo_e ≤ J_e ≤ hi_e. Bounds may be infinite; costs must be positive. x is defined
@@ -44,4 +44,4 @@ TensionSolution solve_tension_network(const TensionProblem& p);
 /// the network solver). Throws gsd::Error if the bounds cannot all be met.
 TensionSolution solve_tension_lp(const TensionProblem& p);
 
-}  // namespace gsd::surface
+}  // namespace gsd::swn
