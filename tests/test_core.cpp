@@ -113,7 +113,7 @@ TEST_CASE("kd-tree neighbors agree with brute force; spacing and areas are sane"
 TEST_CASE("BoxTree (the blend's search, shared with the GPU) finds what nanoflann finds") {
     auto s = shapes::torus({0, 0, 0}, 0.5, 0.2);
     const PointCloud c = s->sample(20000, 4);
-    const detail::BoxTree box(c.points);
+    const spatial::BoxTree box(c.points);
     KdTree kd(c.points);
     std::mt19937_64 rng(2);
     std::uniform_real_distribution<double> u(-1.2, 1.2);
@@ -133,7 +133,7 @@ TEST_CASE("BoxTree (the blend's search, shared with the GPU) finds what nanoflan
     // Tiny sets: fewer points than k, a single point.
     Points two(2, 3);
     two << 0, 0, 0, 1, 0, 0;
-    const detail::BoxTree t2(two);
+    const spatial::BoxTree t2(two);
     t2.knn({0.9, 0, 0}, 32, a);
     REQUIRE(a.size() == 2);
     CHECK(a[0].index == 1);

@@ -139,14 +139,14 @@ TEST_CASE("flat and cylindrical limits stay finite and accurate in float32") {
         for (int i = 0; i < 500; ++i) {
             const double y1 = u(rng), y2 = u(rng), y3 = u(rng);
             // Nearly flat in both directions: a plane to O(k·|y|²).
-            const double plane = detail::torus_sdf_local<double>(-k, -k * 0.5, y1, y2, y3, nullptr);
-            const float plane_f = detail::torus_sdf_local<float>(float(-k), float(-k * 0.5), float(y1), float(y2), float(y3), nullptr);
+            const double plane = pat::torus_sdf_local<double>(-k, -k * 0.5, y1, y2, y3, nullptr);
+            const float plane_f = pat::torus_sdf_local<float>(float(-k), float(-k * 0.5), float(y1), float(y2), float(y3), nullptr);
             CHECK(std::isfinite(plane_f));
             CHECK(std::abs(plane - y3) <= 4 * k * 16 + 1e-12);
             CHECK(std::abs(double(plane_f) - plane) < 2e-6);
             // A cylinder of radius 0.5: k1 = −2, k2 → 0.
-            const double cyl = detail::torus_sdf_local<double>(-2.0, -k, y1, y2, y3, nullptr);
-            const float cyl_f = detail::torus_sdf_local<float>(-2.0f, float(-k), float(y1), float(y2), float(y3), nullptr);
+            const double cyl = pat::torus_sdf_local<double>(-2.0, -k, y1, y2, y3, nullptr);
+            const float cyl_f = pat::torus_sdf_local<float>(-2.0f, float(-k), float(y1), float(y2), float(y3), nullptr);
             const double exact_cyl = std::hypot(y1, y3 + 0.5) - 0.5;
             CHECK(std::abs(cyl - exact_cyl) <= 8 * k * 16 + 1e-12);
             CHECK(std::abs(double(cyl_f) - cyl) < 2e-6);

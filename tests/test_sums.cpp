@@ -61,7 +61,7 @@ Vec3 screened_by_quadrature(const OrientedElements& e, const Vec3& x, double lam
     }
     r_min = INFINITY;
     for (std::size_t j = 0; j < e.size(); ++j)
-        r_min = std::min(r_min, std::sqrt(detail::sums::point_triangle_distance2(
+        r_min = std::min(r_min, std::sqrt(sums::point_triangle_distance2(
                                     x, e.corners.row(Eigen::Index(3 * j)).transpose(), e.corners.row(Eigen::Index(3 * j + 1)).transpose(),
                                     e.corners.row(Eigen::Index(3 * j + 2)).transpose())));
     Vec3 X = Vec3::Zero();
@@ -83,18 +83,18 @@ TEST_CASE("point–triangle distance matches dense sampling; the solid angle of 
         const int n = 200;
         for (int i = 0; i <= n; ++i)
             for (int j = 0; i + j <= n; ++j) best = std::min(best, (x - (a + (b - a) * i / n + (c - a) * j / n)).squaredNorm());
-        const double d2 = detail::sums::point_triangle_distance2(x, a, b, c);
+        const double d2 = sums::point_triangle_distance2(x, a, b, c);
         CHECK(d2 <= best + 1e-12);
         CHECK(std::sqrt(best) - std::sqrt(d2) < 0.02 * ((b - a).norm() + (c - a).norm()));
     }
     // Degenerate: a segment and a point.
-    CHECK(detail::sums::point_triangle_distance2(Vec3(0, 1, 0), Vec3(-1, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, 0)) == doctest::Approx(1.0));
-    CHECK(detail::sums::point_triangle_distance2(Vec3(0, 0, 2), Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(0, 0, 0)) == doctest::Approx(4.0));
+    CHECK(sums::point_triangle_distance2(Vec3(0, 1, 0), Vec3(-1, 0, 0), Vec3(1, 0, 0), Vec3(0, 0, 0)) == doctest::Approx(1.0));
+    CHECK(sums::point_triangle_distance2(Vec3(0, 0, 2), Vec3(0, 0, 0), Vec3(0, 0, 0), Vec3(0, 0, 0)) == doctest::Approx(4.0));
 }
 
 TEST_CASE("tree moments: a node's expansion equals the sum of its triangles' exact second moments") {
     const OrientedElements e = OrientedElements::from_mesh(broken("sphere", 16, 2));
-    const detail::SumTree tree(e);
+    const sums::SumTree tree(e);
     const auto& root = tree.nodes()[0];
     // M0 is the total vector area; M2_a·tr is Σ v_a (|g − c|² + tr C) — recomputed here from
     // the triangles' corners by the formula for a uniform triangle, E|y − c|² = |g − c|² + Σ|p − g|²/12.
@@ -139,7 +139,7 @@ TEST_CASE("fast winding numbers: within 1e-3 of the exact sum beyond one edge le
         const WindingResult exact = fast_winding_numbers(e, q, o);
         const std::vector<double> baseline = winding_numbers(m, q);
         const double h = mean_edge_length(m);
-        const detail::SumTree tree(e);
+        const sums::SumTree tree(e);
         double worst = 0;
         std::size_t far = 0;
         for (Eigen::Index i = 0; i < q.rows(); ++i) {
@@ -167,19 +167,19 @@ TEST_CASE("fast winding numbers: within 1e-3 of the exact sum beyond one edge le
 TEST_CASE("fast winding numbers: a query's result does not depend on the packet it walks the tree in") {
     const PolygonMesh m = broken("torus", 24, 3);
     const OrientedElements e = OrientedElements::from_mesh(m);
-    const detail::SumTree tree(e);
+    const sums::SumTree tree(e);
     const Points q = random_queries(203, 1.0, 5);
     // Each query alone, then in packets of every size with different companions: bit-equal,
     // and within the tolerance of the exact sum (the packet walk is not a different method).
     std::vector<double> alone(std::size_t(q.rows()));
     std::size_t terms_alone = 0;
     for (Eigen::Index i = 0; i < q.rows(); ++i) alone[std::size_t(i)] = tree.winding(q.row(i).transpose(), 1.5, 5e-3, terms_alone);
-    for (int size = 2; size <= detail::SumTree::kLanes; size += 3) {
+    for (int size = 2; size <= sums::SumTree::kLanes; size += 3) {
         CAPTURE(size);
         std::size_t terms = 0;
         for (Eigen::Index first = 0; first < q.rows(); first += size) {
             const int n = int(std::min<Eigen::Index>(size, q.rows() - first));
-            double x[detail::SumTree::kLanes], y[detail::SumTree::kLanes], z[detail::SumTree::kLanes], w[detail::SumTree::kLanes];
+            double x[sums::SumTree::kLanes], y[sums::SumTree::kLanes], z[sums::SumTree::kLanes], w[sums::SumTree::kLanes];
             for (int l = 0; l < n; ++l) {
                 x[l] = q(first + l, 0);
                 y[l] = q(first + l, 1);
@@ -198,9 +198,9 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
     for (int group = 0; group < 40; ++group) {
         const double half = 0.02 + 0.1 * (group % 5);  // boxes from small to a fifth of the model
         const Vec3 center(u(rng), u(rng), u(rng));
-        double x[detail::SumTree::kLanes], y[detail::SumTree::kLanes], z[detail::SumTree::kLanes], w[detail::SumTree::kLanes];
+        double x[sums::SumTree::kLanes], y[sums::SumTree::kLanes], z[sums::SumTree::kLanes], w[sums::SumTree::kLanes];
         double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-        for (int l = 0; l < detail::SumTree::kLanes; ++l) {
+        for (int l = 0; l < sums::SumTree::kLanes; ++l) {
             const Vec3 p = center + half * Vec3(u(rng), u(rng), u(rng));
             x[l] = p[0];
             y[l] = p[1];
@@ -210,12 +210,12 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
                 hi[a] = std::max(hi[a], p[a]);
             }
         }
-        detail::SumTree::WindingFrontier frontier;
+        sums::SumTree::WindingFrontier frontier;
         tree.winding_frontier(lo, hi, 1.5, 5e-3, frontier);
         skipped += frontier.nodes.size() > 1 || frontier.nodes[0] != 0;
         std::size_t terms = 0;
-        tree.winding_from(frontier, x, y, z, detail::SumTree::kLanes, 1.5, 5e-3, w, terms);
-        for (int l = 0; l < detail::SumTree::kLanes; ++l) {
+        tree.winding_from(frontier, x, y, z, sums::SumTree::kLanes, 1.5, 5e-3, w, terms);
+        for (int l = 0; l < sums::SumTree::kLanes; ++l) {
             std::size_t t = 0;
             REQUIRE(w[l] == tree.winding(Vec3(x[l], y[l], z[l]), 1.5, 5e-3, t));
         }
@@ -226,7 +226,7 @@ TEST_CASE("fast winding numbers: a query's result does not depend on the packet 
         if (tree.nearest_distance(q.row(i).transpose()) > mean_edge_length(m))
             worst = std::max(worst, std::abs(alone[std::size_t(i)] - tree.winding_exact(q.row(i).transpose())));
     CHECK(worst <= 1e-3);
-    CHECK_THROWS_AS(tree.winding(nullptr, nullptr, nullptr, detail::SumTree::kLanes + 1, 1.5, 5e-3, nullptr, terms_alone), Error);
+    CHECK_THROWS_AS(tree.winding(nullptr, nullptr, nullptr, sums::SumTree::kLanes + 1, 1.5, 5e-3, nullptr, terms_alone), Error);
 }
 
 TEST_CASE("the packet walk's arithmetic: its atan2 and its square-root-free opening test") {
@@ -238,18 +238,18 @@ TEST_CASE("the packet walk's arithmetic: its atan2 and its square-root-free open
     for (int i = 0; i < 200000; ++i) {
         const double a = angle(rng), r = std::pow(10.0, exponent(rng));
         const double y = r * std::sin(a), x = r * std::cos(a);
-        worst = std::max(worst, std::abs(detail::sums::atan2_lanes(y, x) - std::atan2(y, x)));
+        worst = std::max(worst, std::abs(sums::atan2_lanes(y, x) - std::atan2(y, x)));
     }
     for (const double t : {0.0, 0.41421356237309503, 0.41421356237309509, 1.0, 2.414213562373095, 1e-20, 1e20})
         for (const double sx : {1.0, -1.0})
             for (const double sy : {1.0, -1.0})
                 if (t != 0 || sy > 0)
-                    worst = std::max(worst, std::abs(detail::sums::atan2_lanes(sy * t, sx) - std::atan2(sy * t, sx)));
+                    worst = std::max(worst, std::abs(sums::atan2_lanes(sy * t, sx) - std::atan2(sy * t, sx)));
     MESSAGE("max |atan2_lanes − std::atan2| = " << worst);
     CHECK(worst <= 4e-15);
-    CHECK(detail::sums::atan2_lanes(0.0, 0.0) == 0.0);
-    CHECK(detail::sums::atan2_lanes(0.0, -1.0) == doctest::Approx(M_PI).epsilon(1e-15));
-    CHECK(detail::sums::atan2_lanes(-0.0, -1.0) == doctest::Approx(-M_PI).epsilon(1e-15));
+    CHECK(sums::atan2_lanes(0.0, 0.0) == 0.0);
+    CHECK(sums::atan2_lanes(0.0, -1.0) == doctest::Approx(M_PI).epsilon(1e-15));
+    CHECK(sums::atan2_lanes(-0.0, -1.0) == doctest::Approx(-M_PI).epsilon(1e-15));
 
     // winding_reach2 decides as accept_winding does, away from the boundary itself.
     std::uniform_real_distribution<double> u(0, 1);
@@ -259,9 +259,9 @@ TEST_CASE("the packet walk's arithmetic: its atan2 and its square-root-free open
         const double beta = 1 + 2 * u(rng), tol = u(rng) < 0.2 ? 0.0 : std::pow(10.0, 3 * u(rng) - 4);
         const double d = rho * std::pow(10.0, 1.5 * u(rng)), d2 = d * d;
         const double q = std::pow(area * rho * rho * rho / M_PI, 0.2);
-        const double reach2 = detail::sums::winding_reach2(rho, q, beta, detail::sums::winding_reach_scale(tol));
+        const double reach2 = sums::winding_reach2(rho, q, beta, sums::winding_reach_scale(tol));
         if (std::abs(d2 - reach2) <= 1e-9 * reach2) continue;
-        disagree += (d2 > reach2) != detail::sums::accept_winding(rho, d2, area, beta, tol);
+        disagree += (d2 > reach2) != sums::accept_winding(rho, d2, area, beta, tol);
     }
     CHECK(disagree == 0);
 }
@@ -274,7 +274,7 @@ TEST_CASE("fast winding numbers: a walk that opens every node is the exact sum (
     const PolygonMesh m = broken("capsule", 20, 2);
     const PointCloud c = shapes::by_name("torus")->sample(500, 3);
     for (const OrientedElements& e : {OrientedElements::from_mesh(m), OrientedElements::from_cloud(c)}) {
-        const detail::SumTree tree(e);
+        const sums::SumTree tree(e);
         const Points q = random_queries(300, 1.2, 9);
         double worst = 0;
         std::size_t terms = 0;
@@ -304,7 +304,7 @@ TEST_CASE("fast winding numbers: bad input is refused") {
 
 TEST_CASE("nearest element: the tree search equals brute force, whatever bound and start element it is given") {
     const PolygonMesh m = broken("torus", 20, 6);
-    const detail::SumTree tree(OrientedElements::from_mesh(m));
+    const sums::SumTree tree(OrientedElements::from_mesh(m));
     const Points q = random_queries(300, 1.3, 12);
     std::mt19937_64 rng(13);
     std::uniform_int_distribution<std::uint32_t> any(0, std::uint32_t(tree.size()) + 5);  // a few past the end: no start
@@ -312,7 +312,7 @@ TEST_CASE("nearest element: the tree search equals brute force, whatever bound a
         const Vec3 x = q.row(i).transpose();
         auto dist2 = [&](std::uint32_t j) {
             const double* p = tree.corners(j);
-            return detail::sums::point_triangle_distance2(x, Vec3(p[0], p[1], p[2]), Vec3(p[3], p[4], p[5]), Vec3(p[6], p[7], p[8]));
+            return sums::point_triangle_distance2(x, Vec3(p[0], p[1], p[2]), Vec3(p[3], p[4], p[5]), Vec3(p[6], p[7], p[8]));
         };
         double brute2 = INFINITY;
         for (std::uint32_t j = 0; j < tree.size(); ++j) brute2 = std::min(brute2, dist2(j));
@@ -335,9 +335,9 @@ TEST_CASE("screened sums (SHM step 1): the treecode's direction matches a fine q
     // surface out to the cutoff.
     const PolygonMesh m = broken("torus", 12, 3);
     const OrientedElements e = OrientedElements::from_mesh(m);
-    const detail::SumTree tree(e);
+    const sums::SumTree tree(e);
     const double h = mean_edge_length(m);
-    detail::SumTree::Screened k;
+    sums::SumTree::Screened k;
     k.lambda = 1 / h;
     k.cutoff = 40;  // everything counts: the quadrature drops nothing either
     k.r_floor = 1e-6 * h;
@@ -364,13 +364,13 @@ TEST_CASE("screened sums in packets: every query gets what it gets alone, bit fo
     // Packets mix queries near and far (different r_min, so different cutoffs and decisions),
     // with bounds and a start element as diffuse() passes them, and sizes 1 to 4.
     const PolygonMesh m = broken("torus", 16, 7);
-    const detail::SumTree tree(OrientedElements::from_mesh(m));
+    const sums::SumTree tree(OrientedElements::from_mesh(m));
     const double h = mean_edge_length(m);
-    detail::SumTree::Screened k;
+    sums::SumTree::Screened k;
     k.lambda = 1 / h;
     k.r_floor = 1e-6 * h;
     const Points q = random_queries(test::sized(240, 60), 1.2, 17);
-    constexpr int P = detail::SumTree::kScreenedLanes;
+    constexpr int P = sums::SumTree::kScreenedLanes;
     std::size_t compared = 0;
     for (Eigen::Index first = 0; first < q.rows();) {
         const int n = 1 + int(first % P);
@@ -409,7 +409,7 @@ TEST_CASE("fast winding numbers: the float32 far field keeps its precision where
         const Eigen::RowVector3d offset = shift * Eigen::RowVector3d(1, -3, 2);
         PolygonMesh moved = m;
         moved.vertices.rowwise() += offset;
-        const detail::SumTree tree(OrientedElements::from_mesh(moved));
+        const sums::SumTree tree(OrientedElements::from_mesh(moved));
         double worst_precision = 0, worst_error = 0;
         for (Eigen::Index i = 0; i < q.rows(); ++i) {
             const Vec3 x = (q.row(i) + offset).transpose();
@@ -427,7 +427,7 @@ TEST_CASE("fast winding numbers: the float32 far field keeps its precision where
     }
     // Queries beyond SumTree::kSingleReach root radii walk in double: within 1e-12 of the exact
     // sum (float32 would underflow there), alone or in a packet with near queries.
-    const detail::SumTree tree(OrientedElements::from_mesh(m));
+    const sums::SumTree tree(OrientedElements::from_mesh(m));
     double x[8], y[8], z[8], w[8];
     for (int l = 0; l < 8; ++l) {
         const double r = l < 4 ? 1e6 * (l + 1) : 0.1 * l;

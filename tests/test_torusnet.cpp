@@ -21,7 +21,7 @@
 #include <random>
 
 using namespace gsd;
-using detail::TorusNetModel;
+using pat::TorusNetModel;
 
 namespace {
 
@@ -151,11 +151,11 @@ struct Golden {
 };
 
 Golden read_golden() {
-    const std::vector<std::uint8_t> bytes = detail::read_binary_file(kGoldenPath);
-    const detail::SafeTensors st = detail::parse_safetensors(bytes, kGoldenPath);
+    const std::vector<std::uint8_t> bytes = pat::read_binary_file(kGoldenPath);
+    const pat::SafeTensors st = pat::parse_safetensors(bytes, kGoldenPath);
     auto get = [&](const char* name) {
         REQUIRE_MESSAGE(st.tensors.count(name), "golden file lacks " << name);
-        return detail::tensor_as_double(st.tensors.at(name), kGoldenPath, name);
+        return pat::tensor_as_double(st.tensors.at(name), kGoldenPath, name);
     };
     Golden g;
     const auto& shape = st.tensors.at("neighbors").shape;
@@ -189,7 +189,7 @@ TEST_CASE("golden: features, scale and coefficients match PyTorch (float64) to 1
     const Golden g = read_golden();
     REQUIRE_MESSAGE(g.k == model.k, "tests/data/torusnet_golden.safetensors was made for another model "
                                     "(regenerate it with tools/train/golden.py --model models/torusnet.safetensors)");
-    const detail::TorusNetCpu net(model);
+    const pat::TorusNetCpu net(model);
     const std::size_t k = std::size_t(g.k);
     std::vector<double> features, scale, coeffs;
     for (int p = 0; p < g.count; ++p) {
@@ -197,7 +197,7 @@ TEST_CASE("golden: features, scale and coefficients match PyTorch (float64) to 1
         const auto N = rows3(g.normals, std::size_t(p) * k * 3, g.k);
         std::vector<double> f(k * 7);
         double m = 0;
-        detail::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), f.data(), m);
+        pat::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), f.data(), m);
         features.insert(features.end(), f.begin(), f.end());
         scale.push_back(m);
         // The network runs on our features: the check covers features and network together.
@@ -217,8 +217,8 @@ TEST_CASE("golden: features, scale and coefficients match PyTorch (float64) to 1
     const auto N = rows3(g.normals, 0, g.k);
     std::vector<double> f(k * 7);
     double m = 0;
-    detail::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), f.data(), m);
-    CHECK(as_vector(detail::torusnet_predict(model, f.data(), m)) == as_vector(net.predict(f.data(), m)));
+    pat::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), f.data(), m);
+    CHECK(as_vector(pat::torusnet_predict(model, f.data(), m)) == as_vector(net.predict(f.data(), m)));
 }
 
 TEST_CASE("the shipped model is models/torusnet.safetensors, embedded") {
@@ -386,7 +386,7 @@ TEST_CASE("neighborhoods: the point itself is token 0, even among duplicates") {
     std::vector<Neighbor> scratch;
     std::vector<std::uint32_t> tokens;
     for (std::uint32_t i = 0; i < std::uint32_t(c.points.rows()); ++i) {
-        detail::torusnet_neighbors(tree, i, k, scratch, tokens);
+        pat::torusnet_neighbors(tree, i, k, scratch, tokens);
         REQUIRE(tokens.size() == std::size_t(k));
         CHECK(tokens[0] == i);
         std::vector<std::uint32_t> sorted = tokens;
@@ -413,7 +413,7 @@ TEST_CASE("features: lower median, the 1e-3 floor, coincident points") {
 
     // Distances 0.01·j for j = 1 … k−1, shuffled: m is the element at (k−2)/2 when sorted.
     for (int j = 1; j < k; ++j) P[std::size_t(j)] += Eigen::Vector3d(0.01 * ((j * 5) % (k - 1) + 1), 0, 0);
-    detail::torusnet_features(model, P.data(), N.data(), s, f.data(), m);
+    pat::torusnet_features(model, P.data(), N.data(), s, f.data(), m);
     CHECK(m == doctest::Approx(0.01 * ((k - 2) / 2 + 1)));
     CHECK(f[6] == 1);
     CHECK(f[7 + 6] == 0);
@@ -423,16 +423,16 @@ TEST_CASE("features: lower median, the 1e-3 floor, coincident points") {
     // Mostly duplicates of the center: the median is 0, so m = 1e-3 · d_max.
     for (int j = 1; j < k; ++j) P[std::size_t(j)] = P[0];
     P.back() += Eigen::Vector3d(0, 0, 4);
-    detail::torusnet_features(model, P.data(), N.data(), s, f.data(), m);
+    pat::torusnet_features(model, P.data(), N.data(), s, f.data(), m);
     CHECK(m == doctest::Approx(4e-3));
     CHECK(f[std::size_t(k - 1) * 7 + 2] == doctest::Approx(1000));  // (d·n)/m
 
     // All coincide: m = 1 and every offset is 0.
     P.back() = P[0];
-    detail::torusnet_features(model, P.data(), N.data(), s, f.data(), m);
+    pat::torusnet_features(model, P.data(), N.data(), s, f.data(), m);
     CHECK(m == 1);
     for (int j = 0; j < k; ++j) CHECK(f[std::size_t(j) * 7 + 2] == 0);
-    const Jet jet = detail::torusnet_predict(model, f.data(), m);
+    const Jet jet = pat::torusnet_predict(model, f.data(), m);
     for (double a : as_vector(jet)) CHECK(std::isfinite(a));
 }
 
@@ -469,7 +469,7 @@ TEST_CASE("TorusNet::fit on the CPU: finite jets, tangent_of frames, fitter \"ne
     const KdTree tree(cloud.points);
     std::vector<Neighbor> scratch;
     std::vector<std::uint32_t> tokens;
-    detail::torusnet_neighbors(tree, 17, net.k(), scratch, tokens);
+    pat::torusnet_neighbors(tree, 17, net.k(), scratch, tokens);
     std::vector<Eigen::Vector3d> P, N;
     for (std::uint32_t j : tokens) {
         P.push_back(cloud.points.row(j).transpose());
@@ -477,8 +477,8 @@ TEST_CASE("TorusNet::fit on the CPU: finite jets, tangent_of frames, fitter \"ne
     }
     std::vector<double> f(tokens.size() * 7);
     double m = 0;
-    detail::torusnet_features(TorusNetModel::shipped(), P.data(), N.data(), tangent_of(N[0]), f.data(), m);
-    CHECK(relative_error(as_vector(detail::torusnet_predict(TorusNetModel::shipped(), f.data(), m)),
+    pat::torusnet_features(TorusNetModel::shipped(), P.data(), N.data(), tangent_of(N[0]), f.data(), m);
+    CHECK(relative_error(as_vector(pat::torusnet_predict(TorusNetModel::shipped(), f.data(), m)),
                          as_vector(t.jets[17])) < 1e-12);
 }
 

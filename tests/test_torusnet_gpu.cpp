@@ -22,7 +22,7 @@
 #include <random>
 
 using namespace gsd;
-using detail::TorusNetModel;
+using pat::TorusNetModel;
 
 namespace {
 
@@ -77,7 +77,7 @@ TorusNetModel random_model(const Dims& d, unsigned seed) {
         return at;
     };
     auto linear = [&](int in, int out) {
-        detail::NetLinear l;
+        pat::NetLinear l;
         l.in = in;
         l.out = out;
         l.weight = take(std::size_t(in) * std::size_t(out), 0, 1 / std::sqrt(double(in)));
@@ -85,7 +85,7 @@ TorusNetModel random_model(const Dims& d, unsigned seed) {
         return l;
     };
     auto norm = [&](int w) {
-        detail::NetNorm n;
+        pat::NetNorm n;
         n.width = w;
         n.weight = take(std::size_t(w), 1, 0.2);
         n.bias = take(std::size_t(w), 0, 0.1);
@@ -94,7 +94,7 @@ TorusNetModel random_model(const Dims& d, unsigned seed) {
     m.embed = linear(7, d.width);
     m.embed_norm = norm(d.width);
     for (int b = 0; b < d.blocks; ++b) {
-        detail::NetBlock blk;
+        pat::NetBlock blk;
         blk.norm1 = norm(d.width);
         blk.qkv = linear(d.width, 3 * d.width);
         blk.proj = linear(d.width, d.width);
@@ -125,7 +125,7 @@ Neighborhoods neighborhoods_of(const PointCloud& c, int k, int stride) {
     nb.positions.resize(Eigen::Index(nb.count) * k, 3);
     nb.normals.resize(Eigen::Index(nb.count) * k, 3);
     for (int p = 0; p < nb.count; ++p) {
-        detail::torusnet_neighbors(tree, std::uint32_t(p * stride), k, scratch, tokens);
+        pat::torusnet_neighbors(tree, std::uint32_t(p * stride), k, scratch, tokens);
         for (int j = 0; j < k; ++j) {
             nb.positions.row(Eigen::Index(p) * k + j) = c.points.row(tokens[std::size_t(j)]);
             nb.normals.row(Eigen::Index(p) * k + j) = c.normals.row(tokens[std::size_t(j)]);
@@ -152,11 +152,11 @@ Reference features_of(const TorusNetModel& model, const Neighborhoods& nb, int p
     }
     Reference r;
     r.features.resize(kk * 7);
-    detail::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), r.features.data(), r.m);
+    pat::torusnet_features(model, P.data(), N.data(), tangent_of(N[0].normalized()), r.features.data(), r.m);
     return r;
 }
 
-Reference reference(const TorusNetModel& model, const detail::TorusNetCpu& net, const Neighborhoods& nb, int p) {
+Reference reference(const TorusNetModel& model, const pat::TorusNetCpu& net, const Neighborhoods& nb, int p) {
     Reference r = features_of(model, nb, p);
     r.jet = net.predict(r.features.data(), r.m);
     return r;
@@ -174,9 +174,9 @@ struct Errors {
 // The kernel on given neighborhoods vs the CPU reference on the same ones; `global` forces the
 // device-memory workspace (else the kernel's own choice, reported in `used_global`).
 Errors kernel_vs_reference(const TorusNetModel& model, const Neighborhoods& nb, bool global, bool& used_global) {
-    const detail::TorusNetGpuTrace t = detail::torusnet_gpu_neighborhoods(model, *device(), nb.positions, nb.normals, global);
+    const pat::TorusNetGpuTrace t = pat::torusnet_gpu_neighborhoods(model, *device(), nb.positions, nb.normals, global);
     used_global = t.global_workspace;
-    const detail::TorusNetCpu net(model);
+    const pat::TorusNetCpu net(model);
     Errors e;
     const std::size_t k = std::size_t(model.k);
     for (int p = 0; p < nb.count; ++p) {
@@ -226,9 +226,9 @@ std::vector<bool> knn_ties(const PointCloud& c, int k) {
 double cloud_error(const TorusNetModel& model, const PointCloud& c, std::size_t& ties, std::size_t chunk = 0) {
     std::vector<Jet> gj, cj;
     Points gt, ct;
-    detail::predict_jets_gpu(model, c, *device(), gj, gt, chunk, {});
+    pat::predict_jets_gpu(model, c, *device(), gj, gt, chunk, {});
     const KdTree tree(c.points);
-    detail::predict_jets_cpu(model, c, tree, cj, ct, {});
+    pat::predict_jets_cpu(model, c, tree, cj, ct, {});
     REQUIRE(gj.size() == cj.size());
     CHECK((gt - ct).cwiseAbs().maxCoeff() == 0.0);  // both tangent_of in double
     const std::vector<bool> tie = knn_ties(c, model.k);
@@ -273,7 +273,7 @@ TEST_CASE("tangent_axis is the branch tangent_of takes") {
         if (i % 3 == 1) n = Eigen::Vector3d(0.57735 * (i % 2 ? 1 : -1), g(rng), g(rng));
         n.normalize();
         Eigen::Vector3d axis = Eigen::Vector3d::Zero();
-        axis[detail::tangent_axis(n)] = 1;
+        axis[pat::tangent_axis(n)] = 1;
         CHECK((n.cross(axis).normalized() - tangent_of(n)).norm() == 0.0);
     }
 }
@@ -281,11 +281,11 @@ TEST_CASE("tangent_axis is the branch tangent_of takes") {
 TEST_CASE("golden: GPU features, scale and coefficients match PyTorch (float64)") {
     REQUIRE(device());
     const TorusNetModel model = TorusNetModel::load(kModelPath);
-    const std::vector<std::uint8_t> bytes = detail::read_binary_file(kGoldenPath);
-    const detail::SafeTensors st = detail::parse_safetensors(bytes, kGoldenPath);
+    const std::vector<std::uint8_t> bytes = pat::read_binary_file(kGoldenPath);
+    const pat::SafeTensors st = pat::parse_safetensors(bytes, kGoldenPath);
     auto get = [&](const char* name) {
         REQUIRE_MESSAGE(st.tensors.count(name), "golden file lacks " << name);
-        return detail::tensor_as_double(st.tensors.at(name), kGoldenPath, name);
+        return pat::tensor_as_double(st.tensors.at(name), kGoldenPath, name);
     };
     const auto& shape = st.tensors.at("neighbors").shape;
     REQUIRE(shape.size() == 3);
@@ -301,7 +301,7 @@ TEST_CASE("golden: GPU features, scale and coefficients match PyTorch (float64)"
         }
     for (const bool global : {false, true}) {
         CAPTURE(global);
-        const detail::TorusNetGpuTrace t = detail::torusnet_gpu_neighborhoods(model, *device(), P, N, global);
+        const pat::TorusNetGpuTrace t = pat::torusnet_gpu_neighborhoods(model, *device(), P, N, global);
         double ef = 0, es = 0, ec = 0;
         for (std::size_t f = 0; f < features.size(); ++f)
             ef = std::max(ef, std::abs(t.features[f] - features[f]) / std::max(std::abs(features[f]), 1.0));
@@ -370,9 +370,9 @@ TEST_CASE("results do not depend on the chunk size" * doctest::test_suite("slow"
     const PointCloud c = noisy_box(2000, 8);
     std::vector<Jet> a, b, d;
     Points ta, tb, td;
-    detail::predict_jets_gpu(model, c, *device(), a, ta, 0, {});
-    detail::predict_jets_gpu(model, c, *device(), b, tb, 77, {});  // 26 chunks, not a workgroup multiple
-    detail::predict_jets_gpu(model, c, *device(), d, td, 1, {});
+    pat::predict_jets_gpu(model, c, *device(), a, ta, 0, {});
+    pat::predict_jets_gpu(model, c, *device(), b, tb, 77, {});  // 26 chunks, not a workgroup multiple
+    pat::predict_jets_gpu(model, c, *device(), d, td, 1, {});
     auto same = [](const std::vector<Jet>& x, const std::vector<Jet>& y) {
         for (std::size_t i = 0; i < x.size(); ++i)
             if (x[i].a00 != y[i].a00 || x[i].a10 != y[i].a10 || x[i].a01 != y[i].a01 || x[i].a11 != y[i].a11 ||
@@ -385,7 +385,7 @@ TEST_CASE("results do not depend on the chunk size" * doctest::test_suite("slow"
     // Progress: once per chunk, ending at 1.
     int reports = 0;
     double last = 0;
-    detail::predict_jets_gpu(model, c, *device(), b, tb, 500, [&](std::string_view stage, double f) {
+    pat::predict_jets_gpu(model, c, *device(), b, tb, 500, [&](std::string_view stage, double f) {
         CHECK(stage == "fit");
         CHECK(f >= last);
         last = f;
@@ -468,9 +468,9 @@ TEST_CASE("models of other shapes: a small one in shared and in device memory, a
     check_shapes(c, {Shape{{16, 32, 1, 2, 64}, 7}});
     std::vector<Jet> jets;
     Points tangents;
-    CHECK_THROWS_WITH_AS(detail::predict_jets_gpu(random_model({65, 32, 1, 2, 32}, 1), c, *device(), jets, tangents, 0, {}),
+    CHECK_THROWS_WITH_AS(pat::predict_jets_gpu(random_model({65, 32, 1, 2, 32}, 1), c, *device(), jets, tangents, 0, {}),
                          doctest::Contains("k ≤ 64"), Error);
-    CHECK_THROWS_WITH_AS(detail::predict_jets_gpu(random_model({16, 30, 1, 2, 32}, 1), c, *device(), jets, tangents, 0, {}),
+    CHECK_THROWS_WITH_AS(pat::predict_jets_gpu(random_model({16, 30, 1, 2, 32}, 1), c, *device(), jets, tangents, 0, {}),
                          doctest::Contains("multiples of 4"), Error);
     CHECK(gpu::validation_error_count() == 0);
 }

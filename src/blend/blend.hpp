@@ -92,11 +92,11 @@ inline double blend_taper_derivative(double v) {
 }
 
 /// CPU reference (double precision, OpenMP). The tree indexes src.points.
-void evaluate_cpu(const Source& src, const detail::BoxTree& tree, const Params& params, const Queries& queries,
+void evaluate_cpu(const Source& src, const spatial::BoxTree& tree, const Params& params, const Queries& queries,
                   Output out, const ProgressFn& progress);
 
 /// One query on the CPU; exposed for tests. Returns φ and writes ∇φ if `grad` is set.
-double evaluate_one(const Source& src, const detail::BoxTree& tree, const Params& params,
+double evaluate_one(const Source& src, const spatial::BoxTree& tree, const Params& params,
                     const Eigen::Vector3d& x, Eigen::Vector3d* grad, std::vector<Neighbor>& scratch);
 
 class GpuField;  // device-side copy of a Source (blend_gpu.cpp)
@@ -105,7 +105,7 @@ class Engine;
 /// Builds a GpuField on a context, or returns null and a reason when the source does not fit
 /// the device (buffer range, memory) or the parameters exceed what the kernel supports.
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
-                                         const detail::BoxTree& tree, const Params& params, std::string& why_not);
+                                         const spatial::BoxTree& tree, const Params& params, std::string& why_not);
 std::string gpu_field_device(const GpuField& field);
 const gpu::Context* gpu_field_context(const GpuField& field);
 /// Records the renderer's render_pat kernel over a field's device data (src/render): rays
@@ -134,18 +134,18 @@ public:
     std::shared_ptr<GpuField> on_device(const std::shared_ptr<gpu::Context>& ctx) const;
     Params params(bool gradient) const { return resolve(opt_, src_, gradient); }
     /// The kd-tree over the source's points (built on first use).
-    const detail::BoxTree& search_tree() const { return tree(); }
+    const spatial::BoxTree& search_tree() const { return tree(); }
     const Source& source() const { return src_; }
     const BlendOptions& options() const { return opt_; }
     double r_eval() const { return resolve(opt_, src_, false).r_eval; }
 
 private:
-    const detail::BoxTree& tree() const;
+    const spatial::BoxTree& tree() const;
     Source src_;
     BlendOptions opt_;
     // Built on first use; the mutex makes concurrent evaluate() calls safe.
     mutable std::mutex init_mutex_;
-    mutable std::unique_ptr<detail::BoxTree> tree_;
+    mutable std::unique_ptr<spatial::BoxTree> tree_;
     mutable std::shared_ptr<GpuField> gpu_;
     mutable bool gpu_tried_ = false;
     mutable std::vector<std::shared_ptr<GpuField>> placed_;  // on_device(), one per context

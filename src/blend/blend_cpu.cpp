@@ -40,7 +40,7 @@ struct Set {
     std::uint32_t far = 0;    // the point at distance ρ when rho_varies
 };
 
-Set choose_set(const Source& src, const detail::BoxTree& tree, const Params& p, const Eigen::Vector3d& x,
+Set choose_set(const Source& src, const spatial::BoxTree& tree, const Params& p, const Eigen::Vector3d& x,
                std::vector<Neighbor>& nb) {
     Set s;
     if (p.exact) {
@@ -119,7 +119,7 @@ double shc_value(const Source& src, const std::vector<Neighbor>& nb, const Eigen
 
 }  // namespace
 
-double evaluate_one(const Source& src, const detail::BoxTree& tree, const Params& p, const Eigen::Vector3d& x,
+double evaluate_one(const Source& src, const spatial::BoxTree& tree, const Params& p, const Eigen::Vector3d& x,
                     Eigen::Vector3d* grad, std::vector<Neighbor>& nb) {
     const Set s = choose_set(src, tree, p, x, nb);
     if (src.kind == Kind::Shc) {
@@ -166,7 +166,7 @@ double evaluate_one(const Source& src, const detail::BoxTree& tree, const Params
     return phi;
 }
 
-void evaluate_cpu(const Source& src, const detail::BoxTree& tree, const Params& p, const Queries& q, Output out,
+void evaluate_cpu(const Source& src, const spatial::BoxTree& tree, const Params& p, const Queries& q, Output out,
                   const ProgressFn& progress) {
     const std::size_t n = q.size();
     const std::size_t block = p.exact ? 4096 : 65536;

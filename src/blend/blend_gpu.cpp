@@ -97,7 +97,7 @@ void record_tori(gpu::Context& ctx, gpu::Recorder& rec, const gpu::Buffer& jets,
 
 class GpuField {
 public:
-    GpuField(std::shared_ptr<gpu::Context> ctx, const Source& src, const detail::BoxTree& tree)
+    GpuField(std::shared_ptr<gpu::Context> ctx, const Source& src, const spatial::BoxTree& tree)
         : ctx_(std::move(ctx)), kind_(src.kind) {
         gpu::Context& c = *ctx_;
         const auto n = std::size_t(src.points.rows());
@@ -181,8 +181,8 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     // the kd-tree of nearby queries and read the same points (a grid's nodes come in C order,
     // already runs of neighbours); results go back in the caller's order.
     std::vector<std::uint32_t> order;
-    if (q.is_list() && q.size() > 1 && q.size() < (std::size_t(1) << 32) && detail::sort_queries_for_device())
-        order = detail::morton_order(q.list());
+    if (q.is_list() && q.size() > 1 && q.size() < (std::size_t(1) << 32) && spatial::sort_queries_for_device())
+        order = spatial::morton_order(q.list());
     auto index = [&](std::size_t i) { return order.empty() ? i : std::size_t(order[i]); };
     // Gathers and scatters through the order run in parallel (random accesses: a thread waits
     // on memory for most of each).
@@ -283,7 +283,7 @@ void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const g
 }
 
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,
-                                         const detail::BoxTree& tree, const Params& params, std::string& why_not) {
+                                         const spatial::BoxTree& tree, const Params& params, std::string& why_not) {
     const std::uint64_t n = std::uint64_t(src.points.rows());
     const std::uint64_t term_bytes = n * (src.kind == Kind::Pat ? 48 : 16);
     const std::uint64_t jet_bytes = src.kind == Kind::Pat ? n * 64 : 0;
@@ -302,7 +302,7 @@ std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ct
         return nullptr;
     }
     if (gpu::software_shaped(*ctx)) {
-        const detail::BoxTree wide(src.points, kSoftwareLeafSize);
+        const spatial::BoxTree wide(src.points, kSoftwareLeafSize);
         return std::make_shared<GpuField>(ctx, src, wide);
     }
     return std::make_shared<GpuField>(ctx, src, tree);

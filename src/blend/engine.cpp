@@ -12,9 +12,9 @@ Engine::Engine(Source src, BlendOptions opt) : src_(std::move(src)), opt_(std::m
 
 Engine::~Engine() = default;
 
-const detail::BoxTree& Engine::tree() const {
+const spatial::BoxTree& Engine::tree() const {
     std::lock_guard<std::mutex> lock(init_mutex_);
-    if (!tree_) tree_ = std::make_unique<detail::BoxTree>(src_.points);
+    if (!tree_) tree_ = std::make_unique<spatial::BoxTree>(src_.points);
     return *tree_;
 }
 
@@ -29,7 +29,7 @@ FieldValues Engine::evaluate(const Queries& q, bool gradient, const ProgressFn& 
     std::string field_device;
     const gpu::DeviceRun run = gpu::on_device(opt_.device, [&](const auto& ctx, std::string& why_not) {
         std::shared_ptr<GpuField> field;
-        const detail::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
+        const spatial::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
         {
             std::lock_guard<std::mutex> lock(init_mutex_);
             if (!gpu_tried_) {
@@ -58,7 +58,7 @@ std::shared_ptr<GpuField> Engine::on_device(const std::shared_ptr<gpu::Context>&
     if (!ctx) throw Error("device", "no device context given");
     if constexpr (!gpu::kBuiltWithVulkan) throw Error("device", "gsd was built without Vulkan");
     else {
-        const detail::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
+        const spatial::BoxTree& search_tree = tree();  // outside the lock below: tree() takes it
         std::lock_guard<std::mutex> lock(init_mutex_);
         if (gpu_ && gpu_field_context(*gpu_) == ctx.get()) return gpu_;  // evaluate() placed it there already
         for (const auto& f : placed_)

@@ -4,10 +4,10 @@
 
 namespace gsd::gpu {
 
-std::vector<DeviceNode> device_nodes(const detail::BoxTree& tree) {
+std::vector<DeviceNode> device_nodes(const spatial::BoxTree& tree) {
     std::vector<DeviceNode> out(tree.nodes().size());
     for (std::size_t i = 0; i < out.size(); ++i) {
-        const detail::BoxTree::Node& n = tree.nodes()[i];
+        const spatial::BoxTree::Node& n = tree.nodes()[i];
         for (int a = 0; a < 3; ++a) {
             const float lo = float(n.lo[a]), hi = float(n.hi[a]);
             out[i].lo[a] = double(lo) > n.lo[a] ? std::nextafter(lo, -INFINITY) : lo;

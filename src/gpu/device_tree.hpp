@@ -17,6 +17,6 @@ struct DeviceNode {  // std430 layout of `Node` in shaders/box_tree.glsl
 };
 static_assert(sizeof(DeviceNode) == 32);
 
-std::vector<DeviceNode> device_nodes(const detail::BoxTree& tree);
+std::vector<DeviceNode> device_nodes(const spatial::BoxTree& tree);
 
 }  // namespace gsd::gpu

@@ -47,7 +47,7 @@ void check(const OutlierOptions& o) {
 
 }  // namespace
 
-PointConfidence detail::score_points(const FittedTori& tori, const std::vector<Torus>& t,
+PointConfidence pat::score_points(const FittedTori& tori, const std::vector<Torus>& t,
                                      const OutlierOptions& options) {
     check(options);
     const Eigen::Index n = tori.size();
@@ -124,7 +124,7 @@ PointConfidence detail::score_points(const FittedTori& tori, const std::vector<T
 }
 
 PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& options) {
-    return detail::score_points(tori, tori.tori(), options);
+    return pat::score_points(tori, tori.tori(), options);
 }
 
 }  // namespace gsd

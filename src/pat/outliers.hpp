@@ -6,9 +6,9 @@
 
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 /// point_confidence(fitted, options) with `tori` = fitted.tori().
 PointConfidence score_points(const FittedTori& fitted, const std::vector<Torus>& tori, const OutlierOptions& options);
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

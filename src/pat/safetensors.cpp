@@ -16,7 +16,7 @@
 #include <limits>
 #include <utility>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 namespace {
 
@@ -166,4 +166,4 @@ std::vector<std::uint8_t> read_binary_file(const std::string& path) {
     return std::vector<std::uint8_t>(bytes.begin(), bytes.end());
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

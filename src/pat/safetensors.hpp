@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 struct SafeTensor {
     std::string dtype;                   ///< "F32", "F64", "I32", ... as written
@@ -38,4 +38,4 @@ std::vector<double> tensor_as_double(const SafeTensor& t, const std::string& whe
 /// Reads a whole regular file (throws gsd::Error(path, ...) if it cannot).
 std::vector<std::uint8_t> read_binary_file(const std::string& path);
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

@@ -28,7 +28,7 @@ Eigen::Vector3d tangent_of(const Eigen::Vector3d& n) {
 Torus torus_from_jet(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const Eigen::Vector3d& s,
                      const Jet& jet) {
     const Eigen::Vector3d t = n.cross(s);
-    const detail::TorusFrame<double> f = detail::torus_from_jet<double>(
+    const pat::TorusFrame<double> f = pat::torus_from_jet<double>(
         {jet.a00, jet.a10, jet.a01, jet.a11, jet.a20, jet.a02});
     Torus out;
     out.q = p + f.a00 * n;
@@ -44,7 +44,7 @@ double torus_sdf(const Torus& t, const Eigen::Vector3d& x, Eigen::Vector3d* grad
     const Eigen::Vector3d y = x - t.q;
     const double y1 = y.dot(t.e1), y2 = y.dot(e2), y3 = y.dot(t.n);
     double g[3];
-    const double value = detail::torus_sdf_local<double>(t.k1, t.k2, y1, y2, y3, gradient ? g : nullptr);
+    const double value = pat::torus_sdf_local<double>(t.k1, t.k2, y1, y2, y3, gradient ? g : nullptr);
     if (gradient) *gradient = g[0] * t.e1 + g[1] * e2 + g[2] * t.n;
     return value;
 }

@@ -46,7 +46,7 @@ struct TorusField::Impl {
     Impl(FittedTori t, std::vector<Torus> all, BlendOptions opt, OutlierOptions out)
         : tori(std::move(t)),
           outliers(out),
-          confidence(out.enabled ? detail::score_points(tori, all, out) : PointConfidence{}),
+          confidence(out.enabled ? pat::score_points(tori, all, out) : PointConfidence{}),
           engine(source_of(tori, std::move(all), confidence), std::move(opt)) {}
 };
 

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 /// The torus of a height function, in the frame (s, t, n) of its point.
 template <class T>
@@ -95,4 +95,4 @@ T torus_sdf_local(T k1, T k2, T y1, T y2, T y3, T* grad) {
     return g;
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

@@ -7,7 +7,7 @@
 #include <algorithm>
 #include <cmath>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 namespace {
 
@@ -216,4 +216,4 @@ void predict_jets_cpu(const TorusNetModel& model, const PointCloud& cloud, const
     }
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

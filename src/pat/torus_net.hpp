@@ -13,7 +13,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 /// The neighborhood of point i, the way every implementation must see it: token 0 is i itself
 /// (even when duplicates of it tie at distance 0), then its k − 1 nearest other points, nearest
@@ -63,4 +63,4 @@ Jet torusnet_predict(const TorusNetModel& model, const double* features, double 
 void predict_jets_cpu(const TorusNetModel& model, const PointCloud& cloud, const KdTree& tree,
                       std::vector<Jet>& jets, Points& tangents, const ProgressFn& progress);
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

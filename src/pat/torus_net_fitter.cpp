@@ -16,14 +16,14 @@ namespace gsd {
 struct TorusNet::Impl {
     TorusNetOptions options;
     // The shipped model lives for the whole process; a loaded one is owned here.
-    std::shared_ptr<const detail::TorusNetModel> model;
+    std::shared_ptr<const pat::TorusNetModel> model;
 };
 
 TorusNet::TorusNet(TorusNetOptions options) {
     auto impl = std::make_shared<Impl>();
     if (options.model.empty())
-        impl->model = std::shared_ptr<const detail::TorusNetModel>(&detail::TorusNetModel::shipped(), [](auto*) {});
-    else impl->model = std::make_shared<const detail::TorusNetModel>(detail::TorusNetModel::load(options.model));
+        impl->model = std::shared_ptr<const pat::TorusNetModel>(&pat::TorusNetModel::shipped(), [](auto*) {});
+    else impl->model = std::make_shared<const pat::TorusNetModel>(pat::TorusNetModel::load(options.model));
     impl->options = std::move(options);
     impl_ = std::move(impl);
 }
@@ -33,7 +33,7 @@ int TorusNet::k() const { return impl_->model->k; }
 const TorusNetOptions& TorusNet::options() const { return impl_->options; }
 
 std::string TorusNet::description() const {
-    const detail::TorusNetModel& m = *impl_->model;
+    const pat::TorusNetModel& m = *impl_->model;
     std::string d = "TorusNet k=" + std::to_string(m.k) + ", width " + std::to_string(m.width) + ", " +
                     std::to_string(m.blocks) + " blocks, " + std::to_string(m.heads) + " heads, MLP " +
                     std::to_string(m.mlp);
@@ -41,7 +41,7 @@ std::string TorusNet::description() const {
 }
 
 FittedTori TorusNet::fit(const PointCloud& cloud, const ProgressFn& progress) const {
-    const detail::TorusNetModel& model = *impl_->model;
+    const pat::TorusNetModel& model = *impl_->model;
     const Eigen::Index n = cloud.size();
     if (cloud.normals.rows() != n) throw Error("point cloud has " + std::to_string(n) + " points but " +
                                                std::to_string(cloud.normals.rows()) + " normals");
@@ -67,12 +67,12 @@ FittedTori TorusNet::fit(const PointCloud& cloud, const ProgressFn& progress) co
 
     // A failure on the device is an error, not a fallback: the caller asked for this device.
     const gpu::DeviceRun run = gpu::on_device(impl_->options.device, [&](const auto& ctx, std::string&) {
-        detail::predict_jets_gpu(model, cloud, *ctx, out.jets, out.tangents, impl_->options.chunk_size, progress);
+        pat::predict_jets_gpu(model, cloud, *ctx, out.jets, out.tangents, impl_->options.chunk_size, progress);
         return true;
     });
     const auto [tree, spacing] = tree_and_spacing.get();
     out.spacing = spacing;
-    if (!run) detail::predict_jets_cpu(model, cloud, *tree, out.jets, out.tangents, progress);
+    if (!run) pat::predict_jets_cpu(model, cloud, *tree, out.jets, out.tangents, progress);
     return out;
 }
 

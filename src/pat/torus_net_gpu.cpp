@@ -20,7 +20,7 @@
 #include <cstring>
 #include <string>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 namespace {
 
@@ -281,7 +281,7 @@ void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::
 
     // The cloud in kd-tree order, centered on its box (float32 keeps more bits of the offsets).
     const Points centered = centered_points(cloud.points);
-    const BoxTree tree(centered);
+    const spatial::BoxTree tree(centered);
     const DeviceCloud dc = upload_cloud(ctx, centered, cloud.normals, tree.order(), 0, true);
     const std::vector<gpu::DeviceNode> nodes = gpu::device_nodes(tree);
     const Buffer node_buffer = gpu::upload(ctx, nodes.data(), nodes.size() * sizeof(gpu::DeviceNode));
@@ -386,4 +386,4 @@ TorusNetGpuTrace torusnet_gpu_neighborhoods(const TorusNetModel& model, gpu::Con
     return t;
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

@@ -2,7 +2,7 @@
 #include "pat/torus_net_model.hpp"
 #include <gsd/pat.hpp>
 namespace gsd::gpu { class Context; }
-namespace gsd::detail {
+namespace gsd::pat {
 /// Predicts every point's jet and tangent on the device (docs/torusnet.md), chaining neighbor
 /// search, features, network in one submission per chunk. chunk_size 0: from device limits.
 void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::Context& ctx,

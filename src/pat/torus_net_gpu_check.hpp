@@ -12,7 +12,7 @@
 
 namespace gsd::gpu { class Context; }
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 struct TorusNetGpuTrace {
     std::vector<float> features;  ///< [count][k][7]
@@ -34,4 +34,4 @@ inline int tangent_axis(const Eigen::Vector3d& n) {
     return std::abs(n.x()) < 0.57735 ? 0 : std::abs(n.y()) < 0.57735 ? 1 : 2;
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

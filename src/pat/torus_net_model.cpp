@@ -13,7 +13,7 @@
 #include <cstring>
 #include <set>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 namespace {
 
@@ -164,4 +164,4 @@ const TorusNetModel& TorusNetModel::shipped() {
     return model;
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::pat {
 
 /// Offsets (in floats) of a Linear layer's weight [out, in] (row-major) and bias [out].
 struct NetLinear {
@@ -56,4 +56,4 @@ struct TorusNetModel {
     static const TorusNetModel& shipped();
 };
 
-}  // namespace gsd::detail
+}  // namespace gsd::pat

@@ -327,7 +327,7 @@ RenderedField render_blend(const blend::Engine& engine, const Box& box, const Fi
     blend::Params params = engine.params(true);
     params.exact = false;  // the shader marches the accelerated sum; so does its reference
     const blend::Source& src = engine.source();
-    const detail::BoxTree& tree = engine.search_tree();
+    const spatial::BoxTree& tree = engine.search_tree();
     return march_and_shade(
         f, o,
         [&](const auto& ctx, std::vector<float>& hits, std::string& why_not) {

@@ -33,7 +33,7 @@ public:
             for (std::size_t r = 0; r < runs; ++r) {
                 // Packets of consecutive points walk the tree together; each point's r_min is
                 // bounded by the previous packet's last r_min plus the step to it.
-                constexpr int P = detail::SumTree::kScreenedLanes;
+                constexpr int P = sums::SumTree::kScreenedLanes;
                 Eigen::Vector3d prev = Eigen::Vector3d::Zero();
                 double prev_r = INFINITY;
                 std::uint32_t nearest = std::uint32_t(-1);  // the previous packet's nearest element: usually these ones' too
@@ -62,8 +62,8 @@ public:
     std::string device() const override { return "cpu"; }
 
 private:
-    detail::SumTree::Screened k_;
-    detail::SumTree tree_;
+    sums::SumTree::Screened k_;
+    sums::SumTree tree_;
 };
 
 // The grids of the hierarchy: the same box, about half the nodes per axis each level.
@@ -106,8 +106,8 @@ std::vector<std::size_t> exact_nodes(const detail::UninitializedVector<char>& ex
 
 }  // namespace
 
-detail::SumTree::Screened screened_params(const KernelParams& k) {
-    detail::SumTree::Screened s;
+sums::SumTree::Screened screened_params(const KernelParams& k) {
+    sums::SumTree::Screened s;
     s.lambda = k.lambda;
     s.cutoff = k.cutoff;
     s.r_floor = k.r_floor;

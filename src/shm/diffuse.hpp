@@ -43,7 +43,7 @@ public:
 
 std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k);
 /// The same parameters as the tree's screened sum takes them (sums/sum_tree.hpp).
-detail::SumTree::Screened screened_params(const KernelParams& k);
+sums::SumTree::Screened screened_params(const KernelParams& k);
 /// Null (and a reason) when the device cannot take the source.
 std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu::Context>& ctx, const ShmSource& src,
                                                        const KernelParams& k, std::size_t chunk_size, std::string& why_not);

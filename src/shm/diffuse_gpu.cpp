@@ -23,7 +23,7 @@ struct DiffusePush {  // `Push` in shm_diffuse.comp
 
 class GpuEvaluator final : public DirectionEvaluator {
 public:
-    GpuEvaluator(std::shared_ptr<gpu::Context> ctx, detail::SumTree tree, const KernelParams& k, std::size_t chunk)
+    GpuEvaluator(std::shared_ptr<gpu::Context> ctx, sums::SumTree tree, const KernelParams& k, std::size_t chunk)
         : ctx_(std::move(ctx)), k_(k), chunk_(chunk), host_(std::move(tree)), tree_(sums::upload(*ctx_, host_)) {}
 
     std::size_t evaluate(const Points& x, std::vector<float>& y, std::vector<double>& r_min,
@@ -79,7 +79,7 @@ public:
             if (redo[q]) again.push_back(std::uint32_t(q));
             else terms += std::size_t(device_terms[q]);
         }
-        const detail::SumTree::Screened s = screened_params(k_);
+        const sums::SumTree::Screened s = screened_params(k_);
 #pragma omp parallel for schedule(dynamic, 16) reduction(+ : terms)
         for (std::size_t i = 0; i < again.size(); ++i) {
             const std::size_t q = again[i];
@@ -99,7 +99,7 @@ private:
     std::shared_ptr<gpu::Context> ctx_;
     KernelParams k_;
     std::size_t chunk_ = 0;
-    detail::SumTree host_;
+    sums::SumTree host_;
     sums::DeviceSumTree tree_;
 };
 
@@ -111,7 +111,7 @@ std::unique_ptr<DirectionEvaluator> make_gpu_evaluator(const std::shared_ptr<gpu
         why_not = ctx->info().name + " has no subgroup arithmetic in compute shaders; step 1 runs on the CPU";
         return nullptr;
     }
-    detail::SumTree tree(src.elements);
+    sums::SumTree tree(src.elements);
     why_not = sums::gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return nullptr;
     return std::make_unique<GpuEvaluator>(ctx, std::move(tree), k, chunk_size);

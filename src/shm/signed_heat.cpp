@@ -216,7 +216,7 @@ struct SignedHeatGrid::Impl {
         // margins to an element is never touched, however low its winding number (nor, so,
         // any part thinner than 1.5 margins); 0.1 in winding number.
         const double distance_band = 0.5 * margin, winding_band = 0.1;
-        const detail::SumTree tree(source.elements);
+        const sums::SumTree tree(source.elements);
         const WindingOptions criterion;  // the default accuracy: far below the band
         const Eigen::Vector3d step = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
         const std::ptrdiff_t count = std::ptrdiff_t(phi.size());

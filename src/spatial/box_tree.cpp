@@ -4,7 +4,7 @@
 #include <cmath>
 #include <numeric>
 
-namespace gsd::detail {
+namespace gsd::spatial {
 
 BoxTree::BoxTree(const Points& p, std::uint32_t leaf_size) {
     const auto n = std::uint32_t(p.rows());
@@ -121,4 +121,4 @@ void BoxTree::radius(const Eigen::Vector3d& q, double r, std::vector<Neighbor>& 
     }
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::spatial

@@ -13,7 +13,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::spatial {
 
 class BoxTree {
 public:
@@ -45,4 +45,4 @@ private:
     std::uint32_t first_leaf_ = 0;
 };
 
-}  // namespace gsd::detail
+}  // namespace gsd::spatial

@@ -11,7 +11,7 @@
 #include <omp.h>
 
 
-namespace gsd::detail {
+namespace gsd::spatial {
 
 bool sort_queries_for_device() {
     static const bool sort = [] {
@@ -56,7 +56,7 @@ std::vector<std::uint32_t> morton_order(PointsView q) {
     };
     // key << 32 | index; not zero-filled (the loops below write every entry first, in parallel:
     // the pages are touched by the threads that use them).
-    UninitializedVector<std::uint64_t> item(n), next(n);
+    detail::UninitializedVector<std::uint64_t> item(n), next(n);
 #pragma omp parallel for schedule(static) if (parallel)
     for (std::size_t i = 0; i < n; ++i) {
         std::uint64_t k = 0;
@@ -103,4 +103,4 @@ std::vector<std::uint32_t> morton_order(PointsView q) {
     return order;
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::spatial

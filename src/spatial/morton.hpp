@@ -9,7 +9,7 @@
 #include <cstdint>
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::spatial {
 
 /// The indices of the points in Morton order on a 2^10 grid over their box (stable: equal cells
 /// keep their input order). At most 2^32 points.
@@ -19,4 +19,4 @@ std::vector<std::uint32_t> morton_order(PointsView q);
 /// $GSD_QUERY_ORDER=input (measures what the order is worth on a device; results are equal).
 bool sort_queries_for_device();
 
-}  // namespace gsd::detail
+}  // namespace gsd::spatial

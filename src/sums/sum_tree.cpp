@@ -20,7 +20,7 @@
 #include <immintrin.h>
 #endif
 
-namespace gsd::detail {
+namespace gsd::sums {
 
 namespace {
 
@@ -232,7 +232,6 @@ void screened_piece_expansion(const double* v, const double* cov, const Vec3& d,
 
 }  // namespace
 
-namespace sums {
 
 double point_triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
     // Closest point by Voronoi regions of the triangle (vertices, edges, face); degenerate
@@ -274,7 +273,6 @@ double triangle_winding(const Vec3& x, const Vec3& a0, const Vec3& b0, const Vec
     return 2 * std::atan2(num, den) / kFourPi;
 }
 
-}  // namespace sums
 
 SumTree::SumTree(const OrientedElements& e) {
     e.validate();
@@ -289,7 +287,7 @@ SumTree::SumTree(const OrientedElements& e) {
         const auto J = Eigen::Index(j);
         centroids.row(J) = (e.corners.row(3 * J) + e.corners.row(3 * J + 1) + e.corners.row(3 * J + 2)) / 3;
     }
-    const BoxTree tree(centroids, kLeafSize);
+    const spatial::BoxTree tree(centroids, kLeafSize);
     order_ = tree.order();
     first_leaf_ = tree.first_leaf();
     p_.resize(9 * n);
@@ -809,7 +807,7 @@ double piece_radius(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& g) 
 
 }  // namespace
 
-bool sums::is_needle(const Vec3& a, const Vec3& b, const Vec3& c, double aspect) {
+bool is_needle(const Vec3& a, const Vec3& b, const Vec3& c, double aspect) {
     const double longest2 = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
     return longest2 > aspect * (b - a).cross(c - a).norm();
 }
@@ -836,7 +834,7 @@ void SumTree::screened_element(std::uint32_t j, const double* xp, const Screened
     // element of its own (vector area in proportion to its area).
     const Vec3 x = vec(xp), reach = Vec3::Constant(R);
     std::array<Vec3, 9> poly;
-    const int n = clip_triangle_to_box(a, b, c, x - reach, x + reach, poly);
+    const int n = detail::clip_triangle_to_box(a, b, c, x - reach, x + reach, poly);
     const double whole = (b - a).cross(c - a).norm();
     for (int i = 1; i + 1 < n; ++i) {
         const Vec3 &pa = poly[0], &pb = poly[std::size_t(i)], &pc = poly[std::size_t(i + 1)];
@@ -954,4 +952,4 @@ void SumTree::screened_triangle(const Vec3& a, const Vec3& ab, const Vec3& ac, c
     for (int c = 0; c < 3; ++c) Xp[c] = X[c];
 }
 
-}  // namespace gsd::detail
+}  // namespace gsd::sums

@@ -32,7 +32,7 @@
 #include <mutex>
 #include <vector>
 
-namespace gsd::detail {
+namespace gsd::sums {
 
 class SumTree {
 public:
@@ -79,7 +79,7 @@ public:
     /// computes what is not cached).
     void prepare_screened(double lambda);
 
-    const UninitializedVector<Node>& nodes() const { return nodes_; }
+    const detail::UninitializedVector<Node>& nodes() const { return nodes_; }
     std::uint32_t first_leaf() const { return first_leaf_; }
     std::size_t size() const { return v_.size() / 3; }
     bool has_triangles() const { return triangles_; }
@@ -192,7 +192,7 @@ private:
     /// Element j's exact term: its solid angle / 4π, or a point's dipole.
     double element_winding(const Eigen::Vector3d& x, std::size_t j) const;
 
-    UninitializedVector<Node> nodes_;  // every field written by compute_node() / merge_node()
+    detail::UninitializedVector<Node> nodes_;  // every field written by compute_node() / merge_node()
     mutable std::vector<Hot> hot_;  // hot(): made on first use
     struct Once {
         std::once_flag hot, twice;
@@ -205,8 +205,8 @@ private:
     void double_walk_data() const;
     mutable std::vector<WindingNodeT<double>> wnodes_;  // double_walk_data()
     mutable std::vector<WindingTestT<double>> wtests_;
-    UninitializedVector<WindingNodeT<float>> wnodes_f_;
-    UninitializedVector<WindingTestT<float>> wtests_f_;
+    detail::UninitializedVector<WindingNodeT<float>> wnodes_f_;
+    detail::UninitializedVector<WindingTestT<float>> wtests_f_;
     double w_origin_[3] = {0, 0, 0}, w_scale_ = 1;  // the walk's coordinates: (x − origin)·scale
     /// Whether a query at (x, y, z) may walk in float32 (within kSingleReach of the root).
     bool single_reach(double x, double y, double z) const;
@@ -224,16 +224,15 @@ private:
     void walk(bool single, const std::uint32_t* starts, std::size_t count, const double* x, const double* y, const double* z, int n,
               double beta, double tolerance, double* w, std::size_t& terms) const;
     friend struct WindingDispatch;
-    UninitializedVector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
+    detail::UninitializedVector<double> elem_rho_, elem_decay_;  // per element: radius about its centroid, e^(−λρ)
     double decay_lambda_ = -1;
     std::uint32_t first_leaf_ = 0;
-    UninitializedVector<double> p_, v_, cov_;  // corners, vector areas, triangle covariances (6 each)
+    detail::UninitializedVector<double> p_, v_, cov_;  // corners, vector areas, triangle covariances (6 each)
     std::vector<std::uint32_t> order_;
     std::vector<std::uint8_t> is_point_;  // per element: all three corners equal
     bool triangles_ = false;
 };
 
-namespace sums {
 
 /// A triangle whose longest edge squared exceeds `aspect` times twice its area (its length over
 /// its height): SHM step 1 refines it by bisection (SumTree::screened_needle), not by 1→4
@@ -320,6 +319,5 @@ inline bool accept_screened(double rho, double d, double area, double lambda, do
     return area * E_d * s * s * s <= 6 * budget * decay * g2 * g2;
 }
 
-}  // namespace sums
 
-}  // namespace gsd::detail
+}  // namespace gsd::sums

@@ -28,7 +28,7 @@ void outward(const double* lo, const double* hi, gpu::DeviceNode& out) {
 
 }  // namespace
 
-std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree) {
+std::string gpu_unfit(const gpu::Context& ctx, const sums::SumTree& tree) {
     // float32 squares distances: beyond ~1e19 they overflow. Keep a wide margin.
     const auto& root = tree.nodes()[0];
     for (int a = 0; a < 3; ++a)
@@ -41,7 +41,7 @@ std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree) {
     return {};
 }
 
-DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree) {
+DeviceSumTree upload(gpu::Context& ctx, const sums::SumTree& tree) {
     const auto& nodes = tree.nodes();
     std::vector<gpu::DeviceNode> dn(nodes.size());
     std::vector<float> mom(nodes.size() * kMomentVec4 * 4, 0.0f);
@@ -99,11 +99,11 @@ struct DeviceWindingTree {
     std::int32_t element_kinds = 0;  ///< bit 0: triangles, bit 1: points (a = b = c)
 };
 
-DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree, float beta, float reach_scale) {
+DeviceWindingTree upload_winding(gpu::Context& ctx, const sums::SumTree& tree, float beta, float reach_scale) {
     const auto& nodes = tree.nodes();
     const auto* tests = tree.winding_tests_f();
     const auto* expansions = tree.winding_nodes_f();
-    static_assert(sizeof(detail::SumTree::WindingNodeT<float>) == 23 * sizeof(float), "23 floats");
+    static_assert(sizeof(sums::SumTree::WindingNodeT<float>) == 23 * sizeof(float), "23 floats");
     DeviceWindingTree d;
     const std::size_t n = nodes.size();
     std::vector<float> nd(n * 4 + n * 28, 0.0f);
@@ -111,7 +111,7 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree,
         float* test = &nd[4 * i];
         const auto& t = tests[i];
         test[0] = t.c[0], test[1] = t.c[1], test[2] = t.c[2];
-        test[3] = detail::sums::winding_reach2(t.rho, t.q, beta, reach_scale);
+        test[3] = sums::winding_reach2(t.rho, t.q, beta, reach_scale);
         float* r = &nd[4 * n + 28 * i];
         std::memcpy(&r[0], &nodes[i].begin, 4);
         std::memcpy(&r[1], &nodes[i].end, 4);
@@ -144,7 +144,7 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const detail::SumTree& tree,
 /// The tree's records on this device for (β, reach scale): uploaded once per tree and kept with
 /// it (SumTree::device_copy), so that a field evaluated again (chunks of a render, a grid in
 /// slabs, the bench's repeated calls) does not upload again.
-std::shared_ptr<const DeviceWindingTree> device_tree(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree,
+std::shared_ptr<const DeviceWindingTree> device_tree(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree,
                                                      float beta, float reach_scale) {
     std::lock_guard<std::mutex> lock(tree.device_copy_mutex());
     auto cached = std::static_pointer_cast<DeviceWindingTree>(tree.device_copy());
@@ -157,14 +157,14 @@ std::shared_ptr<const DeviceWindingTree> device_tree(const std::shared_ptr<gpu::
 
 }  // namespace
 
-bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, PointsView queries,
+bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, PointsView queries,
                  const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
     why_not = gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return false;
     auto clock = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
     const double t_start = clock();
     const std::shared_ptr<const DeviceWindingTree> kept =
-        device_tree(ctx, tree, float(opt.beta), float(detail::sums::winding_reach_scale(opt.tolerance)));
+        device_tree(ctx, tree, float(opt.beta), float(sums::winding_reach_scale(opt.tolerance)));
     const DeviceWindingTree& d = *kept;
     const double t_uploaded = clock();
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
@@ -182,7 +182,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree
     const auto n = std::size_t(queries.rows());
     // Morton order, so that a subgroup's queries are neighbours; results go back in input order.
     std::vector<std::uint32_t> order;
-    if (detail::sort_queries_for_device()) order = detail::morton_order(queries);
+    if (spatial::sort_queries_for_device()) order = spatial::morton_order(queries);
     else {
         order.resize(n);
         for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);

@@ -9,15 +9,15 @@
 #include <string>
 
 namespace gsd::gpu { class Context; }
-namespace gsd::detail { class SumTree; }
+namespace gsd::sums { class SumTree; }
 
 namespace gsd::sums {
 
 /// Why the device cannot hold the tree ("" when it can).
-std::string gpu_unfit(const gpu::Context& ctx, const detail::SumTree& tree);
+std::string gpu_unfit(const gpu::Context& ctx, const sums::SumTree& tree);
 
 /// Winding numbers on the device. False (and a reason) when the device cannot take the tree.
-bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const detail::SumTree& tree, PointsView queries,
+bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, PointsView queries,
                  const WindingOptions& options, WindingResult& out, const ProgressFn& progress, std::string& why_not);
 
 }  // namespace gsd::sums
@@ -31,7 +31,7 @@ struct DeviceSumTree {
     gpu::Buffer nodes, moments, elements;
     std::uint32_t first_leaf = 0;
 };
-DeviceSumTree upload(gpu::Context& ctx, const detail::SumTree& tree);
+DeviceSumTree upload(gpu::Context& ctx, const sums::SumTree& tree);
 
 }  // namespace gsd::sums
 #endif

@@ -88,7 +88,7 @@ void check_options(const WindingOptions& opt) {
 }
 
 // The sums over a tree already built: the GPU if the device choice gives one, else the CPU.
-WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, const WindingOptions& opt,
+WindingResult winding_on_tree(const sums::SumTree& tree, PointsView queries, const WindingOptions& opt,
                               const ProgressFn& progress) {
     if (queries.rows() >= (Eigen::Index(1) << 32)) throw Error("queries", "more than 2^32 queries");
     // One parallel pass for both checks (10⁷ queries: two serial passes took longer than the
@@ -117,12 +117,12 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
     }
     out.device = "cpu";
     const auto n = std::size_t(queries.rows());
-    const std::vector<std::uint32_t> order = detail::morton_order(queries);
+    const std::vector<std::uint32_t> order = spatial::morton_order(queries);
     // Packets of kLanes consecutive queries in that order walk the tree together, from the
     // frontier of their group of 4 packets (the nodes all 32 queries open are skipped: 12 %
     // faster on 10⁶ random queries, results bit-equal); blocks of groups so progress can be
     // reported; within a block, dynamic scheduling.
-    constexpr std::size_t lanes = detail::SumTree::kLanes, group = 4 * lanes;
+    constexpr std::size_t lanes = sums::SumTree::kLanes, group = 4 * lanes;
     const std::size_t block = 65536;
     std::size_t terms = 0;
     for (std::size_t first = 0; first < n; first += block) {
@@ -131,7 +131,7 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
         for (std::size_t g = first; g < last; g += group) {
             const std::size_t g_end = std::min(last, g + group);
             // The group's frontier: the nodes every one of its queries would open are skipped.
-            thread_local detail::SumTree::WindingFrontier frontier;
+            thread_local sums::SumTree::WindingFrontier frontier;
             if (!opt.exact) {
                 double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
                 for (std::size_t i = g; i < g_end; ++i)
@@ -170,7 +170,7 @@ WindingResult winding_on_tree(const detail::SumTree& tree, PointsView queries, c
 WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries, const WindingOptions& opt,
                                    const ProgressFn& progress) {
     check_options(opt);
-    const detail::SumTree tree(elements);
+    const sums::SumTree tree(elements);
     return winding_on_tree(tree, queries, opt, progress);
 }
 
@@ -180,11 +180,11 @@ struct WindingField::Impl {
     OrientedElements elements;
     WindingOptions options;
     mutable std::mutex mutex;  // concurrent evaluate() calls build the tree once
-    mutable std::unique_ptr<detail::SumTree> tree;
+    mutable std::unique_ptr<sums::SumTree> tree;
 
-    const detail::SumTree& built() const {
+    const sums::SumTree& built() const {
         std::lock_guard<std::mutex> lock(mutex);
-        if (!tree) tree = std::make_unique<detail::SumTree>(elements);
+        if (!tree) tree = std::make_unique<sums::SumTree>(elements);
         return *tree;
     }
 };

@@ -67,7 +67,7 @@ Score score(const PolygonMesh& intact, const PolygonMesh& broken, const GridSpec
             std::vector<float>* truth_grid = nullptr, std::vector<float>* gwn_grid = nullptr) {
     const double cell = g.box.extent().maxCoeff() / (g.nx - 1);
     const OrientedElements truth_src = OrientedElements::from_mesh(intact);
-    const detail::SumTree truth_tree(truth_src);
+    const sums::SumTree truth_tree(truth_src);
     const Points nodes = g.nodes();
     std::vector<Eigen::Index> far;
     for (Eigen::Index i = 0; i < nodes.rows(); ++i)

@@ -120,7 +120,7 @@ int main(int argc, char** argv) {
     // The reference: the exact sum at the first K queries (as stored: float32), and which of
     // them lie farther than one mean edge length from the surface.
     const OrientedElements elements = OrientedElements::from_mesh(mesh);
-    const detail::SumTree tree(elements);
+    const sums::SumTree tree(elements);
     Points check(Eigen::Index(o.check), 3);
     for (std::size_t i = 0; i < o.check; ++i)
         for (int a = 0; a < 3; ++a) check(Eigen::Index(i), a) = q[3 * i + std::size_t(a)];
