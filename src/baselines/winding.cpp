@@ -1,5 +1,7 @@
 #include <gsd/baselines.hpp>
 
+#include "core/solid_angle.hpp"
+
 #include <Eigen/Geometry>
 
 #include <array>
@@ -19,14 +21,7 @@ std::vector<double> winding_numbers(const PolygonMesh& mesh, const Points& queri
     for (Eigen::Index q = 0; q < queries.rows(); ++q) {
         const Eigen::Vector3d x = queries.row(q).transpose();
         double sum = 0;
-        for (const auto& t : tri) {
-            // Van Oosterom–Strackee: tan(Ω/2) = a·(b×c) / (|a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|).
-            const Eigen::Vector3d a = t[0] - x, b = t[1] - x, c = t[2] - x;
-            const double la = a.norm(), lb = b.norm(), lc = c.norm();
-            const double num = a.dot(b.cross(c));
-            const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
-            sum += 2 * std::atan2(num, den);
-        }
+        for (const auto& t : tri) sum += detail::triangle_solid_angle(x, t[0], t[1], t[2]);
         w[std::size_t(q)] = sum / (4 * M_PI);
     }
     return w;

@@ -5,6 +5,8 @@
 // and shares its refinement helpers; splitting it would expose those records to other files.
 #include "sums/sum_tree.hpp"
 
+#include "core/solid_angle.hpp"
+
 #include "core/clip.hpp"
 
 #include "spatial/box_tree.hpp"
@@ -265,12 +267,7 @@ double point_triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, con
 }
 
 double triangle_winding(const Vec3& x, const Vec3& a0, const Vec3& b0, const Vec3& c0) {
-    // tan(Ω/2) = a·(b×c) / (|a||b||c| + (a·b)|c| + (b·c)|a| + (c·a)|b|).
-    const Vec3 a = a0 - x, b = b0 - x, c = c0 - x;
-    const double la = a.norm(), lb = b.norm(), lc = c.norm();
-    const double num = a.dot(b.cross(c));
-    const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
-    return 2 * std::atan2(num, den) / kFourPi;
+    return detail::triangle_solid_angle(x, a0, b0, c0) / kFourPi;
 }
 
 
