@@ -31,15 +31,8 @@ const int TILE = 256;     // shared-memory tile for the exact sum (≥ workgroup
 layout(std430, binding = 3) readonly buffer Queries { vec4 qs[]; };
 layout(std430, binding = 4) writeonly buffer Out { float outv[]; };
 
-layout(push_constant) uniform Push {
-    uint query_count;
-    uint point_count;
-    uint first_leaf;  // nodes at or past this index are leaves
-    uint k_fallback;
-    float r_eval;
-    float C;
-    float dmin;       // smallest distance used by the SHC kernel (1e-6 h)
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { BlendPush pc; };  // push_constants.h
 
 #include "blend_field.glsl"
 

@@ -11,18 +11,8 @@
 // scalar at a time, behind a branch each, and a texel buffer as one gather of all its lanes.
 // The kernels have no branch around their loads (llvmpipe runs both sides of every branch).
 
-layout(push_constant) uniform Push {
-    uvec3 dims;      // this level
-    uint color;      // red-black color for the smoother
-    uvec3 axes_off;  // where this level's x, y, z tables start, in cells
-    uint pad0;
-    uvec3 odims;     // the other level (coarser for prolongation, finer for restriction)
-    uint pad1;
-    uvec3 oaxes_off;
-    uint pad2;
-    vec3 inv_h2;     // 1/Δ² of the finest grid per axis
-    uint pad3;
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { MultigridPush pc; };  // push_constants.h
 
 #ifndef MG_NO_AXIS_TABLE
 #ifdef GSD_SOFTWARE_SHAPED

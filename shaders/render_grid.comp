@@ -13,13 +13,8 @@ uint lane_ticks = 0u, subgroup_ticks = 0u;  // (the field has no loops of its ow
 
 layout(std430, binding = 0) readonly buffer Values { float values[]; };  // GridSpec order: (i·ny + j)·nz + k
 
-layout(push_constant) uniform Push {
-    uint first_pixel;
-    uint pixel_count;
-    uint nx, ny, nz;
-    float x0, y0, z0;   // the first node
-    float hx, hy, hz;   // node spacing
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { RenderGridPush pc; };  // push_constants.h
 
 float node(int i, int j, int k) { return values[(uint(i) * pc.ny + uint(j)) * pc.nz + uint(k)]; }
 

@@ -23,16 +23,8 @@ layout(constant_id = 3) const uint LOOP_CAP = 0u;  // software devices: render_m
 #define NODES_BINDING 2
 #include "box_tree_buffers.glsl"
 
-layout(push_constant) uniform Push {
-    uint first_pixel;  // blend_eval's query_count: here the chunk's first pixel
-    uint point_count;
-    uint first_leaf;
-    uint k_fallback;
-    float r_eval;
-    float C;
-    float dmin;
-    uint pixel_count;
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { RenderPatPush pc; };  // push_constants.h
 
 // The loop iterations the walks take, for render_march.glsl's guard against llvmpipe's limit.
 uint lane_ticks = 0u, subgroup_ticks = 0u;

@@ -60,15 +60,8 @@ uint node_end(uint i) { return nodes[i].end; }
 layout(std430, binding = 3) readonly buffer Queries { vec4 qs[]; };
 layout(std430, binding = 4) writeonly buffer Out { vec4 outv[]; };  // (Y, r_min), (terms, 0, 0, 0)
 
-layout(push_constant) uniform Push {
-    uint count;
-    uint first_leaf;
-    float lambda;
-    float cutoff;
-    float r_floor;
-    float budget;  // tolerance · 2π/λ
-    uint group_cap; // loop iterations one subgroup may run (0: no limit): llvmpipe's limit, below
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { DiffusePush pc; };  // push_constants.h
 
 const uint NONE = 0xffffffffu;
 

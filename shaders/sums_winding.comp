@@ -49,12 +49,8 @@ layout(std430, binding = 1) readonly buffer Elems { vec4 elems[]; };
 layout(std430, binding = 2) readonly buffer Queries { vec4 qs[]; };
 layout(std430, binding = 3) writeonly buffer Out { vec2 outv[]; };  // (w, terms; −1: cut short)
 
-layout(push_constant) uniform Push {
-    uint count;
-    uint first_leaf;
-    uint group_cap;     // loop iterations one subgroup may run (0: no limit), see below
-    uint node_count;    // where the 7-vec4 records start
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { WindingPush pc; };  // push_constants.h
 
 // Which kinds of elements the tree holds (bit 0: triangles, bit 1: points): code for a kind the
 // tree lacks is left out (llvmpipe would run both branches of the test for every element).

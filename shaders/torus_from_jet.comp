@@ -1,4 +1,5 @@
 #version 450
+#extension GL_GOOGLE_include_directive : require
 // Builds tori from per-point frames and jet coefficients (mirrors gsd::torus_from_jet).
 // In:  4 vec4 per point: (p, a00), (n, a10), (s, a01), (a11, a20, a02, 0)
 // Out: 3 vec4 per point: (q, k1), (e1, k2), (n*, 0)
@@ -6,7 +7,8 @@ layout(local_size_x_id = 0) in;
 
 layout(std430, binding = 0) readonly buffer Jets { vec4 jets[]; };
 layout(std430, binding = 1) writeonly buffer Tori { vec4 tori[]; };
-layout(push_constant) uniform Push { uint count; } pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { CountPush pc; };  // push_constants.h
 
 void main() {
     uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;

@@ -86,9 +86,8 @@ layout(std430, binding = 4) writeonly buffer Out { float outv[]; };     // [coun
 layout(std430, binding = 5) coherent buffer Scratch { vec4 gpool[]; };  // GLOBAL: [count][POOL]
 layout(std430, binding = 6) writeonly buffer Debug { float dbg[]; };    // DEBUG: [count][7K + 1]
 
-layout(push_constant) uniform Push {
-    uint count;  // points in this chunk
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { CountPush pc; };  // push_constants.h
 
 shared vec4 spool[SHARED_POOL];
 shared float row_mean[K];

@@ -19,10 +19,8 @@ const int STACK = 48;  // kd-tree depth bound
 layout(std430, binding = 2) readonly buffer Centers { uint centers[]; };  // the chunk's points (tree order)
 layout(std430, binding = 3) writeonly buffer Tokens { uint tokens[]; };   // [count][K]
 
-layout(push_constant) uniform Push {
-    uint count;       // points in this chunk
-    uint first_leaf;  // nodes at or past this index are leaves
-} pc;
+#include "push_constants.h"
+layout(push_constant) uniform Push { TorusNetKnnPush pc; };  // push_constants.h
 
 #define KNN_MAX K
 #include "box_tree_knn.glsl"

@@ -9,6 +9,7 @@
 #include "gpu/device_tree.hpp"
 #include "gpu/runtime.hpp"
 #include "gpu/stream.hpp"
+#include "push_constants.h"
 
 #include <algorithm>
 #include <array>
@@ -59,10 +60,7 @@ constexpr int kMaxFallbackK = 32;  // K_MAX in blend_eval.comp
 /// pass of mark_points takes.
 constexpr std::uint32_t kSoftwareLeafSize = 32;
 
-struct BlendPush {  // `Push` in blend_eval.comp
-    std::uint32_t query_count, point_count, first_leaf, k_fallback;
-    float r_eval, C, dmin;
-};
+using kernels::BlendPush;  // `Push` in blend_eval.comp
 
 /// blend_eval for these specialization constants: on software devices its build that reads the
 /// tree's points, terms and nodes (bindings 0–2) as texel buffers (gpu::shaped_kernel).
@@ -89,8 +87,9 @@ std::vector<float> jet_records(const Points& points, const Points& normals, cons
 // Runs torus_from_jet over `count` records already on the device.
 void record_tori(gpu::Context& ctx, gpu::Recorder& rec, const gpu::Buffer& jets, const gpu::Buffer& tori,
                  std::uint32_t count) {
-    const gpu::Kernel& k = ctx.kernel("torus_from_jet", 2, 4);
-    rec.dispatch(k, {{&jets}, {&tori}}, &count, 4, (count + k.workgroup - 1) / k.workgroup);
+    const kernels::CountPush push{count};
+    const gpu::Kernel& k = ctx.kernel("torus_from_jet", 2, sizeof(push));
+    rec.dispatch(k, {{&jets}, {&tori}}, &push, sizeof(push), (count + k.workgroup - 1) / k.workgroup);
 }
 
 }  // namespace
@@ -262,16 +261,12 @@ void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, con
 void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
                              std::uint32_t first_pixel, std::uint32_t pixel_count, std::uint32_t rays_per_lane,
                              std::uint32_t loop_cap) {
-    struct RenderPush {  // `Push` in render_pat.comp: blend_eval's, then the chunk
-        BlendPush blend;
-        std::uint32_t pixel_count;
-    };
+    using RenderPush = kernels::RenderPatPush;  // `Push` in render_pat.comp: blend_eval's, then the chunk
     const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, "render_pat", 5, sizeof(RenderPush),  // the tree as texel buffers
                                               {int(kind_), render_shared_knn(), std::int32_t(loop_cap)},
                                               gpu::loop_capped_workgroup(*ctx_), 0b111u);
-    const RenderPush push{{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
-                           float(p.C), dmin_},
-                          pixel_count};
+    const RenderPush push{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
+                          float(p.C), dmin_, pixel_count};
     rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&params}, {&hits, 0, VkDeviceSize(pixel_count) * 16}}, &push,
                  sizeof(push), (pixel_count + k.workgroup * rays_per_lane - 1) / (k.workgroup * rays_per_lane));
 }

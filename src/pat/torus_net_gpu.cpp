@@ -8,6 +8,7 @@
 #include "gpu/device_tree.hpp"
 #include "gpu/runtime.hpp"
 #include "gpu/stream.hpp"
+#include "push_constants.h"
 #include "spatial/box_tree.hpp"
 
 #include <gsd/gpu.hpp>
@@ -234,7 +235,7 @@ const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
         while (workgroup < 64 && 2 * net_loop_iterations(p, workgroup) > 65535) workgroup *= 2;
         workgroup = std::min(workgroup, 64u);
     }
-    return gpu::shaped_kernel(ctx, "torus_net", 7, 4,
+    return gpu::shaped_kernel(ctx, "torus_net", 7, sizeof(kernels::CountPush),
                               {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
                                p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
                               workgroup, 0b1u);
@@ -243,9 +244,9 @@ const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
 // Records the network over n points whose tokens are in `tokens`.
 void record_net(gpu::Recorder& rec, const gpu::Kernel& k, const Buffer& params, const DeviceCloud& cloud,
                 const Buffer& tokens, const Buffer& out, const Buffer& scratch, const Buffer& debug, std::size_t n) {
-    const auto count = std::uint32_t(n);
-    rec.dispatch(k, {{&params}, {&cloud.fixed}, {&cloud.nrm}, {&tokens}, {&out}, {&scratch}, {&debug}}, &count, 4,
-                 count);
+    const kernels::CountPush push{std::uint32_t(n)};
+    rec.dispatch(k, {{&params}, {&cloud.fixed}, {&cloud.nrm}, {&tokens}, {&out}, {&scratch}, {&debug}}, &push,
+                 sizeof(push), push.count);
 }
 
 Points centered_points(const Points& p) {
@@ -289,7 +290,7 @@ void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::
     const Buffer params = gpu::upload(ctx, packed.data(), packed.size() * 4);
     const Buffer unused(ctx, 16, Memory::Device);
 
-    const gpu::Kernel& knn = ctx.kernel("torus_net_knn", 4, 8, {K});
+    const gpu::Kernel& knn = ctx.kernel("torus_net_knn", 4, sizeof(kernels::TorusNetKnnPush), {K});
     const gpu::Kernel& net = net_kernel(ctx, p, false);
 
     // Chunk: many points per submission on a GPU, fewer on a CPU device (smooth progress);
@@ -323,9 +324,9 @@ void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::
     };
     job.record = [&](gpu::Recorder& rec, const Buffer& in, const Buffer& out, std::size_t count) {
         const std::size_t set = recorded++ % kSets;
-        const std::uint32_t push[2] = {std::uint32_t(count), tree.first_leaf()};
+        const kernels::TorusNetKnnPush push{std::uint32_t(count), tree.first_leaf()};
         rec.dispatch(knn, {{&dc.pts}, {&node_buffer}, {&in, 0, count * 4}, {&tokens[set], 0, count * token_bytes}},
-                     push, 8, std::uint32_t((count + knn.workgroup - 1) / knn.workgroup));
+                     &push, sizeof(push), std::uint32_t((count + knn.workgroup - 1) / knn.workgroup));
         rec.barrier();
         record_net(rec, net, params, dc, tokens[set], out, scratch[set], unused, count);
     };

@@ -9,6 +9,7 @@
 #include "blend/blend.hpp"
 #include "gpu/runtime.hpp"
 #include "gpu/stream.hpp"
+#include "push_constants.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -192,10 +193,7 @@ bool march_grid_gpu(const GridSpec& grid, const std::vector<float>& values, cons
         why_not = "the grid (" + std::to_string(bytes >> 20) + " MiB) does not fit " + c.info().name + "'s buffers";
         return false;
     }
-    struct GridPush {  // `Push` in render_grid.comp
-        std::uint32_t first_pixel, pixel_count, nx, ny, nz;
-        float x0, y0, z0, hx, hy, hz;
-    };
+    using GridPush = kernels::RenderGridPush;  // `Push` in render_grid.comp
     const gpu::Buffer data = gpu::upload(c, values.data(), bytes);
     const Tiling tiles = tiling_for(c);
     const gpu::Buffer params = upload_params(c, cam, m, tiles);

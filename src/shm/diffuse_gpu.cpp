@@ -4,6 +4,7 @@
 
 #include "gpu/runtime.hpp"
 #include "gpu/stream.hpp"
+#include "push_constants.h"
 #include "sums/sum_tree.hpp"
 #include "sums/sums_gpu.hpp"
 
@@ -15,11 +16,7 @@ namespace gsd::shm {
 
 namespace {
 
-struct DiffusePush {  // `Push` in shm_diffuse.comp
-    std::uint32_t count, first_leaf;
-    float lambda, cutoff, r_floor, budget;
-    std::uint32_t group_cap;
-};
+using kernels::DiffusePush;  // `Push` in shm_diffuse.comp
 
 class GpuEvaluator final : public DirectionEvaluator {
 public:

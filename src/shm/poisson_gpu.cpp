@@ -7,6 +7,7 @@
 #include "shm/poisson_gpu.hpp"
 
 #include "gpu/runtime.hpp"
+#include "push_constants.h"
 
 #include <algorithm>
 #include <array>
@@ -52,15 +53,7 @@ AxisCell axis_cell(const AxisLevel& ax, int i) {
     return e;
 }
 
-struct MgPush {  // `Push` in shaders/mg_common.glsl
-    std::uint32_t dims[3], color;
-    std::uint32_t axes_off[3], pad0;
-    std::uint32_t odims[3], pad1;
-    std::uint32_t oaxes_off[3], pad2;
-    float inv_h2[3];
-    std::uint32_t pad3;
-};
-static_assert(sizeof(MgPush) == 80);
+using MgPush = kernels::MultigridPush;  // `Push` in shaders/mg_common.glsl
 
 class VulkanMultigrid final : public GpuMultigrid {
 public:
@@ -220,9 +213,10 @@ private:
     void record_cycle(gpu::Recorder& rec, std::size_t l, bool f_cycle) {
         const std::size_t last = H_.levels.size() - 1;
         if (l == last) {
-            const gpu::Kernel& k = ctx_->kernel("mg_coarse", 3, 4);
+            const gpu::Kernel& k = ctx_->kernel("mg_coarse", 3, sizeof(kernels::CountPush));
             const std::uint32_t m = std::uint32_t(H_.levels[l].count());
-            rec.dispatch(k, {{&pinv_}, {&r_[l]}, {&e_[l]}}, &m, 4, (m + k.workgroup - 1) / k.workgroup);
+            const kernels::CountPush push_m{m};
+            rec.dispatch(k, {{&pinv_}, {&r_[l]}, {&e_[l]}}, &push_m, sizeof(push_m), (m + k.workgroup - 1) / k.workgroup);
             rec.barrier();
             return;
         }
@@ -243,9 +237,9 @@ private:
             rec.copy(t_[c], 0, r_[c], 0, bytes);
             rec.barrier();
             record_cycle(rec, c, false);
-            const gpu::Kernel& add = ctx_->kernel("mg_add", 2, 4);
-            const std::uint32_t m = std::uint32_t(H_.levels[c].count());
-            rec.dispatch(add, {{&e_[c]}, {&save_[c]}}, &m, 4, groups(c));
+            const gpu::Kernel& add = ctx_->kernel("mg_add", 2, sizeof(kernels::CountPush));
+            const kernels::CountPush push_m{std::uint32_t(H_.levels[c].count())};
+            rec.dispatch(add, {{&e_[c]}, {&save_[c]}}, &push_m, sizeof(push_m), groups(c));
             rec.barrier();
         }
         {

@@ -4,6 +4,7 @@
 
 #include "gpu/device_tree.hpp"
 #include "gpu/stream.hpp"
+#include "push_constants.h"
 #include "sums/sum_tree.hpp"
 
 #include <chrono>
@@ -80,9 +81,7 @@ DeviceSumTree upload(gpu::Context& ctx, const sums::SumTree& tree) {
 
 namespace {
 
-struct WindingPush {
-    std::uint32_t count, first_leaf, group_cap, node_count;
-};
+using kernels::WindingPush;  // `Push` in sums_winding.comp
 
 /// The tree as sums_winding.comp walks it: a vec4 per node, the float32 walk's test (all a walk
 /// reads of a node it does not sum: kept together, siblings side by side), then 7 vec4 per node
