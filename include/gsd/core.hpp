@@ -48,6 +48,11 @@ using PointsView = Eigen::Ref<const Points, 0, Eigen::OuterStride<>>;
 using PointsF = Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor>;
 using PointsFView = Eigen::Ref<const PointsF, 0, Eigen::OuterStride<>>;
 
+/// A polyline in 3D (consecutive points joined), and several: curves drawn on surfaces, curve
+/// decompositions, contour lines. The one polyline type of the API.
+using Polyline = std::vector<Eigen::Vector3d>;
+using Polylines = std::vector<Polyline>;
+
 /// An oriented point cloud. `normals` has the same row count as `points`; normals need not be
 /// unit length on input (validate() normalizes them) but must not be zero.
 struct PointCloud {

@@ -142,7 +142,7 @@ GSD_EXPORT SurfaceSources damage(const SurfaceSources& sources, const CurveDamag
 /// Sources drawn in 3D: each curve as polylines that follow the surface (a piece between nodes
 /// in different triangles bends where it crosses edges), each isolated point as a one-point
 /// polyline. For pictures and OBJ output.
-GSD_EXPORT std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources);
+GSD_EXPORT Polylines source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources);
 
 /// The level set {f = level} of a per-vertex function (linear on each triangle) as curves whose
 /// nodes lie on edges, oriented so that f < level on their left (counter-clockwise around the

@@ -73,9 +73,6 @@ struct SwnOptions {
     bool boundary_aware = false;
 };
 
-/// A curve decomposition as 3D polylines (edges of the mesh SWN ran on).
-using Polylines = std::vector<std::vector<Eigen::Vector3d>>;
-
 struct SwnResult {
     std::vector<int> labels;                     ///< per input face: the rounded winding number
     std::vector<std::array<double, 3>> w;        ///< per triangle (SurfaceMesh numbering) and corner

@@ -48,9 +48,6 @@ GSD_EXPORT void write_png(const std::string& path, const Image& image);
 
 // ---- fields on surfaces ------------------------------------------------------------------
 
-/// A polyline in 3D (consecutive points joined).
-using Polyline = std::vector<Eigen::Vector3d>;
-
 /// What to draw on a surface picture.
 struct SurfacePicture {
     /// Triangles or polygons (fanned); vertex positions define the geometry. Not owned.
@@ -63,7 +60,7 @@ struct SurfacePicture {
     std::vector<int> face_labels;
     /// Curves drawn on top (e.g. the input curve, or the curve decomposition of SWN).
     struct Curves {
-        std::vector<Polyline> lines;
+        Polylines lines;
         std::array<std::uint8_t, 3> color{20, 20, 20};
         double width = 3.0;  ///< pixels (of the final image)
     };

@@ -550,14 +550,14 @@ ResolvedSources resolve_sources(const Topology& t, const SurfaceSources& sources
 
 namespace gsd {
 
-std::vector<std::vector<Eigen::Vector3d>> source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources) {
+Polylines source_polylines(const SurfaceMesh& mesh, const SurfaceSources& sources) {
     const mesh::Topology& t = mesh.topology();
     auto at = [&](const mesh::FacePoint& p) {
         Eigen::Vector3d x = Eigen::Vector3d::Zero();
         for (int k = 0; k < 3; ++k) x += p.bary[std::size_t(k)] * t.corner_position(p.face, k);
         return x;
     };
-    std::vector<std::vector<Eigen::Vector3d>> out;
+    Polylines out;
     for (const SurfaceCurve& c : sources.curves) {
         SurfaceSources one;
         one.curves.push_back(c);
