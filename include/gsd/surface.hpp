@@ -235,16 +235,6 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-/// The error measure of thesis §4.5: ε(φ) = (Σ_i A_i (φ_i − φ⁰_i)²)^½ / ((max φ⁰ − min φ⁰)·𝒜^½),
-/// A_i a third of the area of the triangles at vertex i, 𝒜 = Σ A_i. Vertices where either value
-/// is not finite are left out.
-GSD_EXPORT double surface_distance_error(const SurfaceMesh& mesh, const std::vector<double>& phi,
-                              const std::vector<double>& phi_true);
-/// Share of the surface area (vertex areas A_i) where sign(φ) = sign(φ_true); vertices where
-/// φ_true is 0 count as agreeing.
-GSD_EXPORT double surface_sign_agreement(const SurfaceMesh& mesh, const std::vector<double>& phi,
-                              const std::vector<double>& phi_true);
-/// Vertex areas A_i (a third of the incident triangle areas).
-GSD_EXPORT std::vector<double> vertex_areas(const SurfaceMesh& mesh);
-
 }  // namespace gsd
+
+#include <gsd/accuracy.hpp>  // the error measures of thesis §4.5 (surface_distance_error, …)

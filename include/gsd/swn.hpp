@@ -117,9 +117,6 @@ private:
 /// (φ there is rounding noise) and is 0.
 GSD_EXPORT std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi);
 
-/// Share of the area where labels differ, after the best global integer shift of `labels` when
-/// `up_to_shift` (closed surfaces: winding numbers are defined up to a constant there).
-GSD_EXPORT double mislabeled_area(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth,
-                       bool up_to_shift);
-
 }  // namespace gsd
+
+#include <gsd/accuracy.hpp>  // mislabeled_area

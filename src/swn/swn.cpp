@@ -1231,22 +1231,4 @@ std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& 
     return majority_per_face(mesh, t.triangle_face, t.face_areas, tri);
 }
 
-double mislabeled_area(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth,
-                       bool up_to_shift) {
-    if (labels.size() != mesh.face_count() || truth.size() != mesh.face_count())
-        throw Error("mislabeled_area", "expected one label per face");
-    const Topology& t = mesh.topology();
-    std::vector<double> area(mesh.face_count(), 0.0);
-    for (std::size_t f = 0; f < t.mesh.face_count(); ++f) area[t.triangle_face[f]] += t.face_areas[f];
-    double total = 0;
-    for (double a : area) total += a;
-    std::map<int, double> agree;  // shift → area that agrees under it
-    for (std::size_t f = 0; f < area.size(); ++f) agree[truth[f] - labels[f]] += area[f];
-    const double right = up_to_shift ? std::max_element(agree.begin(), agree.end(), [](const auto& a, const auto& b) {
-                                           return a.second < b.second;
-                                       })->second
-                                     : agree[0];
-    return total > 0 ? 1.0 - right / total : 0.0;
-}
-
 }  // namespace gsd
