@@ -139,19 +139,26 @@ void gradients_at_hits(blend::GpuField& field, blend::Params p, const Camera& ca
     std::vector<std::size_t> hit;
     for (std::size_t i = 0; 4 * i < hits.size(); ++i)
         if (hits[4 * i] >= 0.0f) hit.push_back(i);
-    if (hit.empty()) return;
-    Points at(Eigen::Index(hit.size()), 3);
+    // In blocks of hits (48 bytes each on the host while evaluated), so that a picture of 10⁸
+    // rays does not hold them all at once.
+    constexpr std::size_t kBlock = std::size_t(1) << 22;
+    for (std::size_t first = 0; first < hit.size(); first += kBlock) {
+        const std::size_t n = std::min(kBlock, hit.size() - first);
+        Points at(Eigen::Index(n), 3);
 #pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t j = 0; j < std::ptrdiff_t(hit.size()); ++j) {
-        const std::size_t i = hit[std::size_t(j)];
-        const Eigen::Vector3d d = cam.ray(int(i % std::size_t(cam.width)), int(i / std::size_t(cam.width)));
-        at.row(j) = (cam.eye + double(hits[4 * i]) * d).transpose();
+        for (std::ptrdiff_t j = 0; j < std::ptrdiff_t(n); ++j) {
+            const std::size_t i = hit[first + std::size_t(j)];
+            const Eigen::Vector3d d = cam.ray(int(i % std::size_t(cam.width)), int(i / std::size_t(cam.width)));
+            at.row(j) = (cam.eye + double(hits[4 * i]) * d).transpose();
+        }
+        std::vector<float> phi(n), grad(3 * n);
+        const double done = double(first), total = double(hit.size());
+        blend::evaluate_gpu(field, p, blend::Queries(PointsView(at)), blend::Output{phi.data(), grad.data()}, 0,
+                            progress ? ProgressFn([&](std::string_view, double f) { progress("shade", (done + f * double(n)) / total); })
+                                     : ProgressFn());
+        for (std::size_t j = 0; j < n; ++j)
+            for (int c = 0; c < 3; ++c) hits[4 * hit[first + j] + 1 + std::size_t(c)] = grad[3 * j + std::size_t(c)];
     }
-    std::vector<float> phi(hit.size()), grad(3 * hit.size());
-    blend::evaluate_gpu(field, p, blend::Queries(PointsView(at)), blend::Output{phi.data(), grad.data()}, 0,
-                        progress ? ProgressFn([&](std::string_view, double f) { progress("shade", f); }) : ProgressFn());
-    for (std::size_t j = 0; j < hit.size(); ++j)
-        for (int c = 0; c < 3; ++c) hits[4 * hit[j] + 1 + std::size_t(c)] = grad[3 * j + std::size_t(c)];
 }
 
 bool subgroups_ready(const gpu::Context& ctx, std::string& why_not) {
