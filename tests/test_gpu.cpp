@@ -107,6 +107,16 @@ TEST_CASE("a validation error is seen (the runner fails any test case that raise
     CHECK(raised >= 1);
 }
 
+TEST_CASE("a kernel asked for with the wrong number of bindings is an error, not a pipeline") {
+    REQUIRE(device());
+    // mg_add reads two buffers (e, s); asking for three, or one, must say so.
+    const std::uint32_t push = sizeof(std::uint32_t);
+    CHECK_THROWS_WITH_AS(device()->kernel("mg_add", 3, push), doctest::Contains("its shader declares 2"), Error);
+    CHECK_THROWS_AS(device()->kernel("mg_add", 1, push), Error);
+    CHECK(device()->kernel("mg_add", 2, push).bindings == 2);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
+}
+
 TEST_CASE("torus_from_jet: device tori match the CPU's") {
     REQUIRE(device());
     std::mt19937_64 rng(1);

@@ -515,6 +515,29 @@ std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
     throw Error("gpu", "no suitable memory type on " + s_->info.name);
 }
 
+namespace {
+
+// One more than the highest `binding` an embedded shader's SPIR-V decorates (OpDecorate … Binding
+// n); 0 when it has none.
+std::uint32_t spirv_binding_count(const std::string& shader) {
+    for (const auto& s : detail::kEmbeddedShaders) {
+        if (shader != s.name) continue;
+        constexpr std::uint32_t kOpDecorate = 71, kDecorationBinding = 33;
+        std::uint32_t count = 0;
+        for (std::size_t i = 5; i < s.word_count;) {  // past the 5-word header
+            const std::uint32_t words = s.words[i] >> 16, op = s.words[i] & 0xffffu;
+            if (words == 0) break;  // malformed: stop rather than loop
+            if (op == kOpDecorate && words >= 4 && s.words[i + 2] == kDecorationBinding)
+                count = std::max(count, s.words[i + 3] + 1);
+            i += words;
+        }
+        return count;
+    }
+    return 0;
+}
+
+}  // namespace
+
 const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
                               std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
                               TexelBindings texel_bindings) {
@@ -541,6 +564,12 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
         mi.pCode = found->words;
         check(st.vk.vkCreateShaderModule(st.device, &mi, nullptr, &module), "vkCreateShaderModule");
     }
+
+    // The binding count a caller states must be the shader's own (a miscount shows otherwise only
+    // under the validation layer, or as a crash).
+    if (const std::uint32_t declared = spirv_binding_count(shader); declared != bindings)
+        throw Error("gpu", "kernel " + shader + " is called with " + std::to_string(bindings) + " bindings; its shader declares " +
+                               std::to_string(declared));
 
     auto k = std::make_unique<Kernel>();
     k->name = shader;
