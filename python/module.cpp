@@ -10,6 +10,7 @@
 #include <gsd/render.hpp>
 #include <gsd/shm.hpp>
 #include <gsd/sums.hpp>
+#include <gsd/sdf.hpp>
 #include <gsd/surface.hpp>
 #include <gsd/swn.hpp>
 
@@ -387,6 +388,28 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("tolerance") = WindingOptions{}.tolerance, py::arg("device") = "",
        "Generalized winding number (M,) of a mesh in any state or an oriented cloud at (M,3) queries. beta, "
        "tolerance: the opening criterion, as the CLI's --beta, --tolerance (exact: sum every element).");
+
+    // ---- signed distance to a mesh ----
+    m.def("mesh_sdf", [](const DoubleArray& vertices, const py::object& faces, const DoubleArray& queries,
+                         const std::string& sign, double inside, const std::string& device) {
+        const PolygonMesh mesh = mesh_from(vertices, faces);
+        const Points q = points_from(queries, "queries");
+        MeshSdfOptions o;
+        if (sign == "winding") o.sign = SdfSign::winding;
+        else if (sign == "none") o.sign = SdfSign::none;
+        else throw Error("sign", "must be 'winding' or 'none', not '" + sign + "'");
+        o.inside_threshold = inside;
+        o.device = device;
+        MeshSdfResult r;
+        {
+            py::gil_scoped_release nogil;
+            r = mesh_sdf(mesh, q, o);
+        }
+        return to_numpy(std::move(r.phi), {py::ssize_t(q.rows())});
+    }, py::arg("vertices"), py::arg("faces"), py::arg("queries"), py::arg("sign") = "winding",
+       py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
+       "Signed distance (M,) from (M,3) queries to a mesh in any state: the exact distance to its triangles, negative "
+       "where its winding number exceeds `inside` (sign='none': unsigned), as `gsd sdf`.");
 
     // ---- on surfaces ----
     m.def("signed_heat_surface", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,

@@ -12,6 +12,7 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     grid, bounds = field.evaluate_grid(64)            # (64, 64, 64) on the cloud's cube + 10%
     grid, bounds = gsd.signed_heat_grid(64, vertices=v, faces=f)   # broken meshes, clouds, both
     w = gsd.winding_numbers(queries, vertices=v, faces=f)
+    phi = gsd.mesh_sdf(v, f, queries)                 # exact distance to a broken mesh, signed by w
     phi_v = gsd.signed_heat_surface(v, f, "curves.txt")            # distance along a surface
     labels, w = gsd.surface_winding_numbers(v, f, "curves.txt")    # inside/outside on a surface
     image = field.render(640, 480)                    # (480, 640, 3) uint8: φ = 0 sphere-traced
@@ -27,6 +28,7 @@ from ._gsd import (  # noqa: F401
     devices,
     fit_tori,
     load_tori,
+    mesh_sdf,
     point_confidence,
     read_mesh,
     read_point_cloud,

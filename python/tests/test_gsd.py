@@ -107,6 +107,25 @@ def test_winding_numbers_match_cli_and_are_one_inside(tmp_path):
     np.testing.assert_allclose(w_list, w, atol=0)
 
 
+def test_mesh_sdf_is_the_sphere_distance_and_matches_cli(tmp_path):
+    mesh = tmp_path / "m.obj"
+    cli("mesh", "sphere", "-r", 32, "-o", mesh)
+    v, f = gsd.read_mesh(str(mesh))
+    q = np.random.default_rng(5).uniform(-1.0, 1.0, (500, 3))
+    phi = gsd.mesh_sdf(v, f, q, device="cpu")
+    exact = np.linalg.norm(q, axis=1) - 0.5  # the "sphere" shape: radius 0.5
+    far = np.abs(exact) > 0.05
+    assert far.sum() > 250
+    np.testing.assert_allclose(phi[far], exact[far], atol=0.02)
+    unsigned = gsd.mesh_sdf(v, f, q, sign="none", device="cpu")
+    np.testing.assert_array_equal(unsigned, np.abs(phi))
+    np.save(tmp_path / "q.npy", q)
+    cli("sdf", mesh, "--queries", tmp_path / "q.npy", "--device", "cpu", "-o", tmp_path / "s.npy")
+    np.testing.assert_allclose(phi, np.load(tmp_path / "s.npy"), atol=1e-6)
+    with pytest.raises(Exception):
+        gsd.mesh_sdf(v, f, q, sign="maybe")
+
+
 def test_winding_opening_criterion_matches_cli(tmp_path):
     mesh = tmp_path / "m.obj"
     cli("mesh", "torus", "-r", 24, "--holes", 2, "--flip", 0.1, "-o", mesh)

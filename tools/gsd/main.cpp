@@ -15,6 +15,7 @@
 #include <gsd/render.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
+#include <gsd/sdf.hpp>
 #include <gsd/sums.hpp>
 #include <gsd/viz.hpp>
 
@@ -577,6 +578,49 @@ void add_winding(CLI::App& app) {
     });
 }
 
+// ---- gsd sdf ------------------------------------------------------------------------------
+
+void add_sdf(CLI::App& app) {
+    auto* sdf = app.add_subcommand(
+        "sdf", "Signed distance to a mesh in any state (holes, flips, duplicates): the exact distance to its triangles, "
+               "negative inside by its generalized winding number");
+    auto input = std::make_shared<std::string>();
+    auto output = std::make_shared<std::string>();
+    auto domain = std::make_shared<Domain>();
+    auto opt = std::make_shared<MeshSdfOptions>();
+    auto sign = std::make_shared<std::string>("winding");
+    sdf->add_option("INPUT", *input, "Mesh (.obj .ply .off .stl)")->required();
+    sdf->add_option("-o,--output", *output, "Output float32 .npy: (N,N,N) for a grid, (M,) for queries; or .vdb for a grid")
+        ->required()->check(output_file({".npy", ".vdb"}));
+    domain->add_to(*sdf, true);
+    sdf->add_option("--sign", *sign, "winding: negative where the winding number exceeds --inside; none: unsigned distance")
+        ->check(CLI::IsMember({"winding", "none"}))->capture_default_str();
+    sdf->add_option("--inside", opt->inside_threshold, "Winding number above which a point is inside")
+        ->check(finite_number())->check(CLI::Range(0.0, 1.0))->capture_default_str();
+    sdf->add_option("--device", opt->device, "The winding numbers' device: auto | gpu | cpu | device index | name substring");
+    sdf->callback([=] {
+        if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
+        if (!(opt->inside_threshold > 0 && opt->inside_threshold < 1)) throw Error("--inside", "must be strictly between 0 and 1");
+        opt->sign = *sign == "none" ? SdfSign::none : SdfSign::winding;
+        const DevicePrefetch prefetch(opt->device);
+        const PolygonMesh mesh = io::read_mesh(*input);
+        auto eval = [&](const Points& q, const ProgressFn& p) {
+            MeshSdfResult r = mesh_sdf(mesh, q, *opt, p);
+            if (globals().verbose || r.degenerate)
+                note(std::to_string(r.triangles) + " triangles" +
+                     (r.degenerate ? ", " + std::to_string(r.degenerate) + " degenerate (zero-area) ones left out" : ""));
+            FieldValues v;
+            v.phi.assign(r.phi.begin(), r.phi.end());
+            v.device = r.device;
+            return v;
+        };
+        evaluate_and_write(
+            *domain, bounding_box(mesh.vertices), *output, "", eval,
+            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "sdf", "sdf",
+            kWindingGridBytesPerNode);
+    });
+}
+
 // ---- gsd render --------------------------------------------------------------------------
 
 void add_render(CLI::App& app) {
@@ -773,6 +817,7 @@ int main(int argc, char** argv) {
     add_sample(app);
     add_mesh(app);
     add_winding(app);
+    add_sdf(app);
     add_curve(app);
     add_swn(app);
     add_render(app);

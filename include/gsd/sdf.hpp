@@ -1,0 +1,51 @@
+// gsd/sdf.hpp — signed distance to a triangle mesh as it comes (holes, flipped faces, duplicates,
+// self-intersections): the exact distance to its triangles, signed by its generalized winding
+// number (inside where w > ½), so that the sign survives what breaks ray parity and
+// pseudonormals. docs/sdf.md has the method, the options and measurements.
+//
+//   gsd::MeshSdfResult r = gsd::mesh_sdf(gsd::io::read_mesh("scan.obj"), queries);
+//   // r.phi[i] < 0 inside; |r.phi[i]| is the distance to the nearest triangle
+#pragma once
+
+#include <gsd/export.hpp>
+
+#include <gsd/core.hpp>
+#include <gsd/gpu.hpp>
+
+#include <string>
+#include <vector>
+
+namespace gsd {
+
+/// How the distance gets its sign.
+enum class SdfSign {
+    winding,  ///< negative where the generalized winding number exceeds inside_threshold
+    none,     ///< unsigned distance
+};
+
+/// Where it runs (Execution: the winding numbers' device; the distance is computed on the CPU)
+/// and how the sign is decided.
+struct MeshSdfOptions : Execution {
+    SdfSign sign = SdfSign::winding;
+    /// Inside where w > this (winding numbers are ≈ 1 inside a closed mesh, 0 outside, and
+    /// fractional near holes): ½ splits the difference. In (0, 1).
+    double inside_threshold = 0.5;
+};
+
+struct MeshSdfResult {
+    std::vector<double> phi;      ///< per query: ± distance to the nearest triangle (negative inside)
+    std::vector<double> winding;  ///< per query: the winding number that set the sign (empty for SdfSign::none)
+    std::size_t triangles = 0;    ///< triangles the distance was taken to (polygons fanned)
+    std::size_t degenerate = 0;   ///< zero-area triangles left out (their points lie on other triangles' sides or nowhere)
+    std::string device;           ///< where the winding numbers ran ("cpu" or a Vulkan device)
+};
+
+/// Signed distance from each query to the mesh: |φ| is the exact distance to the nearest of the
+/// mesh's non-degenerate triangles (point–triangle distance, a kd-tree over the triangles pruned
+/// by the nearest found so far, OpenMP), the sign from the mesh's fast winding numbers
+/// (gsd/sums.hpp). Any mesh state; throws Error for an invalid mesh (gsd::validate), a mesh of
+/// degenerate faces only, non-finite queries or options out of range.
+GSD_EXPORT MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& options = {},
+                                  const ProgressFn& progress = {});
+
+}  // namespace gsd

@@ -1,0 +1,182 @@
+// gsd::mesh_sdf and `gsd sdf`: the distance against an independent brute force, the sign against
+// analytic inside/outside on closed and broken meshes, bad input, the CLI.
+#include <gsd/io.hpp>
+#include <gsd/sdf.hpp>
+#include <gsd/shapes.hpp>
+
+#include "support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <Eigen/Geometry>
+
+#include <cmath>
+#include <random>
+
+using namespace gsd;
+using test::run_cli;
+using test::ScratchDir;
+
+namespace {
+
+// Distance from x to segment pq.
+double segment_distance(const Eigen::Vector3d& x, const Eigen::Vector3d& p, const Eigen::Vector3d& q) {
+    const Eigen::Vector3d e = q - p;
+    const double t = e.squaredNorm() > 0 ? std::clamp((x - p).dot(e) / e.squaredNorm(), 0.0, 1.0) : 0.0;
+    return (x - (p + t * e)).norm();
+}
+
+// Distance from x to triangle abc, written apart from the library's (Voronoi regions there):
+// the foot of the perpendicular if it falls inside (barycentric coordinates), else the nearest
+// side.
+double triangle_distance(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                         const Eigen::Vector3d& c) {
+    const Eigen::Vector3d n = (b - a).cross(c - a);
+    if (n.squaredNorm() > 0) {
+        const Eigen::Vector3d f = x - n.dot(x - a) / n.squaredNorm() * n;  // foot on the plane
+        const double u = (c - b).cross(f - b).dot(n), v = (a - c).cross(f - c).dot(n), w = (b - a).cross(f - a).dot(n);
+        if (u >= 0 && v >= 0 && w >= 0) return (x - f).norm();
+    }
+    return std::min({segment_distance(x, a, b), segment_distance(x, b, c), segment_distance(x, c, a)});
+}
+
+double brute_force(const PolygonMesh& m, const Eigen::Vector3d& x) {
+    double best = INFINITY;
+    for_each_triangle(m, [&](std::size_t, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+        best = std::min(best, triangle_distance(x, m.vertices.row(a).transpose(), m.vertices.row(b).transpose(),
+                                                m.vertices.row(c).transpose()));
+    });
+    return best;
+}
+
+Points uniform_queries(int n, double half, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(-half, half);
+    Points q(n, 3);
+    for (int i = 0; i < n; ++i) q.row(i) << u(rng), u(rng), u(rng);
+    return q;
+}
+
+}  // namespace
+
+TEST_CASE("mesh_sdf: |φ| is the exact distance to the triangles, the sign is the sphere's") {
+    const PolygonMesh sphere = shapes::icosphere(3);  // 1280 triangles, radius 1
+    const Points q = uniform_queries(test::sized(600, 150), 2.0, 7);
+    MeshSdfOptions o;
+    o.device = "cpu";
+    const MeshSdfResult r = mesh_sdf(sphere, q, o);
+    REQUIRE(r.phi.size() == std::size_t(q.rows()));
+    CHECK(r.triangles == 1280);
+    CHECK(r.degenerate == 0);
+    CHECK(r.device == "cpu");
+    double worst = 0;
+    std::size_t wrong_sign = 0, checked = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const Eigen::Vector3d x = q.row(i).transpose();
+        const double d = brute_force(sphere, x);
+        worst = std::max(worst, std::abs(std::abs(r.phi[std::size_t(i)]) - d) / std::max(d, 1e-3));
+        const double exact = x.norm() - 1;  // the sphere the mesh approximates (chords ~0.15 long)
+        if (std::abs(exact) > 0.02) {
+            ++checked;
+            wrong_sign += (r.phi[std::size_t(i)] < 0) != (exact < 0);
+            CHECK(std::abs(r.phi[std::size_t(i)] - exact) < 0.02);
+        }
+    }
+    CHECK(worst < 1e-9);
+    CHECK(checked > std::size_t(q.rows()) / 2);
+    CHECK(wrong_sign == 0);
+
+    o.sign = SdfSign::none;
+    const MeshSdfResult u = mesh_sdf(sphere, q, o);
+    CHECK(u.winding.empty());
+    for (std::size_t i = 0; i < u.phi.size(); ++i) CHECK(u.phi[i] == std::abs(r.phi[i]));
+}
+
+TEST_CASE("mesh_sdf on a broken mesh: holes and flipped faces keep the sign away from the surface") {
+    const auto torus_shape = shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2);
+    const shapes::Shape& torus = *torus_shape;
+    shapes::MeshCorruption c;
+    c.holes = 3;
+    c.hole_area = 0.1;
+    c.flip_fraction = 0.1;
+    const PolygonMesh broken = shapes::corrupt(shapes::mesh(torus, 48), c, 5);
+    const Points q = uniform_queries(test::sized(4000, 800), 1.0, 11);
+    MeshSdfOptions o;
+    o.device = "cpu";
+    const MeshSdfResult r = mesh_sdf(broken, q, o);
+    std::size_t far = 0, right = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double exact = torus.sdf(q.row(i).transpose());
+        if (std::abs(exact) < 0.05) continue;
+        ++far;
+        right += (r.phi[std::size_t(i)] < 0) == (exact < 0);
+        // the distance is to the damaged mesh, which still lies on the torus where it is left
+        CHECK(std::abs(r.phi[std::size_t(i)]) >= std::abs(exact) - 0.02);
+    }
+    REQUIRE(far > std::size_t(q.rows()) / 3);
+    MESSAGE("sign right at " << right << " of " << far << " queries farther than 0.05 from the torus");
+    CHECK(double(right) >= 0.99 * double(far));
+}
+
+TEST_CASE("mesh_sdf: the winding numbers may run on the device; the result is the CPU's") {
+    const PolygonMesh sphere = shapes::icosphere(2);
+    const Points q = uniform_queries(300, 1.5, 3);
+    MeshSdfOptions cpu, gpu;
+    cpu.device = "cpu";
+    gpu.device = "gpu";
+    const MeshSdfResult a = mesh_sdf(sphere, q, cpu), b = mesh_sdf(sphere, q, gpu);
+    for (std::size_t i = 0; i < a.phi.size(); ++i) {
+        CHECK(std::abs(std::abs(a.phi[i]) - std::abs(b.phi[i])) == 0.0);  // the distance is the CPU's either way
+        CHECK(std::abs(a.winding[i] - b.winding[i]) < 1e-4);
+    }
+}
+
+TEST_CASE("mesh_sdf: degenerate faces are counted and left out; bad input is an error") {
+    PolygonMesh m = shapes::icosphere(1);
+    // A zero-area triangle: three corners on one line.
+    const auto v = Eigen::Index(m.vertices.rows());
+    m.vertices.conservativeResize(v + 3, 3);
+    m.vertices.row(v) << 2, 0, 0;
+    m.vertices.row(v + 1) << 3, 0, 0;
+    m.vertices.row(v + 2) << 4, 0, 0;
+    for (Eigen::Index k = 0; k < 3; ++k) m.indices.push_back(std::uint32_t(v + k));
+    m.offsets.push_back(std::uint32_t(m.indices.size()));
+    Points q(2, 3);
+    q << 0, 0, 0, 3, 0, 0.5;
+    MeshSdfOptions o;
+    o.device = "cpu";
+    const MeshSdfResult r = mesh_sdf(m, q, o);
+    CHECK(r.degenerate == 1);
+    CHECK(r.triangles == 80);
+    CHECK(r.phi[0] < 0);
+    CHECK(r.phi[1] > 1.5);  // the sliver is not there: the sphere is the nearest
+
+    Points bad = q;
+    bad(1, 2) = std::nan("");
+    CHECK_THROWS_AS(mesh_sdf(m, bad, o), Error);
+    o.inside_threshold = 1.5;
+    CHECK_THROWS_AS(mesh_sdf(m, q, o), Error);
+    o.inside_threshold = 0.5;
+    CHECK(mesh_sdf(m, Points(0, 3), o).phi.empty());
+    PolygonMesh empty;
+    CHECK_THROWS_AS(mesh_sdf(empty, q, o), Error);
+}
+
+TEST_CASE("gsd sdf: a grid around a closed mesh, negative inside; usage errors exit 2, bad input 1") {
+    ScratchDir dir("cli-sdf");
+    const std::string mesh = dir.file("sphere.obj");
+    io::write_mesh(mesh, shapes::icosphere(3));
+    const std::string out = dir.file("sdf.npy");
+    REQUIRE(run_cli("sdf " + mesh + " --grid 17 --bounds -1.5 -1.5 -1.5 1.5 1.5 1.5 --device cpu -o " + out).exit_code == 0);
+    const io::NpyArray a = io::read_npy(out);
+    REQUIRE(a.data.size() == 17u * 17 * 17);
+    const GridSpec g = GridSpec::cube(17, Box{{-1.5, -1.5, -1.5}, {1.5, 1.5, 1.5}});
+    const Points nodes = g.nodes();
+    for (Eigen::Index i = 0; i < nodes.rows(); ++i) {
+        const double exact = nodes.row(i).norm() - 1;
+        if (std::abs(exact) > 0.02) CHECK(std::abs(a.data[std::size_t(i)] - exact) < 0.02);
+    }
+    CHECK(run_cli("sdf " + mesh + " -o " + dir.file("x.npy")).exit_code == 2);  // no --grid or --queries
+    CHECK(run_cli("sdf " + mesh + " --grid 8 --sign maybe -o " + dir.file("x.npy")).exit_code == 2);
+    CHECK(run_cli("sdf " + dir.file("missing.obj") + " --grid 8 -o " + dir.file("x.npy")).exit_code == 1);
+}
