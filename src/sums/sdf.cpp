@@ -19,21 +19,31 @@ void check(const MeshSdfOptions& o, PointsView queries) {
         if (!queries.row(i).allFinite()) throw Error("queries", "query " + std::to_string(i) + " is not finite");
 }
 
-// Exact distances, each thread over a contiguous run of queries so that each query's search
-// starts from its predecessor's nearest triangle (neighbouring queries — a grid's, a sorted
-// list's — usually share it, and its distance prunes the search); in blocks, for progress.
+// Exact distances, each thread over a contiguous run of queries, in packets of consecutive ones
+// that walk the tree together (neighbouring queries — a grid's, a sorted list's — visit nearly
+// the same nodes), each packet's search started from the previous one's nearest triangle, whose
+// distance prunes it; in blocks, for progress.
 std::vector<double> distances(const sums::SumTree& tree, PointsView q, const ProgressFn& progress) {
+    constexpr int L = sums::SumTree::kScreenedLanes;
     const std::size_t n = std::size_t(q.rows());
     std::vector<double> d(n);
-    constexpr std::size_t kBlock = std::size_t(1) << 16;
+    constexpr std::size_t kBlock = std::size_t(1) << 16;  // a multiple of L
     for (std::size_t first = 0; first < n; first += kBlock) {
         const std::size_t last = std::min(n, first + kBlock);
+        const std::size_t packets = (last - first + L - 1) / L;
 #pragma omp parallel
         {
             std::uint32_t nearest = std::uint32_t(tree.size());  // none yet
+            double p[3 * L], r[L];
 #pragma omp for schedule(static)
-            for (std::size_t i = first; i < last; ++i)
-                d[i] = tree.nearest_distance(q.row(Eigen::Index(i)).transpose(), INFINITY, &nearest);
+            for (std::size_t k = 0; k < packets; ++k) {
+                const std::size_t i0 = first + k * L;
+                const int m = int(std::min<std::size_t>(L, last - i0));
+                for (int l = 0; l < m; ++l)
+                    for (int a = 0; a < 3; ++a) p[3 * l + a] = q(Eigen::Index(i0 + std::size_t(l)), a);
+                tree.nearest_lanes(p, m, nullptr, &nearest, r);
+                for (int l = 0; l < m; ++l) d[i0 + std::size_t(l)] = r[l];
+            }
         }
         if (progress) progress("distance", double(last) / double(n));
     }

@@ -170,9 +170,12 @@ public:
     void screened(const double* p, int n, const Screened& k, double* r_min, double* X, std::size_t& terms,
                   const double* r_bound = nullptr, std::uint32_t* nearest = nullptr) const;
 
-private:
-    /// nearest_distance() for the packet of screened(): r_min[l] for each lane of `lanes`.
+    /// nearest_distance() for a packet of n ≤ kScreenedLanes nearby queries (p: 3n coordinates),
+    /// the walk shared as screened()'s is: r_min[l] for each; r_bound (may be null) and nearest as
+    /// for screened(). Exact for every query.
     void nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const;
+
+private:
     /// Element j's part of screened() at x: the triangle refined until its pieces pass; an
     /// element wider than the reach R, only its part in the cube of half-side R about x.
     void screened_element(std::uint32_t j, const double* x, const Screened& k, double r_min, double R, double budget,

@@ -617,7 +617,7 @@ void add_sdf(CLI::App& app) {
         evaluate_and_write(
             *domain, bounding_box(mesh.vertices), *output, "", eval,
             [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "sdf", "sdf",
-            kWindingGridBytesPerNode);
+            kSdfGridBytesPerNode);
     });
 }
 
