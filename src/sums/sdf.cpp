@@ -3,6 +3,7 @@
 #include <gsd/sdf.hpp>
 #include <gsd/sums.hpp>
 
+#include "spatial/morton.hpp"
 #include "sums/sum_tree.hpp"
 
 #include <algorithm>
@@ -19,14 +20,16 @@ void check(const MeshSdfOptions& o, PointsView queries) {
         if (!queries.row(i).allFinite()) throw Error("queries", "query " + std::to_string(i) + " is not finite");
 }
 
-// Exact distances, each thread over a contiguous run of queries, in packets of consecutive ones
-// that walk the tree together (neighbouring queries — a grid's, a sorted list's — visit nearly
-// the same nodes), each packet's search started from the previous one's nearest triangle, whose
-// distance prunes it; in blocks, for progress.
+// Exact distances. The queries are taken in Morton order, each thread over a contiguous run of
+// it, in packets of consecutive ones that walk the tree together (neighbours visit nearly the
+// same nodes), each packet's search started from the previous one's nearest triangle, whose
+// distance prunes it; in blocks, for progress. In input order, 10⁶ random queries around a
+// 9·10⁴-face mesh took 3.5× as long (docs/sdf.md).
 std::vector<double> distances(const sums::SumTree& tree, PointsView q, const ProgressFn& progress) {
     constexpr int L = sums::SumTree::kScreenedLanes;
     const std::size_t n = std::size_t(q.rows());
     std::vector<double> d(n);
+    const std::vector<std::uint32_t> order = spatial::morton_order(q);
     constexpr std::size_t kBlock = std::size_t(1) << 16;  // a multiple of L
     for (std::size_t first = 0; first < n; first += kBlock) {
         const std::size_t last = std::min(n, first + kBlock);
@@ -40,9 +43,9 @@ std::vector<double> distances(const sums::SumTree& tree, PointsView q, const Pro
                 const std::size_t i0 = first + k * L;
                 const int m = int(std::min<std::size_t>(L, last - i0));
                 for (int l = 0; l < m; ++l)
-                    for (int a = 0; a < 3; ++a) p[3 * l + a] = q(Eigen::Index(i0 + std::size_t(l)), a);
+                    for (int a = 0; a < 3; ++a) p[3 * l + a] = q(Eigen::Index(order[i0 + std::size_t(l)]), a);
                 tree.nearest_lanes(p, m, nullptr, &nearest, r);
-                for (int l = 0; l < m; ++l) d[i0 + std::size_t(l)] = r[l];
+                for (int l = 0; l < m; ++l) d[order[i0 + std::size_t(l)]] = r[l];
             }
         }
         if (progress) progress("distance", double(last) / double(n));
