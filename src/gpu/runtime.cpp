@@ -517,23 +517,26 @@ std::uint32_t Context::memory_type(std::uint32_t bits, Memory memory) const {
 
 namespace {
 
-// One more than the highest `binding` an embedded shader's SPIR-V decorates (OpDecorate … Binding
-// n); 0 when it has none.
-std::uint32_t spirv_binding_count(const std::string& shader) {
-    for (const auto& s : detail::kEmbeddedShaders) {
-        if (shader != s.name) continue;
-        constexpr std::uint32_t kOpDecorate = 71, kDecorationBinding = 33;
-        std::uint32_t count = 0;
-        for (std::size_t i = 5; i < s.word_count;) {  // past the 5-word header
-            const std::uint32_t words = s.words[i] >> 16, op = s.words[i] & 0xffffu;
-            if (words == 0) break;  // malformed: stop rather than loop
-            if (op == kOpDecorate && words >= 4 && s.words[i + 2] == kDecorationBinding)
-                count = std::max(count, s.words[i + 3] + 1);
-            i += words;
-        }
-        return count;
+// The shader embedded under `name` (cmake/EmbedShaders.cmake), or an error.
+const detail::EmbeddedShader& embedded_shader(const std::string& name) {
+    for (const auto& s : detail::kEmbeddedShaders)
+        if (name == s.name) return s;
+    throw Error("gpu", "no embedded shader named '" + name + "'");
+}
+
+// One more than the highest `binding` a shader's SPIR-V decorates (OpDecorate … Binding n); 0
+// when it has none.
+std::uint32_t spirv_binding_count(const detail::EmbeddedShader& s) {
+    constexpr std::uint32_t kOpDecorate = 71, kDecorationBinding = 33;
+    std::uint32_t count = 0;
+    for (std::size_t i = 5; i < s.word_count;) {  // past the 5-word header
+        const std::uint32_t words = s.words[i] >> 16, op = s.words[i] & 0xffffu;
+        if (words == 0) break;  // malformed: stop rather than loop
+        if (op == kOpDecorate && words >= 4 && s.words[i + 2] == kDecorationBinding)
+            count = std::max(count, s.words[i + 3] + 1);
+        i += words;
     }
-    return 0;
+    return count;
 }
 
 }  // namespace
@@ -553,23 +556,19 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     std::lock_guard<std::mutex> lock(st.kernels_mutex);
     if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
 
-    VkShaderModule& module = st.modules[shader];
-    if (!module) {
-        const detail::EmbeddedShader* found = nullptr;
-        for (const auto& s : detail::kEmbeddedShaders)
-            if (shader == s.name) found = &s;
-        if (!found) throw Error("gpu", "no embedded shader named '" + shader + "'");
-        VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-        mi.codeSize = found->word_count * sizeof(std::uint32_t);
-        mi.pCode = found->words;
-        check(st.vk.vkCreateShaderModule(st.device, &mi, nullptr, &module), "vkCreateShaderModule");
-    }
-
+    const detail::EmbeddedShader& code = embedded_shader(shader);
     // The binding count a caller states must be the shader's own (a miscount shows otherwise only
     // under the validation layer, or as a crash).
-    if (const std::uint32_t declared = spirv_binding_count(shader); declared != bindings)
+    if (const std::uint32_t declared = spirv_binding_count(code); declared != bindings)
         throw Error("gpu", "kernel " + shader + " is called with " + std::to_string(bindings) + " bindings; its shader declares " +
                                std::to_string(declared));
+    VkShaderModule& module = st.modules[shader];
+    if (!module) {
+        VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+        mi.codeSize = code.word_count * sizeof(std::uint32_t);
+        mi.pCode = code.words;
+        check(st.vk.vkCreateShaderModule(st.device, &mi, nullptr, &module), "vkCreateShaderModule");
+    }
 
     auto k = std::make_unique<Kernel>();
     k->name = shader;
