@@ -12,6 +12,8 @@
 #include "surface_shm/cholesky.hpp"
 #include "surface_shm/curves.hpp"
 #include "surface_shm/operators.hpp"
+#include "mesh/cut_graph.hpp"
+#include "mesh/halfedges.hpp"
 #include "mesh/split.hpp"
 #include "swn/tension.hpp"
 #include "mesh/topology.hpp"
@@ -31,6 +33,12 @@ namespace gsd {
 namespace {
 
 using mesh::Adjacency;
+using mesh::build_halfedges;
+using mesh::ccw;
+using mesh::cw;
+using mesh::cut_graph;
+using mesh::edge_neighbours;
+using mesh::Halfedges;
 using surface_shm::Cholesky;
 using mesh::corner_face;
 using mesh::corner_id;
@@ -44,89 +52,15 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 constexpr std::uint32_t kNone = UINT32_MAX;
 const double kNan = std::numeric_limits<double>::quiet_NaN();
 
-// ---- manifold connectivity ------------------------------------------------------------------
-
-/// Twins, corner fans around vertices and cotan weights of a manifold, oriented mesh.
-struct Halfedges {
-    const Topology* t = nullptr;
-    std::vector<std::uint32_t> twin;   ///< per halfedge 3f+k, kNone on the boundary
-    std::vector<double> cot_weight;    ///< per halfedge: ½ cot of the angle across it (0: degenerate face)
-    // Fans: the corners at a vertex, counter-clockwise; a vertex has one fan, or several if it
-    // is a bowtie. fan_of[c] indexes fans.
-    std::vector<std::uint32_t> fan_corners, fan_begin{0}, fan_vertex, fan_of;
-    std::vector<std::uint8_t> fan_closed;
-
-    std::size_t fans() const { return fan_vertex.size(); }
-};
-
-/// The corner after corner c counter-clockwise around its vertex, or kNone at the boundary.
-std::uint32_t ccw(const Halfedges& H, std::uint32_t c) {
-    const std::uint32_t f = corner_face(c);
-    const int k = corner_index(c);
-    const std::uint32_t h = H.twin[corner_id(f, (k + 2) % 3)];  // across the incoming halfedge
-    return h == kNone ? kNone : h;  // the twin leaves the vertex: its id is the corner there
-}
-
-/// The corner before corner c (clockwise), or kNone at the boundary.
-std::uint32_t cw(const Halfedges& H, std::uint32_t c) {
-    const std::uint32_t h = H.twin[c];  // across the outgoing halfedge (id 3f+k = corner id)
-    if (h == kNone) return kNone;
-    return corner_id(corner_face(h), (corner_index(h) + 1) % 3);
-}
-
-Halfedges build_halfedges(const Topology& t) {
-    const Triangulation& T = t.mesh;
-    Halfedges H;
-    H.t = &t;
-    std::size_t nonmanifold = 0, misoriented = 0;
-    H.twin.assign(3 * T.face_count(), kNone);
-    for (std::size_t e = 0; e < T.edge_count(); ++e) {
-        const std::size_t n = t.edge_halfedges.count(e);
-        if (n > 2) ++nonmanifold;
-        if (n != 2) continue;
-        const std::uint32_t a = t.edge_halfedges.begin(e)[0], b = t.edge_halfedges.begin(e)[1];
-        if (T.aligned[corner_face(a)][std::size_t(corner_index(a))] == T.aligned[corner_face(b)][std::size_t(corner_index(b))]) {
-            ++misoriented;
-            continue;
-        }
-        H.twin[a] = b;
-        H.twin[b] = a;
-    }
-    if (nonmanifold || misoriented)
+/// The mesh's halfedges; throws unless it is manifold and consistently oriented.
+Halfedges manifold_halfedges(const Topology& t) {
+    Halfedges H = build_halfedges(t);
+    if (!H.manifold())
         throw Error("mesh", "surface winding numbers need a manifold, consistently oriented mesh: " +
-                                std::to_string(nonmanifold) + " edges have more than two faces and " +
-                                std::to_string(misoriented) +
+                                std::to_string(H.nonmanifold_edges) + " edges have more than two faces and " +
+                                std::to_string(H.misoriented_edges) +
                                 " join faces that disagree on orientation (the surface Signed Heat Method works on "
                                 "such meshes: `gsd swn --method shm`)");
-    H.cot_weight.assign(3 * T.face_count(), 0.0);
-    for (std::size_t f = 0; f < T.face_count(); ++f) {
-        if (t.face_areas[f] <= 0) continue;
-        const surface_shm::FaceFrame F = surface_shm::face_frame(T, f, t.face_areas[f]);
-        for (int k = 0; k < 3; ++k) H.cot_weight[corner_id(f, k)] = 0.5 * F.cot[std::size_t((k + 2) % 3)];
-    }
-    // Fans: from each unvisited corner walk clockwise to the fan's first corner, then collect.
-    H.fan_of.assign(3 * T.face_count(), kNone);
-    for (std::uint32_t c0 = 0; c0 < 3 * T.face_count(); ++c0) {
-        if (H.fan_of[c0] != kNone) continue;
-        std::uint32_t start = c0;
-        bool closed = false;
-        for (std::uint32_t c = cw(H, c0); c != kNone; c = cw(H, c)) {
-            if (c == c0) {
-                closed = true;
-                break;
-            }
-            start = c;
-        }
-        if (closed) start = c0;
-        const auto fan = std::uint32_t(H.fan_vertex.size());
-        for (std::uint32_t c = start; c != kNone && H.fan_of[c] == kNone; c = ccw(H, c)) {
-            H.fan_of[c] = fan;
-            H.fan_corners.push_back(c);
-        }
-        H.fan_begin.push_back(std::uint32_t(H.fan_corners.size()));
-        H.fan_vertex.push_back(T.faces[corner_face(c0)][std::size_t(corner_index(c0))]);
-        H.fan_closed.push_back(closed);
-    }
     return H;
 }
 
@@ -454,18 +388,6 @@ std::vector<double> edge_jumps(const Topology& t, const std::vector<double>& v) 
 
 // ---- the reduced program's cut ----------------------------------------------------------------
 
-/// Per vertex: (neighbour, edge) through every edge that joins two distinct vertices.
-std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edge_neighbours(const Triangulation& T) {
-    std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr(T.vertex_count);
-    for (std::size_t e = 0; e < T.edge_count(); ++e) {
-        const auto [a, b] = T.edges[e];
-        if (a == b) continue;
-        nbr[a].push_back({b, std::uint32_t(e)});
-        nbr[b].push_back({a, std::uint32_t(e)});
-    }
-    return nbr;
-}
-
 /// Where the full program's jumps may leave the curves: shortest paths along edges (Dijkstra,
 /// edge lengths) from each interior curve end to the nearest few ends of the opposite sign, and
 /// to the nearest vertex of another piece of the curves (a broken loop can be completed into
@@ -542,80 +464,6 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
         touched.clear();
     }
     return on_path;
-}
-
-/// A cut graph: edges whose removal leaves every component of the mesh a disk (tree–cotree:
-/// a spanning tree of vertices by shortest paths, a spanning tree of faces across the other
-/// edges, and the edges in neither, each closed into a loop through the vertex tree). Within a
-/// component of the mesh minus the cut, every loop bounds, so a closed 1-form integrates
-/// without ambiguity.
-std::vector<std::uint8_t> cut_graph(const Topology& t) {
-    const Triangulation& T = t.mesh;
-    const std::size_t V = T.vertex_count, E = T.edge_count(), F = T.face_count();
-    // Shortest-path tree of vertices (per component).
-    const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
-    std::vector<double> dist(V, INFINITY);
-    std::vector<std::uint32_t> parent_edge(V, kNone);
-    std::vector<std::uint8_t> in_tree(E, 0);
-    for (std::uint32_t root = 0; root < V; ++root) {
-        if (dist[root] < INFINITY || nbr[root].empty()) continue;
-        using Item = std::pair<double, std::uint32_t>;
-        std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-        dist[root] = 0;
-        heap.push({0.0, root});
-        while (!heap.empty()) {
-            const auto [d, v] = heap.top();
-            heap.pop();
-            if (d > dist[v]) continue;
-            for (const auto& [w, e] : nbr[v]) {
-                const double nd = d + T.edge_lengths[e];
-                if (nd < dist[w]) {
-                    dist[w] = nd;
-                    parent_edge[w] = e;
-                    heap.push({nd, w});
-                }
-            }
-        }
-    }
-    for (std::size_t v = 0; v < V; ++v)
-        if (parent_edge[v] != kNone) in_tree[parent_edge[v]] = 1;
-    // Spanning tree of faces across edges not in the vertex tree (the cotree).
-    std::vector<std::uint8_t> in_cotree(E, 0), seen(F, 0);
-    for (std::uint32_t f0 = 0; f0 < F; ++f0) {
-        if (seen[f0]) continue;
-        seen[f0] = 1;
-        std::vector<std::uint32_t> stack{f0};
-        while (!stack.empty()) {
-            const std::uint32_t f = stack.back();
-            stack.pop_back();
-            for (int k = 0; k < 3; ++k) {
-                const std::uint32_t e = T.face_edges[f][std::size_t(k)];
-                if (in_tree[e]) continue;
-                for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
-                    const std::uint32_t g = corner_face(*h);
-                    if (seen[g]) continue;
-                    seen[g] = 1;
-                    in_cotree[e] = 1;
-                    stack.push_back(g);
-                }
-            }
-        }
-    }
-    // Each edge in neither tree closes a homology loop: cut along it and its two tree paths to
-    // the root.
-    std::vector<std::uint8_t> cut(E, 0);
-    for (std::size_t e = 0; e < E; ++e) {
-        if (in_tree[e] || in_cotree[e] || t.edge_halfedges.count(e) < 2) continue;
-        cut[e] = 1;
-        for (std::uint32_t v : T.edges[e])
-            for (std::uint32_t w = v; parent_edge[w] != kNone;) {
-                const std::uint32_t pe = parent_edge[w];
-                if (cut[pe]) break;
-                cut[pe] = 1;
-                w = T.edges[pe][0] == w ? T.edges[pe][1] : T.edges[pe][0];
-            }
-    }
-    return cut;
 }
 
 /// Components of the faces across uncut edges, with γ integrated along a spanning tree of each
@@ -836,50 +684,6 @@ Polylines chain_polylines(const Topology& t, const std::vector<double>& value) {
 
 // ---- the solver ---------------------------------------------------------------------------------
 
-/// Every connected component a disk or a sphere (genus 0, at most one boundary loop): then the
-/// jump harmonic function already labels regions and steps ②–⑤ are not needed.
-bool simply_connected(const Topology& t) {
-    const Triangulation& T = t.mesh;
-    const std::size_t F = T.face_count();
-    std::vector<std::uint32_t> parent(T.vertex_count);
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
-    for (std::size_t f = 0; f < F; ++f)
-        for (int k = 1; k < 3; ++k) parent[root(T.faces[f][std::size_t(k)])] = root(T.faces[f][0]);
-    struct Count {
-        long long v = 0, e = 0, f = 0;
-    };
-    std::map<std::uint32_t, Count> c;
-    for (std::uint32_t v = 0; v < T.vertex_count; ++v)
-        if (t.vertex_corners.count(v)) ++c[root(v)].v;
-    for (std::size_t e = 0; e < T.edge_count(); ++e) ++c[root(T.edges[e][0])].e;
-    for (std::size_t f = 0; f < F; ++f) ++c[root(T.faces[f][0])].f;
-    // Boundary loops: components of the boundary edges' vertex graph.
-    std::vector<std::uint32_t> bparent(T.vertex_count);
-    std::iota(bparent.begin(), bparent.end(), 0u);
-    auto broot = [&](std::uint32_t x) {
-        while (bparent[x] != x) x = bparent[x] = bparent[bparent[x]];
-        return x;
-    };
-    std::vector<std::uint8_t> on_boundary(T.vertex_count, 0);
-    for (std::size_t e = 0; e < T.edge_count(); ++e)
-        if (t.edge_halfedges.count(e) == 1) {
-            on_boundary[T.edges[e][0]] = on_boundary[T.edges[e][1]] = 1;
-            bparent[broot(T.edges[e][0])] = broot(T.edges[e][1]);
-        }
-    std::map<std::uint32_t, long long> loops;
-    for (std::uint32_t v = 0; v < T.vertex_count; ++v)
-        if (on_boundary[v] && broot(v) == v) ++loops[root(v)];
-    for (const auto& [r, n] : c) {
-        const long long chi = n.v - n.e + n.f, b = loops.count(r) ? loops[r] : 0;
-        if (2 - chi - b != 0 || b > 1) return false;  // 2 − χ − b = 2·genus
-    }
-    return true;
-}
-
 /// What one run of the algorithm produces on the mesh it ran on (the input or a cut copy).
 struct CoreResult {
     std::vector<double> u, w;  // per corner
@@ -909,7 +713,7 @@ struct Operators {
     }
 
     explicit Operators(const Topology& topology)
-        : t(&topology), H(build_halfedges(topology)), simply_connected(gsd::simply_connected(topology)) {
+        : t(&topology), H(manifold_halfedges(topology)), simply_connected(mesh::simply_connected(topology)) {
         for (std::size_t e = 0; e < topology.mesh.edge_count() && !has_boundary; ++e)
             has_boundary = topology.edge_halfedges.count(e) == 1;
     }
