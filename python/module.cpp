@@ -113,6 +113,7 @@ py::object faces_of(const PolygonMesh& m) {
 PointCloud cloud_from(const DoubleArray& points, const DoubleArray& normals) {
     PointCloud c{points_from(points, "points"), points_from(normals, "normals")};
     validate(c, "cloud");
+    normalize_normals(c, "cloud");
     return c;
 }
 

@@ -1,6 +1,9 @@
 #include "support.hpp"
 
+#include <Eigen/Geometry>
+
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <random>
@@ -60,5 +63,28 @@ void write_bytes(const std::string& path, const std::string& bytes) {
 }
 
 bool file_exists(const std::string& path) { return std::filesystem::exists(path); }
+
+std::vector<double> brute_force_winding(const PolygonMesh& mesh, const Points& queries) {
+    std::vector<double> w(std::size_t(queries.rows()), 0.0);
+    for (Eigen::Index q = 0; q < queries.rows(); ++q) {
+        const Eigen::Vector3d x = queries.row(q).transpose();
+        double sum = 0;
+        for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+            const auto* c = mesh.indices.data() + mesh.offsets[f];
+            const std::size_t n = mesh.offsets[f + 1] - mesh.offsets[f];
+            for (std::size_t k = 1; k + 1 < n; ++k) {
+                const Eigen::Vector3d a = mesh.vertices.row(c[0]).transpose() - x;
+                const Eigen::Vector3d b = mesh.vertices.row(c[k]).transpose() - x;
+                const Eigen::Vector3d d = mesh.vertices.row(c[k + 1]).transpose() - x;
+                const double la = a.norm(), lb = b.norm(), ld = d.norm();
+                const double num = a.dot(b.cross(d));
+                const double den = la * lb * ld + a.dot(b) * ld + b.dot(d) * la + d.dot(a) * lb;
+                sum += 2 * std::atan2(num, den);
+            }
+        }
+        w[std::size_t(q)] = sum / (4 * M_PI);
+    }
+    return w;
+}
 
 }  // namespace gsd::test

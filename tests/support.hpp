@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace gsd::test {
 
@@ -36,6 +37,11 @@ RunResult run_shell(const std::string& command);
 
 /// Path of a file under ../shared/data (real inputs made by others).
 std::string shared_data(const std::string& relative);
+
+/// The generalized winding number of a mesh at each query by the plain exact sum (Jacobson et
+/// al. 2013: each polygon fanned from its first corner, each triangle's signed solid angle by
+/// Van Oosterom–Strackee, / 4π), written here apart from the library as an independent reference.
+std::vector<double> brute_force_winding(const PolygonMesh& mesh, const Points& queries);
 
 /// Writes raw bytes to a file (for hand-made malformed inputs).
 void write_bytes(const std::string& path, const std::string& bytes);

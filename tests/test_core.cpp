@@ -35,12 +35,14 @@ TEST_CASE("mean edge length: every face's edges, a shared edge once per face") {
     CHECK(mean_edge_length(PolygonMesh{}) == 0.0);
 }
 
-TEST_CASE("validate rejects bad clouds and normalizes normals") {
+TEST_CASE("validate rejects bad clouds without changing them; normalize_normals scales the normals") {
     PointCloud c;
     CHECK_THROWS_AS(validate(c), Error);
     c.points = Points::Random(4, 3);
     c.normals = Points::Constant(4, 3, 2.0);
     validate(c);
+    CHECK(c.normals.row(0).norm() == doctest::Approx(2.0 * std::sqrt(3.0)));  // checked, not changed
+    normalize_normals(c);
     CHECK(c.normals.row(0).norm() == doctest::Approx(1.0));
     c.normals(2, 1) = NAN;
     CHECK_THROWS_AS(validate(c), Error);

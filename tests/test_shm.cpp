@@ -9,6 +9,7 @@
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
 #include <gsd/spatial.hpp>
+#include <gsd/sums.hpp>
 #include <gsd/viz.hpp>
 #include <gsd/vulkan.hpp>
 
@@ -101,7 +102,10 @@ SignScore score_signs(const PolygonMesh& intact, const PolygonMesh& broken, cons
     far.resize(std::min<std::size_t>(far.size(), 12000));
     Points q(Eigen::Index(far.size()), 3);
     for (std::size_t i = 0; i < far.size(); ++i) q.row(Eigen::Index(i)) = nodes.row(far[i]);
-    const std::vector<double> truth = winding_numbers(intact, q), gwn = winding_numbers(broken, q);
+    WindingOptions exact;
+    exact.exact = true;
+    const std::vector<double> truth = fast_winding_numbers(OrientedElements::from_mesh(intact), q, exact).w;
+    const std::vector<double> gwn = fast_winding_numbers(OrientedElements::from_mesh(broken), q, exact).w;
     SignScore s;
     for (std::size_t i = 0; i < far.size(); ++i) {
         const bool in = truth[i] > 0.5;

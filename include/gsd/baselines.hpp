@@ -41,12 +41,6 @@ private:
     std::unique_ptr<Impl> impl_;
 };
 
-/// Generalized winding number of a mesh (Jacobson et al. 2013; thesis ch. 3): the sum over
-/// faces of their signed solid angles at each query / 4π. 1 inside and 0 outside a closed,
-/// outward-oriented mesh; fractional where the mesh is open. Exact sum (O(faces × queries),
-/// multi-threaded): the baseline that thresholding at ½ turns into inside/outside.
-GSD_EXPORT std::vector<double> winding_numbers(const PolygonMesh& mesh, const Points& queries);
-
 /// Parses "sspd" / "shc".
 GSD_EXPORT Baseline baseline_from_name(const std::string& name);
 

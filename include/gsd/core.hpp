@@ -54,7 +54,7 @@ using Polyline = std::vector<Eigen::Vector3d>;
 using Polylines = std::vector<Polyline>;
 
 /// An oriented point cloud. `normals` has the same row count as `points`; normals need not be
-/// unit length on input (validate() normalizes them) but must not be zero.
+/// unit length on input (the readers normalize them: normalize_normals()) but must not be zero.
 struct PointCloud {
     Points points;
     Points normals;
@@ -148,9 +148,14 @@ using ProgressFn = std::function<void(std::string_view stage, double fraction)>;
 
 /// Checks a point cloud once at the boundary: non-empty, equal row counts, finite
 /// coordinates within ±kMaxCoordinate, finite non-zero normals, an extent within
-/// kMaxExtentRatio of the median spacing; normalizes the normals in place.
+/// kMaxExtentRatio of the median spacing. Like validate(mesh), it only checks: it never
+/// changes its input (the readers then call normalize_normals).
 /// `where` names the source (usually a file) for the error message.
-GSD_EXPORT void validate(PointCloud& cloud, const std::string& where = {});
+GSD_EXPORT void validate(const PointCloud& cloud, const std::string& where = {});
+
+/// Scales every normal to unit length (what the methods assume; readers and the Python
+/// bindings do it after validate). Throws gsd::Error for a zero-length or non-finite normal.
+GSD_EXPORT void normalize_normals(PointCloud& cloud, const std::string& where = {});
 
 /// Checks a mesh: at least one face, finite vertices within ±kMaxCoordinate, indices in
 /// range, faces with ≥ 3 vertices, an extent within kMaxExtentRatio of the median edge length. Degenerate (zero-area) faces are allowed here; algorithms that cannot use

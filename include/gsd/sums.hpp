@@ -71,7 +71,11 @@ struct WindingResult {
 /// do not depend on the other queries or on how they are chunked. CPU (OpenMP): exact terms in
 /// double, node expansions in float32 at the default criterion (WindingOptions); the GPU path
 /// computes in float32 and agrees to ~1e-5.
-GSD_EXPORT WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries,
+///
+/// The one entry point for winding numbers at given queries, once: the exact sum (Jacobson et
+/// al. 2013, the baseline thesis ch. 3 thresholds at ½) is `WindingOptions::exact`. For a field
+/// evaluated many times (the tree built once), or one to compose, use WindingField.
+GSD_EXPORT WindingResult fast_winding_numbers(const OrientedElements& elements, PointsView queries,
                                    const WindingOptions& options = {}, const ProgressFn& progress = {});
 
 /// Generalized winding numbers as a Field (gsd/field.hpp): φ = w, ≈ 1 inside and 0 outside,

@@ -166,7 +166,7 @@ void validate_box(const Box& box, const std::string& where) {
     }
 }
 
-void validate(PointCloud& cloud, const std::string& where) {
+void validate(const PointCloud& cloud, const std::string& where) {
     if (cloud.points.rows() == 0) throw Error(where, "point cloud is empty");
     if (cloud.normals.rows() == 0) throw Error(where, "point cloud has no normals");
     if (cloud.normals.rows() != cloud.points.rows())
@@ -177,13 +177,19 @@ void validate(PointCloud& cloud, const std::string& where) {
             throw Error(where, at_row("non-finite coordinate", i));
         if (!cloud.normals.row(i).allFinite())
             throw Error(where, at_row("non-finite normal", i));
-        const double len = cloud.normals.row(i).norm();
-        if (!(len > 1e-30)) throw Error(where, at_row("zero-length normal", i));
-        cloud.normals.row(i) /= len;
+        if (!(cloud.normals.row(i).norm() > 1e-30)) throw Error(where, at_row("zero-length normal", i));
     }
     check_coordinates(cloud.points, where, "point");
     const Box b = bounding_box(cloud.points);
     if (!(b.diagonal() > 0)) throw Error(where, "all points coincide");
+}
+
+void normalize_normals(PointCloud& cloud, const std::string& where) {
+    for (Eigen::Index i = 0; i < cloud.normals.rows(); ++i) {
+        const double len = cloud.normals.row(i).norm();
+        if (!(len > 1e-30) || !std::isfinite(len)) throw Error(where, at_row("zero-length or non-finite normal", i));
+        cloud.normals.row(i) /= len;
+    }
 }
 
 double robust_mean(std::vector<double> values) {

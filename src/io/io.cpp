@@ -82,6 +82,7 @@ PointCloud read_point_cloud(const std::string& path) {
     const std::string bytes = detail::read_whole_file(path);
     PointCloud cloud = read(path, bytes);
     validate(cloud, path);
+    normalize_normals(cloud, path);
     return cloud;
 }
 

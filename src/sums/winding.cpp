@@ -167,7 +167,7 @@ WindingResult winding_on_tree(const sums::SumTree& tree, PointsView queries, con
 
 }  // namespace
 
-WindingResult fast_winding_numbers(const OrientedElements& elements, const Points& queries, const WindingOptions& opt,
+WindingResult fast_winding_numbers(const OrientedElements& elements, PointsView queries, const WindingOptions& opt,
                                    const ProgressFn& progress) {
     check_options(opt);
     const sums::SumTree tree(elements);
