@@ -16,6 +16,7 @@
 #include "support.hpp"
 
 #include <filesystem>
+#include <set>
 
 #include <cmath>
 #include <cstdlib>
@@ -114,6 +115,28 @@ TEST_CASE("a kernel asked for with the wrong number of bindings is an error, not
     CHECK_THROWS_WITH_AS(device()->kernel("mg_add", 3, push), doctest::Contains("its shader declares 2"), Error);
     CHECK_THROWS_AS(device()->kernel("mg_add", 1, push), Error);
     CHECK(device()->kernel("mg_add", 2, push).bindings == 2);
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
+}
+
+TEST_CASE("the kernel table: every embedded shader has a row, and every row builds as its SPIR-V declares") {
+    REQUIRE(device());
+    std::set<std::string> listed;
+    for (const gpu::KernelSpec* spec : gpu::kernel_table::all) {
+        CAPTURE(spec->shader);
+        CHECK(listed.insert(spec->shader).second);  // one row per shader
+        CHECK(gpu::kernel(*device(), *spec, {}, 0, false).bindings == spec->bindings);
+        if (spec->has_software_build()) {
+            listed.insert(std::string(spec->shader) + "_software");
+            CHECK(gpu::kernel(*device(), *spec, {}, 0, true).texel_bindings.all() == spec->texels.all());
+        } else {
+            CHECK_THROWS_AS(gpu::kernel(*device(), *spec, {}, 0, true), Error);
+        }
+    }
+    for (const std::string& name : gpu::embedded_shader_names()) {
+        CAPTURE(name);
+        CHECK(listed.count(name) == 1);
+    }
+    CHECK(listed.size() == gpu::embedded_shader_names().size());
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 

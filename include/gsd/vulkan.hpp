@@ -43,11 +43,13 @@ struct Kernel;
 /// The bindings of a kernel that it reads as uniform texel buffers (software_shaped kernels),
 /// by what one texel of the view is. A plain mask means vec4s.
 struct TexelBindings {
-    TexelBindings(std::uint32_t vec4_mask = 0) : vec4(vec4_mask) {}  // NOLINT: a mask is the common case
+    constexpr TexelBindings(std::uint32_t vec4_mask = 0) : vec4(vec4_mask) {}  // NOLINT: a mask is the common case
+    constexpr TexelBindings(std::uint32_t vec4_mask, std::uint32_t float1_mask, std::uint32_t double1_mask = 0)
+        : vec4(vec4_mask), float1(float1_mask), double1(double1_mask) {}
     std::uint32_t vec4 = 0;     ///< a vec4 of float32 (R32G32B32A32_SFLOAT): trees, tables
     std::uint32_t float1 = 0;   ///< one float32 (R32_SFLOAT): a grid's values
     std::uint32_t double1 = 0;  ///< one float64, fetched as a uvec2 (R32G32_UINT) for packDouble2x32
-    std::uint32_t all() const { return vec4 | float1 | double1; }
+    constexpr std::uint32_t all() const { return vec4 | float1 | double1; }
 };
 
 struct DeviceFunctions;

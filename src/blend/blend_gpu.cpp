@@ -63,9 +63,9 @@ constexpr std::uint32_t kSoftwareLeafSize = 32;
 using kernels::BlendPush;  // `Push` in blend_eval.comp
 
 /// blend_eval for these specialization constants: on software devices its build that reads the
-/// tree's points, terms and nodes (bindings 0–2) as texel buffers (gpu::shaped_kernel).
+/// tree's points, terms and nodes (bindings 0–2) as texel buffers (gpu::kernel, kernel_table::blend_eval).
 const gpu::Kernel& blend_kernel(gpu::Context& c, std::initializer_list<std::int32_t> constants) {
-    return gpu::shaped_kernel(c, "blend_eval", 5, sizeof(BlendPush), constants, 0, 0b111u);
+    return gpu::kernel(c, gpu::kernel_table::blend_eval, constants);
 }
 
 std::vector<float> jet_records(const Points& points, const Points& normals, const Points& tangents,
@@ -88,7 +88,7 @@ std::vector<float> jet_records(const Points& points, const Points& normals, cons
 void record_tori(gpu::Context& ctx, gpu::Recorder& rec, const gpu::Buffer& jets, const gpu::Buffer& tori,
                  std::uint32_t count) {
     const kernels::CountPush push{count};
-    const gpu::Kernel& k = ctx.kernel("torus_from_jet", 2, sizeof(push));
+    const gpu::Kernel& k = gpu::kernel(ctx, gpu::kernel_table::torus_from_jet);
     rec.dispatch(k, {{&jets}, {&tori}}, &push, sizeof(push), (count + k.workgroup - 1) / k.workgroup);
 }
 
@@ -262,9 +262,9 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
                              std::uint32_t first_pixel, std::uint32_t pixel_count, std::uint32_t rays_per_lane,
                              std::uint32_t loop_cap) {
     using RenderPush = kernels::RenderPatPush;  // `Push` in render_pat.comp: blend_eval's, then the chunk
-    const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, "render_pat", 5, sizeof(RenderPush),  // the tree as texel buffers
-                                              {int(kind_), render_shared_knn(), std::int32_t(loop_cap)},
-                                              gpu::loop_capped_workgroup(*ctx_), 0b111u);
+    const gpu::Kernel& k = gpu::kernel(*ctx_, gpu::kernel_table::render_pat,  // the tree as texel buffers on software devices
+                                       {int(kind_), render_shared_knn(), std::int32_t(loop_cap)},
+                                       gpu::loop_capped_workgroup(*ctx_));
     const RenderPush push{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                           float(p.C), dmin_, pixel_count};
     rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&params}, {&hits, 0, VkDeviceSize(pixel_count) * 16}}, &push,

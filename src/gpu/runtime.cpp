@@ -923,17 +923,25 @@ bool software_shaped(const Context& ctx) {
     return ctx.info().is_software();
 }
 
-const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                            TexelBindings texel_bindings) {
-    return shaped_kernel(ctx, shader, bindings, push_bytes, constants, workgroup, texel_bindings, software_shaped(ctx));
+const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list<std::int32_t> constants,
+                     std::uint32_t workgroup) {
+    return kernel(ctx, spec, constants, workgroup, spec.has_software_build() && software_shaped(ctx));
 }
 
-const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                            TexelBindings texel_bindings, bool software) {
-    if (software) return ctx.kernel(shader + "_software", bindings, push_bytes, constants, workgroup, texel_bindings);
-    return ctx.kernel(shader, bindings, push_bytes, constants, workgroup);
+const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list<std::int32_t> constants,
+                     std::uint32_t workgroup, bool software) {
+    if (software && !spec.has_software_build())
+        throw Error("gpu", std::string("kernel ") + spec.shader + " has no build for software devices");
+    if (software)
+        return ctx.kernel(std::string(spec.shader) + "_software", spec.bindings, spec.push_bytes, constants, workgroup,
+                          spec.texels);
+    return ctx.kernel(spec.shader, spec.bindings, spec.push_bytes, constants, workgroup);
+}
+
+std::vector<std::string> embedded_shader_names() {
+    std::vector<std::string> names;
+    for (const auto& s : detail::kEmbeddedShaders) names.emplace_back(s.name);
+    return names;
 }
 
 std::uint32_t loop_capped_workgroup(const Context& ctx) {

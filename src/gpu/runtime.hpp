@@ -10,6 +10,8 @@
 
 #include <gsd/vulkan.hpp>
 
+#include "gpu/kernel_table.hpp"
+
 #include <cstdint>
 #include <initializer_list>
 #include <map>
@@ -228,17 +230,17 @@ std::uint32_t software_loop_cap(const Context& ctx);
 /// $GSD_SOFTWARE_SHAPED=0|1 overrides (tests run both against the CPU). The software builds use
 /// subgroup arithmetic: a device without it keeps the GPUs' kernels.
 bool software_shaped(const Context& ctx);
-/// The kernel of a shader built both ways: NAME_software with `texel_bindings` read as texel
-/// buffers where software_shaped(ctx), else NAME with storage buffers only (Context::kernel's
-/// other arguments as there).
-const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                            TexelBindings texel_bindings);
+/// The pipeline of a kernel of the table (kernel_table.hpp) for these specialization constants
+/// and workgroup size (0: the context's default): for a shader built both ways, NAME_software
+/// with the table's texel bindings where software_shaped(ctx), else NAME with storage buffers.
+const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list<std::int32_t> constants = {},
+                     std::uint32_t workgroup = 0);
 /// The same with the build chosen by the caller (`software`: NAME_software), for work that
 /// decides once, for its own limits, which build all its dispatches take.
-const Kernel& shaped_kernel(Context& ctx, const std::string& shader, std::uint32_t bindings, std::uint32_t push_bytes,
-                            std::initializer_list<std::int32_t> constants, std::uint32_t workgroup,
-                            TexelBindings texel_bindings, bool software);
+const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list<std::int32_t> constants,
+                     std::uint32_t workgroup, bool software);
+/// The names of the shaders embedded in the library (NAME and NAME_software builds).
+std::vector<std::string> embedded_shader_names();
 /// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
 /// default) elsewhere.
 std::uint32_t loop_capped_workgroup(const Context& ctx);

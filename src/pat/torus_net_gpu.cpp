@@ -235,10 +235,10 @@ const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
         while (workgroup < 64 && 2 * net_loop_iterations(p, workgroup) > 65535) workgroup *= 2;
         workgroup = std::min(workgroup, 64u);
     }
-    return gpu::shaped_kernel(ctx, "torus_net", 7, sizeof(kernels::CountPush),
-                              {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
-                               p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
-                              workgroup, 0b1u);
+    return gpu::kernel(ctx, gpu::kernel_table::torus_net,
+                       {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
+                        p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
+                       workgroup);
 }
 
 // Records the network over n points whose tokens are in `tokens`.
@@ -290,7 +290,7 @@ void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::
     const Buffer params = gpu::upload(ctx, packed.data(), packed.size() * 4);
     const Buffer unused(ctx, 16, Memory::Device);
 
-    const gpu::Kernel& knn = ctx.kernel("torus_net_knn", 4, sizeof(kernels::TorusNetKnnPush), {K});
+    const gpu::Kernel& knn = gpu::kernel(ctx, gpu::kernel_table::torus_net_knn, {K});
     const gpu::Kernel& net = net_kernel(ctx, p, false);
 
     // Chunk: many points per submission on a GPU, fewer on a CPU device (smooth progress);

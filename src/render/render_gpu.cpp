@@ -204,8 +204,8 @@ bool march_grid_gpu(const GridSpec& grid, const std::vector<float>& values, cons
     const gpu::Buffer data = gpu::upload(c, values.data(), bytes);
     const Tiling tiles = tiling_for(c);
     const gpu::Buffer params = upload_params(c, cam, m, tiles);
-    const gpu::Kernel& k = c.kernel("render_grid", 3, sizeof(GridPush), {std::int32_t(gpu::software_loop_cap(c))},
-                                    gpu::loop_capped_workgroup(c));
+    const gpu::Kernel& k = gpu::kernel(c, gpu::kernel_table::render_grid, {std::int32_t(gpu::software_loop_cap(c))},
+                                       gpu::loop_capped_workgroup(c));
     const std::uint32_t rays_per_group = k.workgroup * tiles.rays_per_lane;
     const Eigen::Vector3d h = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
     march_chunks(c, cam, m, tiles, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {

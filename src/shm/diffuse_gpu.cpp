@@ -40,8 +40,8 @@ public:
             if (std::string(w) == "alone") together = false;
         }
         // Software devices read the tree, its moments and the elements as texel buffers.
-        const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, "shm_diffuse", 5, sizeof(DiffusePush), {together ? 1 : 0},
-                                                  gpu::loop_capped_workgroup(*ctx_), 0b111u);
+        const gpu::Kernel& k = gpu::kernel(*ctx_, gpu::kernel_table::shm_diffuse, {together ? 1 : 0},
+                                           gpu::loop_capped_workgroup(*ctx_));
         const std::uint32_t cap = gpu::software_loop_cap(*ctx_);
         std::vector<char> redo(n, 0);
         std::vector<float> device_terms(n, 0.0f);  // summed at the end over the queries not redone

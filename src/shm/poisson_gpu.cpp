@@ -176,25 +176,16 @@ private:
         return {(cells + shape.x - 1) / shape.x, (p.dims[1] + shape.rows - 1) / shape.rows, p.dims[0]};
     }
 
-    // Runs the stencil kernel `name` over the level of `p` with rows of `cells`: the build shaped
-    // for software devices where software_ (its `texels` bindings read as texel buffers), else
-    // the GPUs' build; then a barrier.
-    void run_rows(gpu::Recorder& rec, const std::string& name, gpu::TexelBindings texels,
-                  std::initializer_list<gpu::Binding> bindings, const MgPush& p, std::uint32_t cells) {
+    // Runs the stencil kernel `spec` over the level of `p` with rows of `cells`: the build shaped
+    // for software devices where software_ (the table's texel bindings: the axis table as vec4s,
+    // the grids as floats or doubles), else the GPUs' build; then a barrier.
+    void run_rows(gpu::Recorder& rec, const gpu::KernelSpec& spec, std::initializer_list<gpu::Binding> bindings,
+                  const MgPush& p, std::uint32_t cells) {
         const RowShape shape = row_shape(cells, p.dims[1]);
-        const gpu::Kernel& k = gpu::shaped_kernel(*ctx_, name, std::uint32_t(bindings.size()), sizeof(MgPush),
-                                                  {std::int32_t(shape.rows)}, shape.x, texels, software_);
+        const gpu::Kernel& k = gpu::kernel(*ctx_, spec, {std::int32_t(shape.rows)}, shape.x, software_);
         const RowGroups g = row_groups(p, cells);
         rec.dispatch_grid(k, bindings, &p, sizeof(p), g.x, g.y, g.z);
         rec.barrier();
-    }
-
-    // Texel views of the kernels' bindings on a software device: the axis table as vec4s (binding
-    // 0), the grids of floats at `floats`.
-    static gpu::TexelBindings table_and_floats(std::uint32_t floats) {
-        gpu::TexelBindings t(1u);
-        t.float1 = floats;
-        return t;
     }
 
     void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color) {
@@ -202,18 +193,18 @@ private:
         p.color = color;
         const std::uint32_t cells = (p.dims[2] + 1) / 2;  // the row's cells of one color
         // e twice: read (the other color) and written (this one).
-        run_rows(rec, "mg_smooth", table_and_floats(0b110u), {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, cells);
+        run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, cells);
     }
 
     void residual(gpu::Recorder& rec, std::size_t l) {
         const MgPush p = push_for(l, l);
-        run_rows(rec, "mg_residual", table_and_floats(0b110u), {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
+        run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
     }
 
     void record_cycle(gpu::Recorder& rec, std::size_t l, bool f_cycle) {
         const std::size_t last = H_.levels.size() - 1;
         if (l == last) {
-            const gpu::Kernel& k = ctx_->kernel("mg_coarse", 3, sizeof(kernels::CountPush));
+            const gpu::Kernel& k = gpu::kernel(*ctx_, gpu::kernel_table::mg_coarse);
             const std::uint32_t m = std::uint32_t(H_.levels[l].count());
             const kernels::CountPush push_m{m};
             rec.dispatch(k, {{&pinv_}, {&r_[l]}, {&e_[l]}}, &push_m, sizeof(push_m), (m + k.workgroup - 1) / k.workgroup);
@@ -226,7 +217,7 @@ private:
         residual(rec, l);
         {
             const MgPush p = push_for(l + 1, l);
-            run_rows(rec, "mg_restrict", table_and_floats(0b10u), {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
+            run_rows(rec, gpu::kernel_table::mg_restrict, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
         }
         record_cycle(rec, l + 1, f_cycle);
         if (f_cycle && l + 2 <= last) {
@@ -237,7 +228,7 @@ private:
             rec.copy(t_[c], 0, r_[c], 0, bytes);
             rec.barrier();
             record_cycle(rec, c, false);
-            const gpu::Kernel& add = ctx_->kernel("mg_add", 2, sizeof(kernels::CountPush));
+            const gpu::Kernel& add = gpu::kernel(*ctx_, gpu::kernel_table::mg_add);
             const kernels::CountPush push_m{std::uint32_t(H_.levels[c].count())};
             rec.dispatch(add, {{&e_[c]}, {&save_[c]}}, &push_m, sizeof(push_m), groups(c));
             rec.barrier();
@@ -245,7 +236,7 @@ private:
         {
             const MgPush p = push_for(l, l + 1);
             // e of level l twice: read and written (each cell its own).
-            run_rows(rec, "mg_prolong", table_and_floats(0b110u), {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, p.dims[2]);
+            run_rows(rec, gpu::kernel_table::mg_prolong, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, p.dims[2]);
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
     }
@@ -255,14 +246,9 @@ private:
     void record_refine(gpu::Recorder& rec, bool with_correction) {
         const MgPush p = push_for(0, 0);
         if (with_correction) {
-            gpu::TexelBindings update;  // φ as doubles, e as floats
-            update.double1 = 0b1u;
-            update.float1 = 0b10u;
-            run_rows(rec, "mg_update", update, {{&phi_}, {&e_[0]}, {&phi_}}, p, p.dims[2]);  // φ read and written
+            run_rows(rec, gpu::kernel_table::mg_update, {{&phi_}, {&e_[0]}, {&phi_}}, p, p.dims[2]);  // φ read and written
         }
-        gpu::TexelBindings texels;  // φ and b as doubles
-        texels.double1 = 0b11u;
-        run_rows(rec, "mg_refine", texels, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
+        run_rows(rec, gpu::kernel_table::mg_refine, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
         rec.barrier();
     }

@@ -171,7 +171,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     const std::uint32_t workgroup = gpu::loop_capped_workgroup(*ctx);
     // Software devices: the walk that lists and sums apart, the tree and the elements read as
     // texel buffers (bindings 0 and 1).
-    const gpu::Kernel& k = gpu::shaped_kernel(*ctx, "sums_winding", 4, sizeof(WindingPush), {d.element_kinds}, workgroup, 0b11u);
+    const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding, {d.element_kinds}, workgroup);
     const bool shaped = k.texel_bindings.all() != 0;
     // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
     // elements, or (software-shaped) a round's sums: 32 expansions and 32 leaves.

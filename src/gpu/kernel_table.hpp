@@ -1,0 +1,60 @@
+// kernel_table.hpp — every compute kernel gsd ships, in one table (as ggml-vulkan's pipeline
+// list): its shader, its bindings, its push constants (shaders/push_constants.h) and, for a
+// shader also built for software devices (NAME_software, GSD_SOFTWARE_SHAPED), the bindings that
+// build reads as texel buffers. Call sites name an entry (gpu::kernel(ctx, kernel_table::X, …))
+// instead of repeating counts and sizes; Context::kernel checks the binding count against the
+// SPIR-V, and test_gpu builds every entry and checks that every embedded shader has one.
+//
+// Adding a kernel: shaders/NAME.comp (its push struct in push_constants.h, with a size check),
+// the shader in shaders/CMakeLists (EmbedShaders), a row here and in `all` below.
+#pragma once
+
+#include <gsd/vulkan.hpp>
+
+#include "push_constants.h"
+
+#include <cstdint>
+
+namespace gsd::gpu {
+
+struct KernelSpec {
+    const char* shader;        ///< shaders/<shader>.comp
+    std::uint32_t bindings;    ///< buffers at set 0, bindings 0..n−1
+    std::uint32_t push_bytes;  ///< sizeof its push struct
+    /// Its software build's texel-buffer bindings; none: one build serves every device.
+    TexelBindings texels = {};
+    constexpr bool has_software_build() const { return texels.all() != 0; }
+};
+
+namespace kernel_table {
+using namespace kernels;
+// Sums over oriented elements (src/sums): winding numbers; SHM step 1's screened sum.
+inline constexpr KernelSpec sums_winding{"sums_winding", 4, sizeof(WindingPush), {0b11u}};
+inline constexpr KernelSpec shm_diffuse{"shm_diffuse", 5, sizeof(DiffusePush), {0b111u}};
+// The PAT blend (src/blend): tori from jets, evaluation, the sphere-traced render.
+inline constexpr KernelSpec torus_from_jet{"torus_from_jet", 2, sizeof(CountPush)};
+inline constexpr KernelSpec blend_eval{"blend_eval", 5, sizeof(BlendPush), {0b111u}};
+inline constexpr KernelSpec render_pat{"render_pat", 5, sizeof(RenderPatPush), {0b111u}};
+// Rendering a sampled grid (src/render).
+inline constexpr KernelSpec render_grid{"render_grid", 3, sizeof(RenderGridPush)};
+// TorusNet (src/pat): neighbours, then the network.
+inline constexpr KernelSpec torus_net_knn{"torus_net_knn", 4, sizeof(TorusNetKnnPush)};
+inline constexpr KernelSpec torus_net{"torus_net", 7, sizeof(CountPush), {0b1u}};
+// The multigrid (src/shm/poisson_gpu.cpp): its stencils read the axis table (binding 0) as vec4s
+// and the grids as floats; φ and b as doubles.
+inline constexpr KernelSpec mg_smooth{"mg_smooth", 4, sizeof(MultigridPush), {0b1u, 0b110u}};
+inline constexpr KernelSpec mg_residual{"mg_residual", 4, sizeof(MultigridPush), {0b1u, 0b110u}};
+inline constexpr KernelSpec mg_restrict{"mg_restrict", 3, sizeof(MultigridPush), {0b1u, 0b10u}};
+inline constexpr KernelSpec mg_prolong{"mg_prolong", 4, sizeof(MultigridPush), {0b1u, 0b110u}};
+inline constexpr KernelSpec mg_update{"mg_update", 3, sizeof(MultigridPush), {0u, 0b10u, 0b1u}};
+inline constexpr KernelSpec mg_refine{"mg_refine", 4, sizeof(MultigridPush), {0u, 0u, 0b11u}};
+inline constexpr KernelSpec mg_coarse{"mg_coarse", 3, sizeof(CountPush)};
+inline constexpr KernelSpec mg_add{"mg_add", 2, sizeof(CountPush)};
+
+inline constexpr const KernelSpec* all[] = {&sums_winding, &shm_diffuse, &torus_from_jet, &blend_eval, &render_pat,
+                                            &render_grid,  &torus_net_knn, &torus_net,    &mg_smooth,  &mg_residual,
+                                            &mg_restrict,  &mg_prolong,  &mg_update,     &mg_refine,  &mg_coarse,
+                                            &mg_add};
+}  // namespace kernel_table
+
+}  // namespace gsd::gpu
