@@ -1,5 +1,6 @@
 // cut_graph.cpp — see cut_graph.hpp.
 #include "mesh/cut_graph.hpp"
+#include "core/disjoint_sets.hpp"
 
 #include <cmath>
 #include <functional>
@@ -26,7 +27,7 @@ std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> edge_neighbour
 
 std::vector<std::uint8_t> cut_graph(const Topology& t) {
     const Triangulation& T = t.mesh;
-    const std::size_t V = T.vertex_count, E = T.edge_count(), F = T.face_count();
+    const std::size_t V = T.vertex_count, E = T.edge_count();
     // Shortest-path tree of vertices (per component).
     const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
     std::vector<double> dist(V, INFINITY);
@@ -55,27 +56,10 @@ std::vector<std::uint8_t> cut_graph(const Topology& t) {
     for (std::size_t v = 0; v < V; ++v)
         if (parent_edge[v] != kNone) in_tree[parent_edge[v]] = 1;
     // Spanning tree of faces across edges not in the vertex tree (the cotree).
-    std::vector<std::uint8_t> in_cotree(E, 0), seen(F, 0);
-    for (std::uint32_t f0 = 0; f0 < F; ++f0) {
-        if (seen[f0]) continue;
-        seen[f0] = 1;
-        std::vector<std::uint32_t> stack{f0};
-        while (!stack.empty()) {
-            const std::uint32_t f = stack.back();
-            stack.pop_back();
-            for (int k = 0; k < 3; ++k) {
-                const std::uint32_t e = T.face_edges[f][std::size_t(k)];
-                if (in_tree[e]) continue;
-                for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
-                    const std::uint32_t g = corner_face(*h);
-                    if (seen[g]) continue;
-                    seen[g] = 1;
-                    in_cotree[e] = 1;
-                    stack.push_back(g);
-                }
-            }
-        }
-    }
+    std::vector<std::uint8_t> in_cotree(E, 0);
+    face_forest(
+        t, [&](std::uint32_t e) { return in_tree[e] != 0; }, [](std::uint32_t) {},
+        [&](std::uint32_t f, int k, std::uint32_t, std::uint32_t) { in_cotree[T.face_edges[f][std::size_t(k)]] = 1; });
     // Each edge in neither tree closes a homology loop: cut along it and its two tree paths to
     // the root.
     std::vector<std::uint8_t> cut(E, 0);
@@ -96,38 +80,28 @@ std::vector<std::uint8_t> cut_graph(const Topology& t) {
 bool simply_connected(const Topology& t) {
     const Triangulation& T = t.mesh;
     const std::size_t F = T.face_count();
-    std::vector<std::uint32_t> parent(T.vertex_count);
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
+    detail::DisjointSets components(T.vertex_count);
     for (std::size_t f = 0; f < F; ++f)
-        for (int k = 1; k < 3; ++k) parent[root(T.faces[f][std::size_t(k)])] = root(T.faces[f][0]);
+        for (int k = 1; k < 3; ++k) components.join(T.faces[f][std::size_t(k)], T.faces[f][0]);
     struct Count {
         long long v = 0, e = 0, f = 0;
     };
     std::map<std::uint32_t, Count> c;
     for (std::uint32_t v = 0; v < T.vertex_count; ++v)
-        if (t.vertex_corners.count(v)) ++c[root(v)].v;
-    for (std::size_t e = 0; e < T.edge_count(); ++e) ++c[root(T.edges[e][0])].e;
-    for (std::size_t f = 0; f < F; ++f) ++c[root(T.faces[f][0])].f;
+        if (t.vertex_corners.count(v)) ++c[components.find(v)].v;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) ++c[components.find(T.edges[e][0])].e;
+    for (std::size_t f = 0; f < F; ++f) ++c[components.find(T.faces[f][0])].f;
     // Boundary loops: components of the boundary edges' vertex graph.
-    std::vector<std::uint32_t> bparent(T.vertex_count);
-    std::iota(bparent.begin(), bparent.end(), 0u);
-    auto broot = [&](std::uint32_t x) {
-        while (bparent[x] != x) x = bparent[x] = bparent[bparent[x]];
-        return x;
-    };
+    detail::DisjointSets boundary_loops(T.vertex_count);
     std::vector<std::uint8_t> on_boundary(T.vertex_count, 0);
     for (std::size_t e = 0; e < T.edge_count(); ++e)
         if (t.edge_halfedges.count(e) == 1) {
             on_boundary[T.edges[e][0]] = on_boundary[T.edges[e][1]] = 1;
-            bparent[broot(T.edges[e][0])] = broot(T.edges[e][1]);
+            boundary_loops.join(T.edges[e][0], T.edges[e][1]);
         }
     std::map<std::uint32_t, long long> loops;
     for (std::uint32_t v = 0; v < T.vertex_count; ++v)
-        if (on_boundary[v] && broot(v) == v) ++loops[root(v)];
+        if (on_boundary[v] && boundary_loops.find(v) == v) ++loops[components.find(v)];
     for (const auto& [r, n] : c) {
         const long long chi = n.v - n.e + n.f, b = loops.count(r) ? loops[r] : 0;
         if (2 - chi - b != 0 || b > 1) return false;  // 2 − χ − b = 2·genus

@@ -1,6 +1,7 @@
 // Mesh topology for the surface methods: fan triangulation, the edge numbering of curve files,
 // adjacency lists, areas; and gsd::SurfaceMesh on top of it.
 #include <gsd/surface.hpp>
+#include "core/disjoint_sets.hpp"
 
 #include "mesh/geometry.hpp"
 #include "mesh/topology.hpp"
@@ -171,26 +172,21 @@ namespace {
 /// Non-degenerate triangles joined through shared edges (union–find), numbered in face order.
 std::vector<std::uint32_t> face_components(const Topology& t) {
     const std::size_t F = t.mesh.face_count();
-    std::vector<std::uint32_t> parent(F);
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
+    detail::DisjointSets components(F);
     for (std::size_t e = 0; e < t.mesh.edge_count(); ++e) {
         std::uint32_t first = UINT32_MAX;
         for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
             const std::uint32_t f = corner_face(*h);
             if (t.degenerate(f)) continue;
             if (first == UINT32_MAX) first = f;
-            else parent[root(f)] = root(first);
+            else components.join(f, first);
         }
     }
     std::vector<std::uint32_t> label(F, UINT32_MAX), id(F, UINT32_MAX);
     std::uint32_t next = 0;
     for (std::uint32_t f = 0; f < F; ++f) {
         if (t.degenerate(f)) continue;
-        std::uint32_t& r = id[root(f)];
+        std::uint32_t& r = id[components.find(f)];
         if (r == UINT32_MAX) r = next++;
         label[f] = r;
     }
@@ -266,18 +262,13 @@ SurfaceMesh::Summary SurfaceMesh::summary() const {
     }
     for (std::size_t f = 0; f < T.faces.size(); ++f) s.degenerate_triangles += t.degenerate(f);
     // Components: triangles joined through shared edges (union–find over edges' halfedges).
-    std::vector<std::uint32_t> parent(T.faces.size());
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
+    detail::DisjointSets components(T.faces.size());
     for (std::size_t e = 0; e < T.edges.size(); ++e) {
         const std::uint32_t* h = t.edge_halfedges.begin(e);
         for (std::size_t i = 1; i < t.edge_halfedges.count(e); ++i)
-            parent[root(mesh::corner_face(h[i]))] = root(mesh::corner_face(h[0]));
+            components.join(mesh::corner_face(h[i]), mesh::corner_face(h[0]));
     }
-    for (std::uint32_t f = 0; f < T.faces.size(); ++f) s.components += root(f) == f;
+    for (std::uint32_t f = 0; f < T.faces.size(); ++f) s.components += components.find(f) == f;
     std::size_t referenced = 0;
     for (std::size_t v = 0; v < T.vertex_count; ++v) referenced += t.vertex_corners.count(v) > 0;
     s.unreferenced_vertices = T.vertex_count - referenced;

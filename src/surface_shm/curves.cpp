@@ -3,6 +3,7 @@
 // within the strip of faces found by Dijkstra on the face graph (unfolded into the plane, the
 // "funnel" algorithm), split where it crosses edges.
 #include "surface_shm/curves.hpp"
+#include "core/disjoint_sets.hpp"
 
 #include "mesh/geometry.hpp"
 #include "surface_shm/operators.hpp"
@@ -475,22 +476,18 @@ ResolvedSources Resolver::finish() {
     const Triangulation& T = t_.mesh;
     // Components: union–find over the canonical keys of the piece ends.
     std::map<PointKey, std::uint32_t> ids;
-    std::vector<std::uint32_t> parent;
+    detail::DisjointSets components;
     auto id_of = [&](const PointKey& k) {
-        auto [it, inserted] = ids.try_emplace(k, std::uint32_t(parent.size()));
-        if (inserted) parent.push_back(it->second);
+        auto [it, inserted] = ids.try_emplace(k, std::uint32_t(components.size()));
+        if (inserted) components.add();
         return it->second;
-    };
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
     };
     std::vector<std::array<std::uint32_t, 2>> ends(out_.pieces.size());
     std::map<std::uint32_t, int> unsigned_degree;
     for (std::size_t i = 0; i < out_.pieces.size(); ++i) {
         const CurvePiece& c = out_.pieces[i];
         ends[i] = {id_of(key_of(T, {c.segment.face, c.segment.a})), id_of(key_of(T, {c.segment.face, c.segment.b}))};
-        parent[root(ends[i][0])] = root(ends[i][1]);
+        components.join(ends[i][0], ends[i][1]);
         if (!c.is_signed) {
             ++unsigned_degree[ends[i][0]];
             ++unsigned_degree[ends[i][1]];
@@ -499,14 +496,14 @@ ResolvedSources Resolver::finish() {
     std::map<std::uint32_t, std::uint32_t> component;
     for (std::size_t i = 0; i < out_.pieces.size(); ++i) {
         CurvePiece& c = out_.pieces[i];
-        c.component = component.try_emplace(root(ends[i][0]), std::uint32_t(component.size())).first->second;
+        c.component = component.try_emplace(components.find(ends[i][0]), std::uint32_t(component.size())).first->second;
         if (!c.is_signed) {
             c.open_a = unsigned_degree[ends[i][0]] == 1;
             c.open_b = unsigned_degree[ends[i][1]] == 1;
         }
     }
     // Constraint nodes: each distinct piece end once, then the isolated points.
-    std::vector<std::uint8_t> seen(parent.size(), 0);
+    std::vector<std::uint8_t> seen(components.size(), 0);
     for (std::size_t i = 0; i < out_.pieces.size(); ++i)
         for (int s = 0; s < 2; ++s) {
             if (seen[ends[i][std::size_t(s)]]) continue;

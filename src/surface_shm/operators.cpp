@@ -5,6 +5,7 @@
 // triangle). The connection version rotates each edge's complex value into the face's plane:
 // L_jk = S_jk · conj(r_j) · r_k, r the unit direction of the edge in that face.
 #include "surface_shm/operators.hpp"
+#include "core/disjoint_sets.hpp"
 
 #include "mesh/topology.hpp"
 
@@ -56,26 +57,21 @@ SparseLower<double> cotan_laplacian(const Triangulation& T, const std::vector<do
 }
 
 StiffnessComponents stiffness_components(const Triangulation& T, const std::vector<double>& areas) {
-    std::vector<std::uint32_t> parent(T.vertex_count);
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
+    detail::DisjointSets components(T.vertex_count);
     std::vector<std::uint8_t> on_face(T.vertex_count, 0);
     for (std::size_t f = 0; f < T.face_count(); ++f) {
         if (areas[f] <= 0) continue;
         const auto& c = T.faces[f];
         for (std::uint32_t v : c) on_face[v] = 1;
-        parent[root(c[1])] = root(c[0]);
-        parent[root(c[2])] = root(c[0]);
+        components.join(c[1], c[0]);
+        components.join(c[2], c[0]);
     }
     StiffnessComponents s;
     s.component.assign(T.vertex_count, UINT32_MAX);
     std::vector<std::uint32_t> index_of_root(T.vertex_count, UINT32_MAX);
     for (std::uint32_t v = 0; v < T.vertex_count; ++v) {
         if (!on_face[v]) continue;
-        std::uint32_t& id = index_of_root[root(v)];
+        std::uint32_t& id = index_of_root[components.find(v)];
         if (id == UINT32_MAX) {
             id = std::uint32_t(s.pins.size());
             s.pins.push_back(v);

@@ -8,6 +8,7 @@
 // accumulating the curve's multiplicities while walking around the vertex. Vertices where they
 // do not add up to zero (interior ends of open curves) are left out of the system.
 #include <gsd/swn.hpp>
+#include "core/disjoint_sets.hpp"
 
 #include "surface_shm/cholesky.hpp"
 #include "surface_shm/curves.hpp"
@@ -401,12 +402,7 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
     std::vector<std::uint8_t> on_path(T.edge_count(), 0);
     // Signed multiplicity of each end (the chain's boundary there), and the pieces of the curves.
     std::vector<double> end_sign(V, 0.0);
-    std::vector<std::uint32_t> piece(V);
-    std::iota(piece.begin(), piece.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (piece[x] != x) x = piece[x] = piece[piece[x]];
-        return x;
-    };
+    detail::DisjointSets pieces(V);
     std::vector<std::uint8_t> on_curve(V, 0);
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         if (chain[e] == 0) continue;
@@ -414,7 +410,7 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
         if (endpoint[a]) end_sign[a] -= chain[e];
         if (endpoint[b]) end_sign[b] += chain[e];
         on_curve[a] = on_curve[b] = 1;
-        piece[root(a)] = root(b);
+        pieces.join(a, b);
     }
     const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
     constexpr int kEnds = 3;  // opposite ends reached from each end
@@ -424,7 +420,7 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
     for (std::uint32_t start = 0; start < V; ++start) {
         if (std::abs(end_sign[start]) < 0.5) continue;
         const bool sign = end_sign[start] > 0;
-        const std::uint32_t own = root(start);
+        const std::uint32_t own = pieces.find(start);
         std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
         dist[start] = 0;
         touched.push_back(start);
@@ -440,7 +436,7 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
                 ++ends;
                 take = true;
             }
-            if (!other_piece && on_curve[v] && root(v) != own) {
+            if (!other_piece && on_curve[v] && pieces.find(v) != own) {
                 other_piece = true;
                 take = true;
             }
@@ -483,30 +479,19 @@ std::vector<std::uint32_t> cut_components(const Topology& t, const std::vector<s
             v[corner_id(f, (a + 1) % 3)] = v[corner_id(f, a)] + (T.aligned[f][std::size_t(a)] ? g : -g);
         }
     };
-    for (std::uint32_t f0 = 0; f0 < F; ++f0) {
-        if (comp[f0] != kNone) continue;
-        comp[f0] = std::uint32_t(count);
-        fill_face(f0, 0, 0.0);
-        std::vector<std::uint32_t> stack{f0};
-        while (!stack.empty()) {
-            const std::uint32_t f = stack.back();
-            stack.pop_back();
-            for (int k = 0; k < 3; ++k) {
-                const std::uint32_t e = T.face_edges[f][std::size_t(k)];
-                if (cut[e]) continue;
-                for (const std::uint32_t* h = t.edge_halfedges.begin(e); h != t.edge_halfedges.end(e); ++h) {
-                    const std::uint32_t g = corner_face(*h);
-                    if (comp[g] != kNone) continue;
-                    comp[g] = std::uint32_t(count);
-                    // The corner of g at f's corner k (the halfedge's tail in f is its head in g).
-                    const int j = corner_index(*h);
-                    fill_face(g, (j + 1) % 3, v[corner_id(f, k)]);
-                    stack.push_back(g);
-                }
-            }
-        }
-        ++count;
-    }
+    std::uint32_t current = 0;
+    mesh::face_forest(
+        t, [&](std::uint32_t e) { return cut[e] != 0; },
+        [&](std::uint32_t f0) {
+            current = std::uint32_t(count++);
+            comp[f0] = current;
+            fill_face(f0, 0, 0.0);
+        },
+        [&](std::uint32_t f, int k, std::uint32_t h, std::uint32_t g) {
+            comp[g] = current;
+            // The corner of g at f's corner k (the halfedge's tail in f is its head in g).
+            fill_face(g, (corner_index(h) + 1) % 3, v[corner_id(f, k)]);
+        });
     return comp;
 }
 
@@ -522,22 +507,17 @@ std::vector<std::uint32_t> cut_components(const Topology& t, const std::vector<s
 std::vector<RobinTerm> robin_terms(const Topology& t) {
     const Triangulation& T = t.mesh;
     // Boundary loops: boundary edges joined through shared vertices.
-    std::vector<std::uint32_t> parent(T.vertex_count);
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
+    detail::DisjointSets loops(T.vertex_count);
     std::vector<std::uint32_t> boundary;
     for (std::size_t e = 0; e < T.edge_count(); ++e)
         if (t.edge_halfedges.count(e) == 1 && !t.degenerate(corner_face(t.edge_halfedges.begin(e)[0]))) {
             boundary.push_back(std::uint32_t(e));
-            parent[root(T.edges[e][0])] = root(T.edges[e][1]);
+            loops.join(T.edges[e][0], T.edges[e][1]);
         }
     std::map<std::uint32_t, double> loop_length;
     std::map<std::uint32_t, std::uint32_t> loop_component;
     for (std::uint32_t e : boundary) {
-        const std::uint32_t r = root(T.edges[e][0]);
+        const std::uint32_t r = loops.find(T.edges[e][0]);
         loop_length[r] += T.edge_lengths[e];
         loop_component[r] = t.face_component[corner_face(t.edge_halfedges.begin(e)[0])];
     }
@@ -551,7 +531,7 @@ std::vector<RobinTerm> robin_terms(const Topology& t) {
         if (!t.degenerate(f)) area[t.face_component[f]] += t.face_areas[f];
     std::vector<RobinTerm> terms;
     for (std::uint32_t e : boundary) {
-        const std::uint32_t loop = root(T.edges[e][0]);
+        const std::uint32_t loop = loops.find(T.edges[e][0]);
         const std::uint32_t component = loop_component[loop];
         if (outer[component] != loop) continue;
         const double alpha = 1.0 / std::sqrt(area[component] / M_PI);
@@ -694,6 +674,23 @@ struct CoreResult {
     double lp_objective = 0, lp_violation = 0, seconds_jump = 0, seconds_hodge = 0, seconds_residual = 0,
            seconds_boundary = 0;
 };
+
+/// The parts of a run's result that the solver's result takes as they are (the curves' kinds,
+/// the program's size and cost, the timings).
+void take_curves_and_costs(SwnResult& result, CoreResult& r) {
+    result.bounding = std::move(r.bounding);
+    result.nonbounding = std::move(r.nonbounding);
+    result.completed = std::move(r.completed);
+    result.simply_connected = r.simply_connected;
+    result.lp_variables = r.lp_variables;
+    result.lp_rows = r.lp_rows;
+    result.lp_objective = r.lp_objective;
+    result.lp_violation = r.lp_violation;
+    result.seconds_jump = r.seconds_jump;
+    result.seconds_hodge = r.seconds_hodge;
+    result.seconds_residual = r.seconds_residual;
+    result.seconds_boundary = r.seconds_boundary;
+}
 
 /// The operators of one mesh, built on first use and kept.
 struct Operators {
@@ -940,18 +937,7 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
         result.w.resize(t.mesh.face_count());
         for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
             for (int k = 0; k < 3; ++k) result.w[f][std::size_t(k)] = r.w[corner_id(f, k)];
-        result.bounding = std::move(r.bounding);
-        result.nonbounding = std::move(r.nonbounding);
-        result.completed = std::move(r.completed);
-        result.simply_connected = r.simply_connected;
-        result.lp_variables = r.lp_variables;
-        result.lp_rows = r.lp_rows;
-        result.lp_objective = r.lp_objective;
-        result.lp_violation = r.lp_violation;
-        result.seconds_jump = r.seconds_jump;
-        result.seconds_hodge = r.seconds_hodge;
-        result.seconds_residual = r.seconds_residual;
-        result.seconds_boundary = r.seconds_boundary;
+        take_curves_and_costs(result, r);
     } else {
         // Curves off the edges: cut a copy of the mesh along them, solve there.
         std::vector<mesh::FaceSegment> pieces;
@@ -982,19 +968,8 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
                         std::isnan(result.w[in][std::size_t(j)]))
                         result.w[in][std::size_t(j)] = r.w[corner_id(f, k)];
         }
-        result.bounding = std::move(r.bounding);
-        result.nonbounding = std::move(r.nonbounding);
-        result.completed = std::move(r.completed);
-        result.simply_connected = r.simply_connected;
+        take_curves_and_costs(result, r);
         result.split = true;
-        result.lp_variables = r.lp_variables;
-        result.lp_rows = r.lp_rows;
-        result.lp_objective = r.lp_objective;
-        result.lp_violation = r.lp_violation;
-        result.seconds_jump = r.seconds_jump;
-        result.seconds_hodge = r.seconds_hodge;
-        result.seconds_residual = r.seconds_residual;
-        result.seconds_boundary = r.seconds_boundary;
     }
     // Corners at curve ends carry no value of their own: the mean of the triangle's others.
     for (auto& c : result.w) {

@@ -24,6 +24,8 @@
 #include <gsd/surface.hpp>
 #include <gsd/swn.hpp>
 
+#include "core/disjoint_sets.hpp"
+
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 
@@ -154,23 +156,18 @@ bool all_disks(const PolygonMesh& m, const std::vector<int>& labels, int label) 
                 const std::uint32_t a = face(m, f)[k], b = face(m, f)[(k + 1) % 3];
                 edge_faces[{std::min(a, b), std::max(a, b)}].push_back(std::uint32_t(f));
             }
-    std::vector<std::uint32_t> parent(m.face_count());
-    std::iota(parent.begin(), parent.end(), 0u);
-    auto root = [&](std::uint32_t x) {
-        while (parent[x] != x) x = parent[x] = parent[parent[x]];
-        return x;
-    };
+    detail::DisjointSets components(m.face_count());
     for (const auto& [e, fs] : edge_faces)
-        for (std::size_t i = 1; i < fs.size(); ++i) parent[root(fs[i])] = root(fs[0]);
+        for (std::size_t i = 1; i < fs.size(); ++i) components.join(fs[i], fs[0]);
     std::map<std::uint32_t, long> chi;
     std::map<std::uint32_t, std::map<std::uint32_t, int>> vertices;
     for (const auto& [e, fs] : edge_faces) {
-        const std::uint32_t r = root(fs[0]);
+        const std::uint32_t r = components.find(fs[0]);
         chi[r] -= 1;
         vertices[r][e.first] = vertices[r][e.second] = 1;
     }
     for (std::size_t f = 0; f < m.face_count(); ++f)
-        if (labels[f] == label) chi[root(std::uint32_t(f))] += 1;
+        if (labels[f] == label) chi[components.find(std::uint32_t(f))] += 1;
     for (auto& [r, c] : chi)
         if (c + long(vertices[r].size()) != 1) return false;
     return true;
