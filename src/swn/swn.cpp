@@ -1,4 +1,4 @@
-// Surface Winding Numbers (thesis §6.1; ~1250 lines: the five steps share the corner layout and
+// Surface Winding Numbers (thesis §6.1; ~1000 lines: the five steps share the corner layout and
 // the solver's cached operators): ① the jump Laplace equation on corners, ② its Darboux
 // derivative ω, ③ the harmonic part γ by Hodge decomposition, ④ a residual function v that
 // integrates γ with minimal L1 jumps (a linear program), ⑤ the curves minus v's jumps as the
