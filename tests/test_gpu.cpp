@@ -118,18 +118,19 @@ TEST_CASE("a kernel asked for with the wrong number of bindings is an error, not
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
-TEST_CASE("the kernel table: every embedded shader has a row, and every row builds as its SPIR-V declares") {
-    REQUIRE(device());
+TEST_CASE("the kernel table: every embedded shader has a row, with the bindings its SPIR-V declares") {
+    // Read from the embedded SPIR-V, no device needed (building every pipeline would cost
+    // lavapipe minutes of LLVM on a fresh machine; the conformance tests build them as used).
     std::set<std::string> listed;
     for (const gpu::KernelSpec* spec : gpu::kernel_table::all) {
         CAPTURE(spec->shader);
         CHECK(listed.insert(spec->shader).second);  // one row per shader
-        CHECK(gpu::kernel(*device(), *spec, {}, 0, false).bindings == spec->bindings);
+        CHECK(gpu::shader_binding_count(spec->shader) == spec->bindings);
+        CHECK((spec->texels.all() >> spec->bindings) == 0);  // texel bindings the shader has
         if (spec->has_software_build()) {
-            listed.insert(std::string(spec->shader) + "_software");
-            CHECK(gpu::kernel(*device(), *spec, {}, 0, true).texel_bindings.all() == spec->texels.all());
-        } else {
-            CHECK_THROWS_AS(gpu::kernel(*device(), *spec, {}, 0, true), Error);
+            const std::string software = std::string(spec->shader) + "_software";
+            listed.insert(software);
+            CHECK(gpu::shader_binding_count(software) == spec->bindings);
         }
     }
     for (const std::string& name : gpu::embedded_shader_names()) {
@@ -137,6 +138,12 @@ TEST_CASE("the kernel table: every embedded shader has a row, and every row buil
         CHECK(listed.count(name) == 1);
     }
     CHECK(listed.size() == gpu::embedded_shader_names().size());
+}
+
+TEST_CASE("a kernel of the table without a software build refuses to be asked for one") {
+    REQUIRE(device());
+    CHECK_THROWS_AS(gpu::kernel(*device(), gpu::kernel_table::mg_add, {}, 0, true), Error);
+    CHECK(gpu::kernel(*device(), gpu::kernel_table::mg_add).bindings == 2);
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 

@@ -938,6 +938,8 @@ const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list
     return ctx.kernel(spec.shader, spec.bindings, spec.push_bytes, constants, workgroup);
 }
 
+std::uint32_t shader_binding_count(const std::string& name) { return spirv_binding_count(embedded_shader(name)); }
+
 std::vector<std::string> embedded_shader_names() {
     std::vector<std::string> names;
     for (const auto& s : detail::kEmbeddedShaders) names.emplace_back(s.name);

@@ -241,6 +241,9 @@ const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list
                      std::uint32_t workgroup, bool software);
 /// The names of the shaders embedded in the library (NAME and NAME_software builds).
 std::vector<std::string> embedded_shader_names();
+/// The buffer bindings an embedded shader's SPIR-V declares (one more than the highest); throws
+/// gsd::Error for a name that is not embedded. Needs no device.
+std::uint32_t shader_binding_count(const std::string& name);
 /// The workgroup size for such a kernel: one subgroup on a software device, 0 (the context's
 /// default) elsewhere.
 std::uint32_t loop_capped_workgroup(const Context& ctx);
