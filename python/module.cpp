@@ -154,6 +154,12 @@ py::array_t<std::uint8_t> image_array(Image&& image) {
     return to_numpy(std::move(image.rgb), {image.height, image.width, 3});
 }
 
+SdfSign sdf_sign_from(const std::string& sign) {
+    if (sign == "winding") return SdfSign::winding;
+    if (sign == "none") return SdfSign::none;
+    throw Error("sign", "must be 'winding' or 'none', not '" + sign + "'");
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_gsd, m) {
@@ -396,9 +402,7 @@ PYBIND11_MODULE(_gsd, m) {
         const PolygonMesh mesh = mesh_from(vertices, faces);
         const Points q = points_from(queries, "queries");
         MeshSdfOptions o;
-        if (sign == "winding") o.sign = SdfSign::winding;
-        else if (sign == "none") o.sign = SdfSign::none;
-        else throw Error("sign", "must be 'winding' or 'none', not '" + sign + "'");
+        o.sign = sdf_sign_from(sign);
         o.inside_threshold = inside;
         o.device = device;
         MeshSdfResult r;
@@ -411,6 +415,37 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
        "Signed distance (M,) from (M,3) queries to a mesh in any state: the exact distance to its triangles, negative "
        "where its winding number exceeds `inside` (sign='none': unsigned), as `gsd sdf`.");
+    m.def("sample_sdf", [](const DoubleArray& vertices, const py::object& faces, std::size_t count,
+                           const std::vector<double>& near_sigma, double uniform, bool normalize, std::uint64_t seed,
+                           const std::string& sign, double inside, const std::string& device) {
+        const PolygonMesh mesh = mesh_from(vertices, faces);
+        SdfSampleOptions o;
+        o.near_sigma = near_sigma;
+        o.uniform_fraction = uniform;
+        o.normalize = normalize;
+        o.seed = seed;
+        o.sign = sdf_sign_from(sign);
+        o.inside_threshold = inside;
+        o.device = device;
+        SdfSamples s;
+        std::vector<float> rows;
+        {
+            py::gil_scoped_release nogil;
+            s = sample_sdf(mesh, count, o);
+            rows.resize(4 * count);
+            for (std::size_t i = 0; i < count; ++i) {
+                for (int c = 0; c < 3; ++c) rows[4 * i + std::size_t(c)] = float(s.points(Eigen::Index(i), c));
+                rows[4 * i + 3] = float(s.phi[i]);
+            }
+        }
+        return py::make_tuple(to_numpy(std::move(rows), {py::ssize_t(count), 4}),
+                              to_numpy(std::vector<double>{s.center.x(), s.center.y(), s.center.z()}, {3}), s.radius);
+    }, py::arg("vertices"), py::arg("faces"), py::arg("count"), py::arg("near_sigma") = SdfSampleOptions{}.near_sigma,
+       py::arg("uniform") = SdfSampleOptions{}.uniform_fraction, py::arg("normalize") = false, py::arg("seed") = 0,
+       py::arg("sign") = "winding", py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
+       "Training samples of a mesh's signed distance, as `gsd sdf --samples`: (samples (count,4) float32 rows x y z sdf, "
+       "center (3,), radius) — near the surface (offsets of each near_sigma × the bounding sphere's radius) and a "
+       "`uniform` share in the sphere's cube; normalize: in the unit-sphere frame.");
 
     // ---- on surfaces ----
     m.def("signed_heat_surface", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,

@@ -11,7 +11,9 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <filesystem>
 #include <random>
+#include <sstream>
 
 using namespace gsd;
 using test::run_cli;
@@ -179,4 +181,152 @@ TEST_CASE("gsd sdf: a grid around a closed mesh, negative inside; usage errors e
     CHECK(run_cli("sdf " + mesh + " -o " + dir.file("x.npy")).exit_code == 2);  // no --grid or --queries
     CHECK(run_cli("sdf " + mesh + " --grid 8 --sign maybe -o " + dir.file("x.npy")).exit_code == 2);
     CHECK(run_cli("sdf " + dir.file("missing.obj") + " --grid 8 -o " + dir.file("x.npy")).exit_code == 1);
+}
+
+TEST_CASE("sample_sdf: near samples spread by σ about the surface, uniform ones fill the cube, the frame and seed hold") {
+    const PolygonMesh m = shapes::icosphere(5);  // radius 1 about the origin
+    SdfSampleOptions o;
+    o.device = "cpu";
+    o.near_sigma = {0.05, 0.01};
+    o.uniform_fraction = 0.2;
+    o.seed = 7;
+    const std::size_t n = 20000;
+    const SdfSamples s = sample_sdf(m, n, o);
+    REQUIRE(s.points.rows() == Eigen::Index(n));
+    REQUIRE(s.phi.size() == n);
+    CHECK(s.radius == doctest::Approx(1.0).epsilon(1e-12));  // the farthest vertex: all are on the sphere
+    CHECK(s.center.norm() < 1e-12);
+    // Rows: 8000 of each σ, then 4000 uniform.
+    const std::size_t per = 8000, uniform = 4000;
+    for (int k = 0; k < 2; ++k) {
+        double sum2 = 0;
+        for (std::size_t i = k * per; i < (k + 1) * per; ++i) {
+            const double radial = s.points.row(Eigen::Index(i)).norm() - 1;  // the offset along the normal
+            sum2 += radial * radial;
+            // The exact SDF of the unit sphere, within the icosphere's flattening (≤ 2e-3 at level 5).
+            CHECK(std::abs(s.phi[i] - radial) < 3e-3);
+        }
+        const double sigma = std::sqrt(sum2 / double(per));
+        CHECK(sigma == doctest::Approx(o.near_sigma[std::size_t(k)]).epsilon(0.06));
+    }
+    for (std::size_t i = 2 * per; i < 2 * per + uniform; ++i) {
+        CHECK(s.points.row(Eigen::Index(i)).cwiseAbs().maxCoeff() <= 1.0);
+        CHECK(std::abs(s.phi[i] - (s.points.row(Eigen::Index(i)).norm() - 1)) < 3e-3);
+    }
+    // The same seed, the same samples; normalize only changes the frame (here the identity up to
+    // rounding); another seed, other samples.
+    SdfSampleOptions o2 = o;
+    o2.normalize = true;
+    const SdfSamples t = sample_sdf(m, n, o2);
+    CHECK((t.points - s.points).cwiseAbs().maxCoeff() < 1e-12);
+    o2.seed = 8;
+    CHECK((sample_sdf(m, n, o2).points - s.points).cwiseAbs().maxCoeff() > 0.1);
+    // A shifted, scaled sphere normalizes back onto the unit one.
+    PolygonMesh big = m;
+    big.vertices = ((3.0 * big.vertices).rowwise() + Eigen::RowVector3d(10, -4, 2)).eval();
+    const SdfSamples b = sample_sdf(big, n, o2);
+    CHECK(b.radius == doctest::Approx(3.0).epsilon(1e-12));
+    for (std::size_t i = 0; i < n; i += 97) CHECK(std::abs(b.phi[i] - (b.points.row(Eigen::Index(i)).norm() - 1)) < 3e-3);
+    // Bad options.
+    CHECK_THROWS_AS(sample_sdf(m, 0, o), Error);
+    SdfSampleOptions bad = o;
+    bad.near_sigma = {0.01, -1};
+    CHECK_THROWS_AS(sample_sdf(m, 10, bad), Error);
+    bad = o;
+    bad.uniform_fraction = 1.5;
+    CHECK_THROWS_AS(sample_sdf(m, 10, bad), Error);
+    bad = o;
+    bad.near_sigma.clear();
+    CHECK_THROWS_AS(sample_sdf(m, 10, bad), Error);
+    bad.uniform_fraction = 1;  // all uniform: no σ needed
+    CHECK(sample_sdf(m, 10, bad).phi.size() == 10);
+}
+
+TEST_CASE("gsd sdf --samples: (S,4) rows x y z sdf and a sidecar with the frame") {
+    ScratchDir dir("cli-sdf-samples");
+    const std::string mesh = dir.file("sphere.obj");
+    PolygonMesh m = shapes::icosphere(4);
+    m.vertices = (2.0 * m.vertices).eval();
+    io::write_mesh(mesh, m);
+    const std::string out = dir.file("s.npy");
+    REQUIRE(run_cli("sdf " + mesh + " --samples 3000 --near-sigma 0.02 --uniform 0.5 --normalize --device cpu -o " + out)
+                .exit_code == 0);
+    const io::NpyArray a = io::read_npy(out);
+    REQUIRE(a.shape == std::vector<std::size_t>{3000, 4});
+    for (std::size_t i = 0; i < 3000; ++i) {
+        const double r = std::sqrt(a.data[4 * i] * a.data[4 * i] + a.data[4 * i + 1] * a.data[4 * i + 1] +
+                                   a.data[4 * i + 2] * a.data[4 * i + 2]);
+        CHECK(std::abs(a.data[4 * i + 3] - (r - 1)) < 1e-2);  // normalized: the unit sphere
+    }
+    CHECK(test::file_exists(out + ".json"));
+    CHECK(run_cli("sdf " + mesh + " --samples 10 --grid 8 -o " + dir.file("x.npy")).exit_code == 2);   // two domains
+    CHECK(run_cli("sdf " + mesh + " --samples 10 -o " + dir.file("x.vdb")).exit_code == 2);            // not .npy
+    CHECK(run_cli("sdf " + mesh + " --samples 10 --near-sigma 0 -o " + dir.file("x.npy")).exit_code == 2);
+    CHECK(!test::file_exists(dir.file("x.npy")));
+}
+
+TEST_CASE("gsd sdf --batch: good inputs written, bad ones listed, finished ones skipped, shards partition the list") {
+    ScratchDir dir("cli-sdf-batch");
+    std::string list;
+    for (int i = 0; i < 7; ++i) {
+        std::string name = "m";  // (not "m" + to_string(i): GCC 12's -Wrestrict misfires on it)
+        name += std::to_string(i);
+        const std::string mesh = dir.file(name + ".obj");
+        io::write_mesh(mesh, shapes::icosphere(1 + i % 2));
+        list += mesh + "\n";
+        if (i == 2) list += "# a comment, then a blank line\n\n";
+    }
+    test::write_bytes(dir.file("broken.obj"), "v 0 0 0\nf 1 2 3\n");  // an index out of range
+    list += dir.file("broken.obj") + "\n" + dir.file("missing.ply") + "\n";
+    test::write_bytes(dir.file("list.txt"), list);
+    const std::string out_dir = dir.file("out");
+    const std::string base = "sdf --batch " + dir.file("list.txt") + " --out-dir " + out_dir + " --samples 200 --device cpu";
+
+    // Two shards' dry runs: every input exactly once.
+    std::string seen;
+    std::size_t lines = 0;
+    for (int s = 0; s < 2; ++s) {
+        const test::RunResult r = run_cli(base + " --shard " + std::to_string(s) + "/2 --dry-run");
+        REQUIRE(r.exit_code == 0);
+        std::istringstream in(r.output);
+        std::string line;
+        std::getline(in, line);  // "K of 9 inputs (shard s/2)"
+        CHECK(line.find("of 9 inputs") != std::string::npos);
+        while (std::getline(in, line)) {
+            if (line.find(" -> ") == std::string::npos) continue;
+            seen += line.substr(0, line.find(" -> ")) + "\n";
+            ++lines;
+        }
+    }
+    CHECK(lines == 9);
+    for (const std::string name : {"m0.obj", "m3.obj", "m6.obj", "broken.obj", "missing.ply"})
+        CHECK(seen.find(dir.file(name)) != std::string::npos);
+    CHECK(!test::file_exists(out_dir));  // a dry run writes nothing
+
+    // Shard 1 of 2 from a Slurm array task's environment.
+    const test::RunResult slurm =
+        test::run_shell("SLURM_ARRAY_TASK_ID=5 SLURM_ARRAY_TASK_MIN=4 SLURM_ARRAY_TASK_COUNT=2 " +
+                        std::string(GSD_CLI) + " " + base + " --shard auto --dry-run");
+    CHECK(slurm.exit_code == 0);
+    CHECK(slurm.output.find("4 of 9 inputs (shard 1/2)") != std::string::npos);
+
+    // The whole list: 7 written, the 2 bad ones reported; exit 1 at the end.
+    const test::RunResult all = run_cli(base);
+    CHECK(all.exit_code == 1);
+    CHECK(all.output.find("broken.obj") != std::string::npos);
+    CHECK(all.output.find("missing.ply") != std::string::npos);
+    CHECK(all.output.find("2 of 9 inputs failed") != std::string::npos);
+    for (int i = 0; i < 7; ++i) CHECK(io::read_npy(out_dir + "/m" + std::to_string(i) + ".npy").shape[0] == 200);
+    // As after a kill: one output gone. Run again: only that one is made.
+    std::filesystem::remove(out_dir + "/m4.npy");
+    const test::RunResult again = run_cli(base);
+    CHECK(again.output.find("1 written, 6 already there, 2 failed") != std::string::npos);
+    CHECK(test::file_exists(out_dir + "/m4.npy"));
+
+    // Two inputs with one stem, and usage errors.
+    test::write_bytes(dir.file("dup.txt"), dir.file("m0.obj") + "\n" + dir.file("out") + "/../m0.obj\n");
+    CHECK(run_cli("sdf --batch " + dir.file("dup.txt") + " --out-dir " + out_dir + " --samples 10").exit_code == 1);
+    CHECK(run_cli(base + " --shard 2/2").exit_code == 1);
+    CHECK(run_cli(base + " --shard x").exit_code == 1);
+    CHECK(run_cli("sdf --batch " + dir.file("list.txt") + " --samples 10").exit_code == 2);  // no --out-dir
 }

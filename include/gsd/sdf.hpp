@@ -5,6 +5,7 @@
 //
 //   gsd::MeshSdfResult r = gsd::mesh_sdf(gsd::io::read_mesh("scan.obj"), queries);
 //   // r.phi[i] < 0 inside; |r.phi[i]| is the distance to the nearest triangle
+//   gsd::SdfSamples s = gsd::sample_sdf(mesh, 500000);   // training samples: near the surface and in its box
 #pragma once
 
 #include <gsd/export.hpp>
@@ -12,6 +13,7 @@
 #include <gsd/core.hpp>
 #include <gsd/gpu.hpp>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -47,5 +49,39 @@ struct MeshSdfResult {
 /// degenerate faces only, non-finite queries or options out of range.
 GSD_EXPORT MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& options = {},
                                   const ProgressFn& progress = {});
+
+/// Training samples of a mesh's signed distance, as implicit-shape networks (DeepSDF and its
+/// successors) train on: most near the surface, some spread through its box. Lengths are in
+/// units of the mesh's bounding sphere (center: the box's center; radius: the farthest vertex
+/// from it), so the same options suit meshes of any size.
+struct SdfSampleOptions : MeshSdfOptions {
+    /// Near-surface samples: points uniform on the surface (by area) offset by an isotropic
+    /// Gaussian of each standard deviation, × the radius; split evenly between them. Each > 0.
+    std::vector<double> near_sigma = {0.07, 0.022};
+    /// The share of samples drawn uniformly in the sphere's bounding cube (center ± radius)
+    /// instead, in [0, 1].
+    double uniform_fraction = 0.06;
+    /// Return the samples and their distances in the unit-sphere frame: (x − center) / radius
+    /// and φ / radius.
+    bool normalize = false;
+    /// The random stream: the same seed, mesh and options give the same samples.
+    std::uint64_t seed = 0;
+};
+
+struct SdfSamples {
+    Points points;                ///< (n, 3): the near samples of each σ in turn, then the uniform ones
+    std::vector<double> phi;      ///< per sample, signed as MeshSdfOptions::sign says
+    Eigen::Vector3d center;       ///< the bounding sphere: the frame of `normalize`
+    double radius = 0;
+    std::size_t triangles = 0;    ///< as in MeshSdfResult
+    std::size_t degenerate = 0;
+    std::string device;
+};
+
+/// `count` samples of the mesh's signed distance (mesh_sdf at points drawn as SdfSampleOptions
+/// says). Throws Error for an invalid mesh, count 0 or past the memory budget, or options out of
+/// range.
+GSD_EXPORT SdfSamples sample_sdf(const PolygonMesh& mesh, std::size_t count, const SdfSampleOptions& options = {},
+                                 const ProgressFn& progress = {});
 
 }  // namespace gsd

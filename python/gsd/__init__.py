@@ -13,6 +13,8 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     grid, bounds = gsd.signed_heat_grid(64, vertices=v, faces=f)   # broken meshes, clouds, both
     w = gsd.winding_numbers(queries, vertices=v, faces=f)
     phi = gsd.mesh_sdf(v, f, queries)                 # exact distance to a broken mesh, signed by w
+    samples, center, radius = gsd.sample_sdf(v, f, 500000)         # (N,4) x y z sdf, for training
+    for path, samples, center, radius in gsd.sdf_samples_in_folder("meshes/", 500000): ...
     phi_v = gsd.signed_heat_surface(v, f, "curves.txt")            # distance along a surface
     labels, w = gsd.surface_winding_numbers(v, f, "curves.txt")    # inside/outside on a surface
     image = field.render(640, 480)                    # (480, 640, 3) uint8: φ = 0 sphere-traced
@@ -32,6 +34,7 @@ from ._gsd import (  # noqa: F401
     point_confidence,
     read_mesh,
     read_point_cloud,
+    sample_sdf,
     render_grid,
     signed_heat_grid,
     signed_heat_surface,
@@ -42,3 +45,22 @@ from ._gsd import (  # noqa: F401
 )
 
 __version__ = version()
+
+
+_MESH_SUFFIXES = (".obj", ".ply", ".off", ".stl")
+
+
+def sdf_samples_in_folder(folder, count, **options):
+    """Yields (path, samples, center, radius) for each mesh file in `folder` (.obj .ply .off .stl,
+    in sorted order), sample_sdf's result with `options` (near_sigma, uniform, normalize, seed,
+    sign, inside, device): a training loop can take meshes one at a time. A mesh that cannot be
+    read or sampled raises gsd.Error naming it; wrap the loop to skip such files."""
+    import os
+
+    names = sorted(n for n in os.listdir(folder) if n.lower().endswith(_MESH_SUFFIXES))
+    for name in names:
+        path = os.path.join(folder, name)
+        vertices, faces = read_mesh(path)
+        samples, center, radius = sample_sdf(vertices, faces, count, **options)
+        yield path, samples, center, radius
+

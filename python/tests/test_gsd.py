@@ -126,6 +126,29 @@ def test_mesh_sdf_is_the_sphere_distance_and_matches_cli(tmp_path):
         gsd.mesh_sdf(v, f, q, sign="maybe")
 
 
+def test_sample_sdf_matches_cli_and_the_folder_iterator(tmp_path):
+    folder = tmp_path / "meshes"
+    folder.mkdir()
+    cli("mesh", "sphere", "-r", 24, "-o", folder / "a.obj")
+    cli("mesh", "torus", "-r", 24, "-o", folder / "b.ply")
+    (folder / "notes.txt").write_text("not a mesh")
+    v, f = gsd.read_mesh(str(folder / "a.obj"))
+    s, center, radius = gsd.sample_sdf(v, f, 4000, near_sigma=[0.05], uniform=0.25, seed=3, device="cpu")
+    assert s.shape == (4000, 4) and s.dtype == np.float32
+    assert radius == pytest.approx(0.5, rel=1e-6)
+    exact = np.linalg.norm(s[:, :3] - center, axis=1) - 0.5  # the "sphere" shape: radius 0.5
+    np.testing.assert_allclose(s[:, 3], exact, atol=0.01)
+    assert np.all(np.abs(s[3000:, :3] - center) <= radius + 1e-6)  # the uniform quarter, in the cube
+    cli("sdf", folder / "a.obj", "--samples", 4000, "--near-sigma", 0.05, "--uniform", 0.25, "--seed", 3,
+        "--device", "cpu", "-o", tmp_path / "s.npy")
+    np.testing.assert_array_equal(s, np.load(tmp_path / "s.npy"))
+    seen = [(os.path.basename(p), smp.shape) for p, smp, _, _ in
+            gsd.sdf_samples_in_folder(str(folder), 100, normalize=True, device="cpu")]
+    assert seen == [("a.obj", (100, 4)), ("b.ply", (100, 4))]
+    with pytest.raises(Exception):
+        gsd.sample_sdf(v, f, 10, near_sigma=[-1.0])
+
+
 def test_winding_opening_criterion_matches_cli(tmp_path):
     mesh = tmp_path / "m.obj"
     cli("mesh", "torus", "-r", 24, "--holes", 2, "--flip", 0.1, "-o", mesh)

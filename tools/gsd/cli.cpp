@@ -339,4 +339,33 @@ void write_values(const std::string& path, const Domain& d, const GridSpec& g, s
     io::write_npy(path, shape, values);
 }
 
+void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
+                        const std::string& gradient_out, const EvalPoints& eval_points, const EvalGrid& eval_grid,
+                        const std::string& what, const std::string& method, double grid_bytes_per_node) {
+    check_grid_output(out, domain.is_grid());  // before the work
+    GridSpec grid;
+    Points queries;
+    if (domain.is_grid()) grid = domain.grid_spec(input_box, grid_bytes_per_node);
+    else queries = io::read_queries(domain.queries);
+    const std::size_t count = domain.is_grid() ? grid.node_count() : std::size_t(queries.rows());
+    Progress progress(what);
+    const auto t0 = std::chrono::steady_clock::now();
+    const FieldValues v = domain.is_grid() ? eval_grid(grid, progress.fn()) : eval_points(queries, progress.fn());
+    progress.finish();
+    const double dt = seconds_since(t0);
+    if (globals().verbose)
+        note("evaluated " + std::to_string(count) + " points on " + v.device + " in " + fmt("%.3f s", dt) + " (" +
+             fmt("%.3g", double(count) / std::max(dt, 1e-9)) + " points/s)");
+    write_values(out, domain, grid, count, v.phi, 1, method);
+    if (!gradient_out.empty()) {
+        try {
+            write_values(gradient_out, domain, grid, count, v.gradient, 3, method);
+        } catch (...) {
+            remove_output(out);  // all outputs or none
+            throw;
+        }
+    }
+    note("wrote " + out + (gradient_out.empty() ? "" : " and " + gradient_out));
+}
+
 }  // namespace gsd::cli

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <gsd/core.hpp>
+#include <gsd/field.hpp>
 #include <gsd/gpu.hpp>
 
 #include <CLI/CLI.hpp>
@@ -88,6 +89,15 @@ void write_grid(const std::string& path, const GridSpec& g, const std::vector<fl
 GridSpec grid_of(const std::vector<std::size_t>& shape, const std::string& path, const std::vector<double>& bounds);
 
 /// Writes a float32 result for a domain: (N,N,N[,3]) for a grid, (M[,3]) for queries.
+/// Evaluates a field over a domain (queries or a grid) and writes the outputs (values, and
+/// gradients to `gradient_out` if not empty), both or neither; `what` names the progress,
+/// `method` the grid sidecar's method.
+using EvalPoints = std::function<FieldValues(const Points&, const ProgressFn&)>;
+using EvalGrid = std::function<FieldValues(const GridSpec&, const ProgressFn&)>;
+void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
+                        const std::string& gradient_out, const EvalPoints& eval_points, const EvalGrid& eval_grid,
+                        const std::string& what, const std::string& method, double grid_bytes_per_node);
+
 void write_values(const std::string& path, const Domain& d, const GridSpec& g, std::size_t count,
                   const std::vector<float>& values, int components, const std::string& method);
 
@@ -153,5 +163,7 @@ void add_shm_surface(CLI::App& shm);
 void add_curve(CLI::App& app);
 /// `gsd swn` (tools/gsd/swn.cpp): Surface Winding Numbers.
 void add_swn(CLI::App& app);
+/// gsd sdf (sdf.cpp).
+void add_sdf(CLI::App& app);
 
 }  // namespace gsd::cli

@@ -145,37 +145,6 @@ struct OutlierArgs {
     }
 };
 
-// Evaluates a field over a domain and writes the outputs; Field has evaluate(Points|GridSpec, ...).
-template <class EvalPoints, class EvalGrid>
-void evaluate_and_write(const Domain& domain, const std::optional<Box>& input_box, const std::string& out,
-                        const std::string& gradient_out, EvalPoints eval_points, EvalGrid eval_grid,
-                        const std::string& what, const std::string& method, double grid_bytes_per_node) {
-    check_grid_output(out, domain.is_grid());  // before the work
-    GridSpec grid;
-    Points queries;
-    if (domain.is_grid()) grid = domain.grid_spec(input_box, grid_bytes_per_node);
-    else queries = io::read_queries(domain.queries);
-    const std::size_t count = domain.is_grid() ? grid.node_count() : std::size_t(queries.rows());
-    Progress progress(what);
-    const auto t0 = std::chrono::steady_clock::now();
-    const FieldValues v = domain.is_grid() ? eval_grid(grid, progress.fn()) : eval_points(queries, progress.fn());
-    progress.finish();
-    const double dt = seconds_since(t0);
-    if (globals().verbose)
-        note("evaluated " + std::to_string(count) + " points on " + v.device + " in " + fmt("%.3f s", dt) + " (" +
-             fmt("%.3g", double(count) / std::max(dt, 1e-9)) + " points/s)");
-    write_values(out, domain, grid, count, v.phi, 1, method);
-    if (!gradient_out.empty()) {
-        try {
-            write_values(gradient_out, domain, grid, count, v.gradient, 3, method);
-        } catch (...) {
-            remove_output(out);  // all outputs or none
-            throw;
-        }
-    }
-    note("wrote " + out + (gradient_out.empty() ? "" : " and " + gradient_out));
-}
-
 // ---- commands ----------------------------------------------------------------------------
 
 void add_pat(CLI::App& app) {
@@ -575,49 +544,6 @@ void add_winding(CLI::App& app) {
             *domain, bounding_box(elements.corners), *output, "", eval,
             [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding", "winding",
             kWindingGridBytesPerNode);
-    });
-}
-
-// ---- gsd sdf ------------------------------------------------------------------------------
-
-void add_sdf(CLI::App& app) {
-    auto* sdf = app.add_subcommand(
-        "sdf", "Signed distance to a mesh in any state (holes, flips, duplicates): the exact distance to its triangles, "
-               "negative inside by its generalized winding number");
-    auto input = std::make_shared<std::string>();
-    auto output = std::make_shared<std::string>();
-    auto domain = std::make_shared<Domain>();
-    auto opt = std::make_shared<MeshSdfOptions>();
-    auto sign = std::make_shared<std::string>("winding");
-    sdf->add_option("INPUT", *input, "Mesh (.obj .ply .off .stl)")->required();
-    sdf->add_option("-o,--output", *output, "Output float32 .npy: (N,N,N) for a grid, (M,) for queries; or .vdb for a grid")
-        ->required()->check(output_file({".npy", ".vdb"}));
-    domain->add_to(*sdf, true);
-    sdf->add_option("--sign", *sign, "winding: negative where the winding number exceeds --inside; none: unsigned distance")
-        ->check(CLI::IsMember({"winding", "none"}))->capture_default_str();
-    sdf->add_option("--inside", opt->inside_threshold, "Winding number above which a point is inside")
-        ->check(finite_number())->check(CLI::Range(0.0, 1.0))->capture_default_str();
-    sdf->add_option("--device", opt->device, "The winding numbers' device: auto | gpu | cpu | device index | name substring");
-    sdf->callback([=] {
-        if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
-        if (!(opt->inside_threshold > 0 && opt->inside_threshold < 1)) throw Error("--inside", "must be strictly between 0 and 1");
-        opt->sign = *sign == "none" ? SdfSign::none : SdfSign::winding;
-        const DevicePrefetch prefetch(opt->device);
-        const PolygonMesh mesh = io::read_mesh(*input);
-        auto eval = [&](const Points& q, const ProgressFn& p) {
-            MeshSdfResult r = mesh_sdf(mesh, q, *opt, p);
-            if (globals().verbose || r.degenerate)
-                note(std::to_string(r.triangles) + " triangles" +
-                     (r.degenerate ? ", " + std::to_string(r.degenerate) + " degenerate (zero-area) ones left out" : ""));
-            FieldValues v;
-            v.phi.assign(r.phi.begin(), r.phi.end());
-            v.device = r.device;
-            return v;
-        };
-        evaluate_and_write(
-            *domain, bounding_box(mesh.vertices), *output, "", eval,
-            [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "sdf", "sdf",
-            kSdfGridBytesPerNode);
     });
 }
 
