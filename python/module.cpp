@@ -154,11 +154,7 @@ py::array_t<std::uint8_t> image_array(Image&& image) {
     return to_numpy(std::move(image.rgb), {image.height, image.width, 3});
 }
 
-SdfSign sdf_sign_from(const std::string& sign) {
-    if (sign == "winding") return SdfSign::winding;
-    if (sign == "none") return SdfSign::none;
-    throw Error("sign", "must be 'winding' or 'none', not '" + sign + "'");
-}
+SdfSign sdf_sign_from(const std::string& sign) { return sdf_sign_from_name(sign); }
 
 }  // namespace
 
@@ -411,10 +407,11 @@ PYBIND11_MODULE(_gsd, m) {
             r = mesh_sdf(mesh, q, o);
         }
         return to_numpy(std::move(r.phi), {py::ssize_t(q.rows())});
-    }, py::arg("vertices"), py::arg("faces"), py::arg("queries"), py::arg("sign") = "winding",
+    }, py::arg("vertices"), py::arg("faces"), py::arg("queries"), py::arg("sign") = "auto",
        py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
-       "Signed distance (M,) from (M,3) queries to a mesh in any state: the exact distance to its triangles, negative "
-       "where its winding number exceeds `inside` (sign='none': unsigned), as `gsd sdf`.");
+       "Signed distance (M,) from (M,3) queries to a mesh in any state: the exact distance to its triangles, negative inside "
+       "(sign: 'auto' | 'winding' | 'pseudonormal' | 'shm' | 'none', as `gsd sdf --sign`; inside: the winding number "
+       "threshold).");
     m.def("sample_sdf", [](const DoubleArray& vertices, const py::object& faces, std::size_t count,
                            const std::vector<double>& near_sigma, double uniform, bool normalize, std::uint64_t seed,
                            const std::string& sign, double inside, const std::string& device) {
@@ -442,7 +439,7 @@ PYBIND11_MODULE(_gsd, m) {
                               to_numpy(std::vector<double>{s.center.x(), s.center.y(), s.center.z()}, {3}), s.radius);
     }, py::arg("vertices"), py::arg("faces"), py::arg("count"), py::arg("near_sigma") = SdfSampleOptions{}.near_sigma,
        py::arg("uniform") = SdfSampleOptions{}.uniform_fraction, py::arg("normalize") = false, py::arg("seed") = 0,
-       py::arg("sign") = "winding", py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
+       py::arg("sign") = "auto", py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
        "Training samples of a mesh's signed distance, as `gsd sdf --samples`: (samples (count,4) float32 rows x y z sdf, "
        "center (3,), radius) — near the surface (offsets of each near_sigma × the bounding sphere's radius) and a "
        "`uniform` share in the sphere's cube; normalize: in the unit-sphere frame.");

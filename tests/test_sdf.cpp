@@ -120,13 +120,116 @@ TEST_CASE("mesh_sdf on a broken mesh: holes and flipped faces keep the sign away
     CHECK(double(right) >= 0.99 * double(far));
 }
 
+namespace {
+
+// A closed sphere with every fifth face reversed, and two faces duplicated reversed (each pair
+// cancels in a winding number: a hole where the sign must still hold).
+PolygonMesh misoriented_sphere() {
+    PolygonMesh m = shapes::icosphere(3);
+    PolygonMesh out;
+    out.vertices = m.vertices;
+    for (std::size_t f = 0; f < m.face_count(); ++f) {
+        const std::uint32_t* c = m.indices.data() + m.offsets[f];
+        if (f % 5 == 0) out.add_face({c[0], c[2], c[1]});
+        else out.add_face({c[0], c[1], c[2]});
+        if (f == 7 || f == 300) out.add_face({c[0], c[2], c[1]});
+    }
+    return out;
+}
+
+double sphere_sign_accuracy(const MeshSdfResult& r, const Points& q, double margin) {
+    std::size_t far = 0, right = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double exact = q.row(i).norm() - 1;
+        if (std::abs(exact) < margin) continue;
+        ++far;
+        right += (r.phi[std::size_t(i)] < 0) == (exact < 0);
+    }
+    return double(right) / double(far);
+}
+
+}  // namespace
+
+TEST_CASE("mesh_sdf signs: pseudonormals on a clean mesh, repaired winding numbers on a broken one, the diagnosis") {
+    const Points q = uniform_queries(3000, 1.6, 21);
+    MeshSdfOptions o;
+    o.device = "cpu";
+    // Clean: auto takes pseudonormals, right at every query off the surface (the icosphere's
+    // flattening is below 0.02 at level 3).
+    const PolygonMesh sphere = shapes::icosphere(3);
+    const MeshSdfResult clean = mesh_sdf(sphere, q, o);
+    CHECK(clean.sign == SdfSign::pseudonormal);
+    CHECK(clean.winding.empty());
+    CHECK(sphere_sign_accuracy(clean, q, 0.02) == 1.0);
+    // The same sphere as a soup (every face its own three vertices): welded, it is clean again.
+    PolygonMesh soup;
+    soup.vertices.resize(Eigen::Index(3 * sphere.face_count()), 3);
+    for (std::size_t f = 0; f < sphere.face_count(); ++f) {
+        for (int k = 0; k < 3; ++k)
+            soup.vertices.row(Eigen::Index(3 * f + std::size_t(k))) = sphere.vertices.row(sphere.indices[sphere.offsets[f] + std::size_t(k)]);
+        soup.add_face({std::uint32_t(3 * f), std::uint32_t(3 * f + 1), std::uint32_t(3 * f + 2)});
+    }
+    const MeshSdfResult welded = mesh_sdf(soup, q, o);
+    CHECK(welded.sign == SdfSign::pseudonormal);
+    CHECK(welded.diagnosis.find(std::to_string(3 * sphere.face_count() - std::size_t(sphere.vertices.rows())) +
+                                " vertices at another's position") != std::string::npos);
+    for (std::size_t i = 0; i < clean.phi.size(); ++i) CHECK(welded.phi[i] == clean.phi[i]);
+
+    // Broken orientation: plain winding numbers go wrong, the repaired ones do not.
+    const PolygonMesh bad = misoriented_sphere();
+    const MeshSdfResult repaired = mesh_sdf(bad, q, o);
+    CHECK(repaired.sign == SdfSign::winding);
+    CHECK(repaired.reoriented == shapes::icosphere(3).face_count() / 5);  // the reversed fifth (duplicates are dropped)
+    CHECK(repaired.diagnosis.find("2 duplicated triangles") != std::string::npos);
+    CHECK(sphere_sign_accuracy(repaired, q, 0.02) == 1.0);
+    o.sign = SdfSign::winding;
+    const MeshSdfResult plain = mesh_sdf(bad, q, o);
+    MESSAGE("winding numbers of the faces as given: sign right at " << sphere_sign_accuracy(plain, q, 0.02));
+    CHECK(sphere_sign_accuracy(plain, q, 0.02) < 1.0);
+    // Pseudonormals asked for on it: defined, but wrong near the reversed faces.
+    o.sign = SdfSign::pseudonormal;
+    CHECK(sphere_sign_accuracy(mesh_sdf(bad, q, o), q, 0.02) < 1.0);
+    // Every sign gives the same distance.
+    for (std::size_t i = 0; i < plain.phi.size(); ++i) CHECK(std::abs(plain.phi[i]) == doctest::Approx(std::abs(repaired.phi[i])).epsilon(1e-12));
+}
+
+TEST_CASE("mesh_sdf --sign shm: the grid SHM's sign on a broken mesh") {
+    const auto torus_shape = shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2);
+    shapes::MeshCorruption c;
+    c.holes = 3;
+    c.hole_area = 0.1;
+    c.flip_fraction = 0.1;
+    const PolygonMesh broken = shapes::corrupt(shapes::mesh(*torus_shape, 48), c, 5);
+    const Points q = uniform_queries(test::sized(3000, 600), 1.0, 13);
+    MeshSdfOptions o;
+    o.device = "cpu";
+    o.sign = SdfSign::shm;
+    o.shm_grid = 48;
+    const MeshSdfResult r = mesh_sdf(broken, q, o);
+    CHECK(r.sign == SdfSign::shm);
+    std::size_t far = 0, right = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double exact = torus_shape->sdf(q.row(i).transpose());
+        if (std::abs(exact) < 0.05) continue;
+        ++far;
+        right += (r.phi[std::size_t(i)] < 0) == (exact < 0);
+    }
+    MESSAGE("shm sign right at " << right << " of " << far);
+    CHECK(double(right) >= 0.97 * double(far));
+    o.shm_grid = 4;
+    CHECK_THROWS_AS(mesh_sdf(broken, q, o), Error);
+}
+
 TEST_CASE("mesh_sdf: the winding numbers may run on the device; the result is the CPU's") {
     const PolygonMesh sphere = shapes::icosphere(2);
     const Points q = uniform_queries(300, 1.5, 3);
     MeshSdfOptions cpu, gpu;
     cpu.device = "cpu";
     gpu.device = "gpu";
+    cpu.sign = gpu.sign = SdfSign::winding;  // (auto would take pseudonormals on this clean sphere)
     const MeshSdfResult a = mesh_sdf(sphere, q, cpu), b = mesh_sdf(sphere, q, gpu);
+    REQUIRE(a.winding.size() == std::size_t(q.rows()));
+    REQUIRE(b.winding.size() == std::size_t(q.rows()));
     for (std::size_t i = 0; i < a.phi.size(); ++i) {
         CHECK(std::abs(std::abs(a.phi[i]) - std::abs(b.phi[i])) == 0.0);  // the distance is the CPU's either way
         CHECK(std::abs(a.winding[i] - b.winding[i]) < 1e-4);

@@ -1,6 +1,7 @@
 // gsd/sdf.hpp — signed distance to a triangle mesh as it comes (holes, flipped faces, duplicates,
-// self-intersections): the exact distance to its triangles, signed by its generalized winding
-// number (inside where w > ½), so that the sign survives what breaks ray parity and
+// self-intersections): the exact distance to its triangles, signed by pseudonormals where the
+// mesh is clean and by its generalized winding number (inside where w > ½, its faces' orientation
+// repaired first) where it is not, so that the sign survives what breaks ray parity and
 // pseudonormals. docs/sdf.md has the method, the options and measurements.
 //
 //   gsd::MeshSdfResult r = gsd::mesh_sdf(gsd::io::read_mesh("scan.obj"), queries);
@@ -21,32 +22,48 @@ namespace gsd {
 
 /// How the distance gets its sign.
 enum class SdfSign {
-    winding,  ///< negative where the generalized winding number exceeds inside_threshold
-    none,     ///< unsigned distance
+    /// Diagnose the mesh: pseudonormal if it is closed, manifold, consistently oriented, without
+    /// duplicated triangles and its components apart; else the winding number of its triangles
+    /// with duplicates dropped and each manifold patch turned to one orientation (the one most of
+    /// its area had). MeshSdfResult::sign says which, `diagnosis` why.
+    automatic,
+    winding,       ///< negative where the generalized winding number of the faces as given exceeds inside_threshold
+    pseudonormal,  ///< angle-weighted pseudonormals at the nearest point (exact on clean meshes only)
+    shm,           ///< the sign of the grid Signed Heat Method's φ (gsd/shm.hpp) on a shm_grid³ grid
+    none,          ///< unsigned distance
 };
+/// "auto" | "winding" | "pseudonormal" | "shm" | "none", and back.
+GSD_EXPORT SdfSign sdf_sign_from_name(const std::string& name);
+GSD_EXPORT const char* sdf_sign_name(SdfSign sign);
 
-/// Where it runs (Execution: the winding numbers' device; the distance is computed on the CPU)
-/// and how the sign is decided.
+/// Where it runs (Execution: the winding numbers' and SHM's device; the distance is computed on
+/// the CPU) and how the sign is decided.
 struct MeshSdfOptions : Execution {
-    SdfSign sign = SdfSign::winding;
+    SdfSign sign = SdfSign::automatic;
     /// Inside where w > this (winding numbers are ≈ 1 inside a closed mesh, 0 outside, and
     /// fractional near holes): ½ splits the difference. In (0, 1).
     double inside_threshold = 0.5;
+    /// SdfSign::shm: the grid's nodes per axis, on the mesh's bounding cube + 10 % (queries
+    /// outside it are outside). In [8, 512].
+    int shm_grid = 64;
 };
 
 struct MeshSdfResult {
     std::vector<double> phi;      ///< per query: ± distance to the nearest triangle (negative inside)
-    std::vector<double> winding;  ///< per query: the winding number that set the sign (empty for SdfSign::none)
+    std::vector<double> winding;  ///< per query: the winding number that set the sign (winding signs only)
     std::size_t triangles = 0;    ///< triangles the distance was taken to (polygons fanned)
     std::size_t degenerate = 0;   ///< zero-area triangles left out (their points lie on other triangles' sides or nowhere)
-    std::string device;           ///< where the winding numbers ran ("cpu" or a Vulkan device)
+    SdfSign sign = SdfSign::none; ///< the sign used (automatic resolved)
+    std::size_t reoriented = 0;   ///< triangles the automatic sign turned before summing winding numbers
+    std::string diagnosis;        ///< what the mesh check found, and the sign it led to
+    std::string device;           ///< where the winding numbers or SHM ran ("cpu" or a Vulkan device)
 };
 
 /// Signed distance from each query to the mesh: |φ| is the exact distance to the nearest of the
 /// mesh's non-degenerate triangles (point–triangle distance, a kd-tree over the triangles pruned
-/// by the nearest found so far, OpenMP), the sign from the mesh's fast winding numbers
-/// (gsd/sums.hpp). Any mesh state; throws Error for an invalid mesh (gsd::validate), a mesh of
-/// degenerate faces only, non-finite queries or options out of range.
+/// by the nearest found so far, OpenMP), the sign as MeshSdfOptions::sign says. Any mesh state;
+/// throws Error for an invalid mesh (gsd::validate), a mesh of degenerate faces only, non-finite
+/// queries or options out of range.
 GSD_EXPORT MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& options = {},
                                   const ProgressFn& progress = {});
 
@@ -75,6 +92,8 @@ struct SdfSamples {
     double radius = 0;
     std::size_t triangles = 0;    ///< as in MeshSdfResult
     std::size_t degenerate = 0;
+    SdfSign sign = SdfSign::none;
+    std::string diagnosis;
     std::string device;
 };
 

@@ -1,6 +1,7 @@
 // The field renderer: camera, the CPU reference march (double precision), shading, and the
 // choice between it and the shaders (render_gpu.cpp).
 #include "render/render.hpp"
+#include "core/grid_sampling.hpp"
 
 #include <gsd/baselines.hpp>
 #include "gpu/on_device.hpp"
@@ -101,36 +102,6 @@ Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& eye, cons
 
 namespace {
 
-// Trilinear value (and gradient of the interpolant) of a grid, as render_grid.comp samples it.
-double trilinear(const GridSpec& grid, const std::vector<float>& v, const Eigen::Vector3d& x, Eigen::Vector3d* grad) {
-    const int n[3] = {grid.nx, grid.ny, grid.nz};
-    int c[3];
-    double f[3], h[3];
-    for (int a = 0; a < 3; ++a) {
-        h[a] = (grid.box.hi[a] - grid.box.lo[a]) / (n[a] - 1);
-        // Clamped in double first: a hit far outside the grid's box (a --color grid of another
-        // extent) would otherwise convert a number past int's range.
-        const double s = std::clamp((x[a] - grid.box.lo[a]) / h[a], -1.0, double(n[a]));
-        c[a] = std::clamp(int(std::floor(s)), 0, n[a] - 2);
-        f[a] = std::clamp(s - c[a], 0.0, 1.0);
-    }
-    auto at = [&](int i, int j, int k) {
-        return double(v[(std::size_t(c[0] + i) * std::size_t(n[1]) + std::size_t(c[1] + j)) * std::size_t(n[2]) +
-                        std::size_t(c[2] + k)]);
-    };
-    auto mix = [](double a, double b, double t) { return a + (b - a) * t; };
-    const double v000 = at(0, 0, 0), v100 = at(1, 0, 0), v010 = at(0, 1, 0), v110 = at(1, 1, 0);
-    const double v001 = at(0, 0, 1), v101 = at(1, 0, 1), v011 = at(0, 1, 1), v111 = at(1, 1, 1);
-    const double a00 = mix(v000, v100, f[0]), a10 = mix(v010, v110, f[0]);
-    const double a01 = mix(v001, v101, f[0]), a11 = mix(v011, v111, f[0]);
-    const double b0 = mix(a00, a10, f[1]), b1 = mix(a01, a11, f[1]);
-    if (grad) {
-        const double dx0 = mix(v100 - v000, v110 - v010, f[1]), dx1 = mix(v101 - v001, v111 - v011, f[1]);
-        *grad = {mix(dx0, dx1, f[2]) / h[0], mix(a10 - a00, a11 - a01, f[2]) / h[1], (b1 - b0) / h[2]};
-    }
-    return mix(b0, b1, f[2]);
-}
-
 void check_options(const FieldRenderOptions& o) {
     auto bad = [](const char* field, const std::string& why) { throw Error(field, why); };
     if (o.width < 1 || o.height < 1 || o.width > 16384 || o.height > 16384)
@@ -179,7 +150,7 @@ RenderedField shade(const std::vector<float>& hits, const Camera& cam, const Fie
         ++hit_count;
         if (o.color_grid) {
             const Eigen::Vector3d x = cam.eye + double(hits[4 * p]) * cam.ray(int(p % std::size_t(cam.width)), int(p / std::size_t(cam.width)));
-            color_value[p] = trilinear(*o.color_grid, *o.color_values, x, nullptr);
+            color_value[p] = detail::trilinear(*o.color_grid, *o.color_values, x, nullptr);
             if (o.color_range == 0 && std::isfinite(color_value[p])) range = std::max(range, std::abs(color_value[p]));
         }
     }
@@ -374,7 +345,7 @@ RenderedField render_field(const GridSpec& grid, const std::vector<float>& value
         },
         [&] {
             return render::Sampler([&](const Eigen::Vector3d& x, Eigen::Vector3d* g) {
-                return render::trilinear(grid, values, x, g);
+                return detail::trilinear(grid, values, x, g);
             });
         },
         progress);

@@ -635,7 +635,8 @@ double SumTree::element_distance(const Vec3& x, std::uint32_t j) const {
     return std::sqrt(sums::point_triangle_distance2(x, vec(c), vec(c + 3), vec(c + 6)));
 }
 
-void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const {
+void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
+                            std::uint32_t* each) const {
     constexpr int L = kScreenedLanes;
     const std::vector<Hot>& records = hot();
     alignas(32) double q[3][L], best2[L];
@@ -696,6 +697,8 @@ void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::
         stack[top++] = {a_first ? a : b, live};
     }
     for (int l = 0; l < n; ++l) r_min[l] = std::sqrt(best2[l]);
+    if (each)
+        for (int l = 0; l < n; ++l) each[l] = best[l];
     if (nearest) *nearest = best[n - 1];
 }
 

@@ -173,7 +173,9 @@ public:
     /// nearest_distance() for a packet of n ≤ kScreenedLanes nearby queries (p: 3n coordinates),
     /// the walk shared as screened()'s is: r_min[l] for each; r_bound (may be null) and nearest as
     /// for screened(). Exact for every query.
-    void nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min) const;
+    /// each (may be null): n out, every query's nearest element (tree order).
+    void nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
+                       std::uint32_t* each = nullptr) const;
 
 private:
     /// Element j's part of screened() at x: the triangle refined until its pieces pass; an

@@ -6,6 +6,7 @@
 #include "spatial/morton.hpp"
 #include "sums/sum_tree.hpp"
 #include "sums/sums_gpu.hpp"
+#include "sums/winding.hpp"
 
 #include <Eigen/Geometry>
 
@@ -87,6 +88,10 @@ void check_options(const WindingOptions& opt) {
     if (!(opt.tolerance >= 0) || !std::isfinite(opt.tolerance)) throw Error("WindingOptions::tolerance", "the error tolerance must be ≥ 0");
 }
 
+}  // namespace
+
+namespace sums {
+
 // The sums over a tree already built: the GPU if the device choice gives one, else the CPU.
 WindingResult winding_on_tree(const sums::SumTree& tree, PointsView queries, const WindingOptions& opt,
                               const ProgressFn& progress) {
@@ -165,7 +170,13 @@ WindingResult winding_on_tree(const sums::SumTree& tree, PointsView queries, con
     return out;
 }
 
-}  // namespace
+
+WindingResult winding_numbers(const SumTree& tree, PointsView queries, const WindingOptions& opt, const ProgressFn& progress) {
+    check_options(opt);
+    return winding_on_tree(tree, queries, opt, progress);
+}
+
+}  // namespace sums
 
 WindingResult fast_winding_numbers(const OrientedElements& elements, PointsView queries, const WindingOptions& opt,
                                    const ProgressFn& progress) {

@@ -1288,6 +1288,8 @@ def mesh_cmds(seed):
     return [
         C("shm grid {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
         C("winding {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("sdf {in} --grid 8 BOX? -o out.npy DEV", "out.npy"),
+        C("sdf {in} --samples 64 --seed 1 -o out.npy DEV", "out.npy", "out.npy.json"),
         C("shm grid {in} --grid 8 BOX? -o out.vdb DEV", "out.vdb"),
         C("swn {in} --curves %s -o labels.npy" % curve, "labels.npy"),
         C("shm surface {in} --curves %s -o phi.npy" % curve, "phi.npy"),

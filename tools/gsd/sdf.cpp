@@ -29,7 +29,7 @@ struct SdfArgs {
     std::size_t samples = 0;
     std::vector<double> near_sigma = SdfSampleOptions{}.near_sigma;
     SdfSampleOptions options;
-    std::string sign = "winding";
+    std::string sign = "auto";
     // --batch
     std::string batch, out_dir, shard;
     bool dry_run = false;
@@ -76,7 +76,8 @@ void sdf_samples(const SdfArgs& a, const PolygonMesh& mesh, const std::string& o
     if (globals().verbose)
         note(std::to_string(a.samples) + " samples of " + std::to_string(s.triangles) + " triangles in " +
              fmt("%.3f s", seconds_since(t0)) + "; bounding sphere center " + fmt("%.9g", s.center.x()) + " " +
-             fmt("%.9g", s.center.y()) + " " + fmt("%.9g", s.center.z()) + ", radius " + fmt("%.9g", s.radius));
+             fmt("%.9g", s.center.y()) + " " + fmt("%.9g", s.center.z()) + ", radius " + fmt("%.9g", s.radius) +
+             "; sign: " + sdf_sign_name(s.sign) + "; " + s.diagnosis);
     write_samples(out, s, a);
     note("wrote " + out);
 }
@@ -84,9 +85,8 @@ void sdf_samples(const SdfArgs& a, const PolygonMesh& mesh, const std::string& o
 void sdf_field(const SdfArgs& a, const PolygonMesh& mesh, const std::string& out) {
     auto eval = [&](const Points& q, const ProgressFn& p) {
         MeshSdfResult r = mesh_sdf(mesh, q, a.options, p);
-        if (globals().verbose || r.degenerate)
-            note(std::to_string(r.triangles) + " triangles" +
-                 (r.degenerate ? ", " + std::to_string(r.degenerate) + " degenerate (zero-area) ones left out" : ""));
+        if (globals().verbose) note("sign: " + std::string(sdf_sign_name(r.sign)) + "; " + r.diagnosis);
+        else if (r.degenerate) note(std::to_string(r.degenerate) + " degenerate (zero-area) triangles left out");
         FieldValues v;
         v.phi.assign(r.phi.begin(), r.phi.end());
         v.device = r.device;
@@ -268,7 +268,7 @@ void check(SdfArgs& a) {
         throw CLI::ValidationError("--output", "samples are written as .npy: (N, 4) rows x y z sdf");
     if (!(a.options.inside_threshold > 0 && a.options.inside_threshold < 1))
         throw Error("--inside", "must be strictly between 0 and 1");
-    a.options.sign = a.sign == "none" ? SdfSign::none : SdfSign::winding;
+    a.options.sign = sdf_sign_from_name(a.sign);
     a.options.near_sigma = a.near_sigma;
     if (!a.output.empty()) check_grid_output(a.output, a.domain.is_grid());
 }
@@ -303,8 +303,13 @@ void add_sdf(CLI::App& app) {
                   "OUT.json has the center and radius)");
     sdf->add_option("--seed", a->options.seed, "With --samples: the random stream (same seed, same samples)")
         ->capture_default_str();
-    sdf->add_option("--sign", a->sign, "winding: negative where the winding number exceeds --inside; none: unsigned distance")
-        ->check(CLI::IsMember({"winding", "none"}))->capture_default_str();
+    sdf->add_option("--sign", a->sign,
+                    "auto: pseudonormals on a clean closed mesh, else winding numbers of the faces with their orientation "
+                    "repaired (-v says which and why); winding: the winding number of the faces as given exceeds --inside; "
+                    "pseudonormal: exact on clean meshes only; shm: the grid Signed Heat Method's sign; none: unsigned")
+        ->check(CLI::IsMember({"auto", "winding", "pseudonormal", "shm", "none"}))->capture_default_str();
+    sdf->add_option("--shm-grid", a->options.shm_grid, "With --sign shm: the SHM grid's nodes per axis")
+        ->check(CLI::Range(8, 512))->capture_default_str();
     sdf->add_option("--inside", a->options.inside_threshold, "Winding number above which a point is inside")
         ->check(finite_number())->check(CLI::Range(0.0, 1.0))->capture_default_str();
     sdf->add_option("--device", a->options.device, "The winding numbers' device: auto | gpu | cpu | device index | name substring");

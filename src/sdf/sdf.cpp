@@ -1,10 +1,16 @@
-// Signed distance to a mesh as it comes: the sum tree's exact nearest-triangle search for the
-// distance, its fast winding numbers for the sign (gsd/sdf.hpp).
+// Signed distance to a mesh as it comes (gsd/sdf.hpp): the sum tree's exact nearest-triangle
+// search for the distance; the sign from pseudonormals, the tree's fast winding numbers or the
+// grid SHM, chosen by diagnosing the mesh; training samples.
 #include <gsd/sdf.hpp>
+#include <gsd/shm.hpp>
 #include <gsd/sums.hpp>
 
+#include "core/grid_sampling.hpp"
+#include "sdf/pseudonormals.hpp"
+#include "sdf/triangles.hpp"
 #include "spatial/morton.hpp"
 #include "sums/sum_tree.hpp"
+#include "sums/winding.hpp"
 
 #include <Eigen/Geometry>
 
@@ -20,6 +26,7 @@ namespace {
 void check(const MeshSdfOptions& o, PointsView queries) {
     if (!(o.inside_threshold > 0 && o.inside_threshold < 1))
         throw Error("MeshSdfOptions::inside_threshold", "must be between 0 and 1 (winding numbers are ≈ 1 inside, 0 outside)");
+    if (o.shm_grid < 8 || o.shm_grid > 512) throw Error("MeshSdfOptions::shm_grid", "must be between 8 and 512");
     for (Eigen::Index i = 0; i < queries.rows(); ++i)
         if (!queries.row(i).allFinite()) throw Error("queries", "query " + std::to_string(i) + " is not finite");
 }
@@ -29,10 +36,12 @@ void check(const MeshSdfOptions& o, PointsView queries) {
 // same nodes), each packet's search started from the previous one's nearest triangle, whose
 // distance prunes it; in blocks, for progress. In input order, 10⁶ random queries around a
 // 9·10⁴-face mesh took 3.5× as long (docs/sdf.md).
-std::vector<double> distances(const sums::SumTree& tree, PointsView q, const ProgressFn& progress) {
+std::vector<double> distances(const sums::SumTree& tree, PointsView q, std::vector<std::uint32_t>* nearest_of,
+                              const ProgressFn& progress) {
     constexpr int L = sums::SumTree::kScreenedLanes;
     const std::size_t n = std::size_t(q.rows());
     std::vector<double> d(n);
+    if (nearest_of) nearest_of->resize(n);
     const std::vector<std::uint32_t> order = spatial::morton_order(q);
     constexpr std::size_t kBlock = std::size_t(1) << 16;  // a multiple of L
     for (std::size_t first = 0; first < n; first += kBlock) {
@@ -42,14 +51,17 @@ std::vector<double> distances(const sums::SumTree& tree, PointsView q, const Pro
         {
             std::uint32_t nearest = std::uint32_t(tree.size());  // none yet
             double p[3 * L], r[L];
+            std::uint32_t each[L];
 #pragma omp for schedule(static)
             for (std::size_t k = 0; k < packets; ++k) {
                 const std::size_t i0 = first + k * L;
                 const int m = int(std::min<std::size_t>(L, last - i0));
                 for (int l = 0; l < m; ++l)
                     for (int a = 0; a < 3; ++a) p[3 * l + a] = q(Eigen::Index(order[i0 + std::size_t(l)]), a);
-                tree.nearest_lanes(p, m, nullptr, &nearest, r);
+                tree.nearest_lanes(p, m, nullptr, &nearest, r, nearest_of ? each : nullptr);
                 for (int l = 0; l < m; ++l) d[order[i0 + std::size_t(l)]] = r[l];
+                if (nearest_of)
+                    for (int l = 0; l < m; ++l) (*nearest_of)[order[i0 + std::size_t(l)]] = tree.order()[each[l]];
             }
         }
         if (progress) progress("distance", double(last) / double(n));
@@ -130,6 +142,42 @@ private:
     std::vector<std::array<std::uint32_t, 3>> corners_;
 };
 
+// The triangles as oriented elements for the sum tree, in their order (so that the tree's
+// order() indexes t.triangles).
+OrientedElements elements_of(const sdf::Triangles& t) {
+    OrientedElements e;
+    const auto n = Eigen::Index(t.triangles.size());
+    e.corners.resize(3 * n, 3);
+    e.vectors.resize(n, 3);
+    for (Eigen::Index f = 0; f < n; ++f) {
+        const auto& v = t.triangles[std::size_t(f)];
+        const Eigen::Vector3d a = t.vertices.row(v[0]), b = t.vertices.row(v[1]), c = t.vertices.row(v[2]);
+        e.corners.row(3 * f) = a.transpose();
+        e.corners.row(3 * f + 1) = b.transpose();
+        e.corners.row(3 * f + 2) = c.transpose();
+        e.vectors.row(f) = (0.5 * (b - a).cross(c - a)).transpose();
+    }
+    return e;
+}
+
+// Inside where the grid SHM's φ (the mesh as given: SHM needs no repair) is negative, sampled
+// trilinearly; queries outside the grid's box are outside. Returns the device that ran it.
+std::string shm_inside(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& o,
+                       std::vector<std::uint8_t>& inside, const ProgressFn& progress) {
+    const GridSpec grid = GridSpec::cube(o.shm_grid, padded_cube(bounding_box(mesh.vertices)));
+    ShmOptions so;
+    so.device = o.device;
+    so.chunk_size = o.chunk_size;
+    const ShmResult shm = SignedHeatGrid(shm_source(mesh), grid, so).solve(progress);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(queries.rows()); ++i) {
+        const Eigen::Vector3d x = queries.row(i).transpose();
+        const bool in_box = (x.array() >= grid.box.lo.array()).all() && (x.array() <= grid.box.hi.array()).all();
+        inside[std::size_t(i)] = in_box && detail::trilinear(grid, shm.phi, x, nullptr) < 0;
+    }
+    return shm.device;
+}
+
 }  // namespace
 
 MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& options,
@@ -137,25 +185,70 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
     validate(mesh, "mesh");
     check(options, queries);
     MeshSdfResult r;
-    for_each_triangle(mesh, [&](std::size_t, std::uint32_t, std::uint32_t, std::uint32_t) { ++r.triangles; });
-    OrientedElements elements = OrientedElements::from_mesh(mesh);  // drops zero-area triangles
-    r.degenerate = r.triangles - elements.size();
-    r.triangles = elements.size();
+    sdf::Triangles t = sdf::check_triangles(mesh);
+    r.degenerate = t.report.degenerate;
+    r.sign = options.sign;
+    r.diagnosis = t.report.summary();
+    if (options.sign == SdfSign::automatic) {
+        r.sign = t.report.clean() ? SdfSign::pseudonormal : SdfSign::winding;
+        if (r.sign == SdfSign::winding) r.reoriented = sdf::repair_orientation(t);
+        r.diagnosis += t.report.clean() ? ": clean, signed by pseudonormals"
+                                        : ": signed by winding numbers, " + std::to_string(r.reoriented) +
+                                              " triangles turned to their patch's orientation" +
+                                              (t.report.duplicates ? ", duplicates dropped" : "");
+    }
+    r.triangles = t.triangles.size();
     r.device = "cpu";
     if (queries.rows() == 0) return r;
-    const sums::SumTree tree(elements);
-    r.phi = distances(tree, queries, progress);
-    if (options.sign == SdfSign::winding) {
-        WindingOptions w;
-        w.device = options.device;
-        w.chunk_size = options.chunk_size;
-        WindingResult wr = WindingField(std::move(elements), w).winding_numbers(queries, progress);
-        for (std::size_t i = 0; i < r.phi.size(); ++i)
-            if (wr.w[i] > options.inside_threshold) r.phi[i] = -r.phi[i];
-        r.winding = std::move(wr.w);
-        r.device = wr.device;
+    const sums::SumTree tree(elements_of(t));
+    std::vector<std::uint32_t> nearest;
+    r.phi = distances(tree, queries, r.sign == SdfSign::pseudonormal ? &nearest : nullptr, progress);
+    std::vector<std::uint8_t> inside(r.phi.size(), 0);
+    switch (r.sign) {
+        case SdfSign::automatic:  // resolved above
+        case SdfSign::none: return r;
+        case SdfSign::pseudonormal: {
+            const sdf::Pseudonormals normals(t);
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(r.phi.size()); ++i)
+                inside[std::size_t(i)] = normals.inside(queries.row(i).transpose(), nearest[std::size_t(i)]);
+            break;
+        }
+        case SdfSign::winding: {
+            WindingOptions w;
+            w.device = options.device;
+            w.chunk_size = options.chunk_size;
+            WindingResult wr = sums::winding_numbers(tree, queries, w, progress);
+            for (std::size_t i = 0; i < r.phi.size(); ++i) inside[i] = wr.w[i] > options.inside_threshold;
+            r.winding = std::move(wr.w);
+            r.device = wr.device;
+            break;
+        }
+        case SdfSign::shm: r.device = shm_inside(mesh, queries, options, inside, progress); break;
     }
+    for (std::size_t i = 0; i < r.phi.size(); ++i)
+        if (inside[i]) r.phi[i] = -r.phi[i];
     return r;
+}
+
+SdfSign sdf_sign_from_name(const std::string& name) {
+    if (name == "auto") return SdfSign::automatic;
+    if (name == "winding") return SdfSign::winding;
+    if (name == "pseudonormal") return SdfSign::pseudonormal;
+    if (name == "shm") return SdfSign::shm;
+    if (name == "none") return SdfSign::none;
+    throw Error("sign", "must be auto, winding, pseudonormal, shm or none, not '" + name + "'");
+}
+
+const char* sdf_sign_name(SdfSign sign) {
+    switch (sign) {
+        case SdfSign::automatic: return "auto";
+        case SdfSign::winding: return "winding";
+        case SdfSign::pseudonormal: return "pseudonormal";
+        case SdfSign::shm: return "shm";
+        case SdfSign::none: return "none";
+    }
+    return "?";
 }
 
 SdfSamples sample_sdf(const PolygonMesh& mesh, std::size_t count, const SdfSampleOptions& options,
@@ -190,6 +283,8 @@ SdfSamples sample_sdf(const PolygonMesh& mesh, std::size_t count, const SdfSampl
     out.phi = std::move(r.phi);
     out.triangles = r.triangles;
     out.degenerate = r.degenerate;
+    out.sign = r.sign;
+    out.diagnosis = std::move(r.diagnosis);
     out.device = std::move(r.device);
     if (options.normalize) {
         out.points = ((out.points.rowwise() - out.center.transpose()) / out.radius).eval();
