@@ -25,13 +25,17 @@ enum class SdfSign {
     /// Diagnose the mesh: pseudonormal if it is closed, manifold, consistently oriented, without
     /// duplicated triangles and its components apart; else the winding number of its triangles
     /// with duplicates dropped and each manifold patch turned to one orientation (the one most of
-    /// its area had). MeshSdfResult::sign says which, `diagnosis` why.
+    /// its area had), and where the mesh has holes, the grid SHM's sign (shm_grid) wherever that
+    /// winding number is within kSdfAmbiguousWinding of ½ (in front of large holes, where w
+    /// says little). MeshSdfResult::sign says which, `diagnosis` why.
     automatic,
     winding,       ///< negative where the generalized winding number of the faces as given exceeds inside_threshold
     pseudonormal,  ///< angle-weighted pseudonormals at the nearest point (exact on clean meshes only)
     shm,           ///< the sign of the grid Signed Heat Method's φ (gsd/shm.hpp) on a shm_grid³ grid
     none,          ///< unsigned distance
 };
+/// SdfSign::automatic on a mesh with holes: winding numbers this close to ½ take SHM's sign.
+constexpr double kSdfAmbiguousWinding = 0.2;
 /// "auto" | "winding" | "pseudonormal" | "shm" | "none", and back.
 GSD_EXPORT SdfSign sdf_sign_from_name(const std::string& name);
 GSD_EXPORT const char* sdf_sign_name(SdfSign sign);
@@ -45,7 +49,7 @@ struct MeshSdfOptions : Execution {
     double inside_threshold = 0.5;
     /// SdfSign::shm: the grid's nodes per axis, on the mesh's bounding cube + 10 % (queries
     /// outside it are outside). In [8, 512].
-    int shm_grid = 64;
+    int shm_grid = 32;
 };
 
 struct MeshSdfResult {
@@ -55,6 +59,7 @@ struct MeshSdfResult {
     std::size_t degenerate = 0;   ///< zero-area triangles left out (their points lie on other triangles' sides or nowhere)
     SdfSign sign = SdfSign::none; ///< the sign used (automatic resolved)
     std::size_t reoriented = 0;   ///< triangles the automatic sign turned before summing winding numbers
+    std::size_t shm_decided = 0;  ///< queries whose sign the automatic sign took from SHM
     std::string diagnosis;        ///< what the mesh check found, and the sign it led to
     std::string device;           ///< where the winding numbers or SHM ran ("cpu" or a Vulkan device)
 };

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 namespace gsd {
@@ -142,6 +143,12 @@ private:
     std::vector<std::array<std::uint32_t, 3>> corners_;
 };
 
+std::string fmt_number(double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return b;
+}
+
 // The triangles as oriented elements for the sum tree, in their order (so that the tree's
 // order() indexes t.triangles).
 OrientedElements elements_of(const sdf::Triangles& t) {
@@ -161,16 +168,20 @@ OrientedElements elements_of(const sdf::Triangles& t) {
 }
 
 // Inside where the grid SHM's φ (the mesh as given: SHM needs no repair) is negative, sampled
-// trilinearly; queries outside the grid's box are outside. Returns the device that ran it.
+// trilinearly; queries outside the grid's box are outside. For the queries listed in `only`
+// (all if null). Returns the device that ran it.
 std::string shm_inside(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& o,
-                       std::vector<std::uint8_t>& inside, const ProgressFn& progress) {
+                       std::vector<std::uint8_t>& inside, const ProgressFn& progress,
+                       const std::vector<std::uint32_t>* only = nullptr) {
     const GridSpec grid = GridSpec::cube(o.shm_grid, padded_cube(bounding_box(mesh.vertices)));
     ShmOptions so;
     so.device = o.device;
     so.chunk_size = o.chunk_size;
     const ShmResult shm = SignedHeatGrid(shm_source(mesh), grid, so).solve(progress);
+    const auto n = std::ptrdiff_t(only ? only->size() : std::size_t(queries.rows()));
 #pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(queries.rows()); ++i) {
+    for (std::ptrdiff_t k = 0; k < n; ++k) {
+        const auto i = only ? Eigen::Index((*only)[std::size_t(k)]) : Eigen::Index(k);
         const Eigen::Vector3d x = queries.row(i).transpose();
         const bool in_box = (x.array() >= grid.box.lo.array()).all() && (x.array() <= grid.box.hi.array()).all();
         inside[std::size_t(i)] = in_box && detail::trilinear(grid, shm.phi, x, nullptr) < 0;
@@ -222,6 +233,17 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
             for (std::size_t i = 0; i < r.phi.size(); ++i) inside[i] = wr.w[i] > options.inside_threshold;
             r.winding = std::move(wr.w);
             r.device = wr.device;
+            if (options.sign == SdfSign::automatic && t.report.boundary_edges > 0) {
+                // Holes: where w is near ½ it says little (in front of a large hole, inside a
+                // dome whose cap is gone); SHM, which completes the surface across holes, decides.
+                std::vector<std::uint32_t> ambiguous;
+                for (std::size_t i = 0; i < r.phi.size(); ++i)
+                    if (std::abs(r.winding[i] - 0.5) < kSdfAmbiguousWinding) ambiguous.push_back(std::uint32_t(i));
+                if (!ambiguous.empty()) shm_inside(mesh, queries, options, inside, progress, &ambiguous);
+                r.shm_decided = ambiguous.size();
+                r.diagnosis += "; holes: SHM decided the " + std::to_string(ambiguous.size()) +
+                               " queries whose winding number was within " + fmt_number(kSdfAmbiguousWinding) + " of 1/2";
+            }
             break;
         }
         case SdfSign::shm: r.device = shm_inside(mesh, queries, options, inside, progress); break;
