@@ -394,24 +394,27 @@ PYBIND11_MODULE(_gsd, m) {
 
     // ---- signed distance to a mesh ----
     m.def("mesh_sdf", [](const DoubleArray& vertices, const py::object& faces, const DoubleArray& queries,
-                         const std::string& sign, double inside, const std::string& device) {
+                         const std::string& sign, double inside, const std::string& device, bool gradient) -> py::object {
         const PolygonMesh mesh = mesh_from(vertices, faces);
         const Points q = points_from(queries, "queries");
         MeshSdfOptions o;
         o.sign = sdf_sign_from(sign);
         o.inside_threshold = inside;
         o.device = device;
+        o.gradient = gradient;
         MeshSdfResult r;
         {
             py::gil_scoped_release nogil;
             r = mesh_sdf(mesh, q, o);
         }
-        return to_numpy(std::move(r.phi), {py::ssize_t(q.rows())});
+        py::array_t<double> phi = to_numpy(std::move(r.phi), {py::ssize_t(q.rows())});
+        if (!gradient) return phi;
+        return py::make_tuple(phi, to_numpy(std::move(r.gradient), {py::ssize_t(q.rows()), 3}));
     }, py::arg("vertices"), py::arg("faces"), py::arg("queries"), py::arg("sign") = "auto",
-       py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "",
+       py::arg("inside") = MeshSdfOptions{}.inside_threshold, py::arg("device") = "", py::arg("gradient") = false,
        "Signed distance (M,) from (M,3) queries to a mesh in any state: the exact distance to its triangles, negative inside "
        "(sign: 'auto' | 'winding' | 'pseudonormal' | 'shm' | 'none', as `gsd sdf --sign`; inside: the winding number "
-       "threshold).");
+       "threshold). gradient=True: (phi, grad (M,3)), grad the unit vector from the nearest point, signed as phi.");
     m.def("sample_sdf", [](const DoubleArray& vertices, const py::object& faces, std::size_t count,
                            const std::vector<double>& near_sigma, double uniform, bool normalize, std::uint64_t seed,
                            const std::string& sign, double inside, const std::string& device) {

@@ -193,6 +193,28 @@ TEST_CASE("mesh_sdf signs: pseudonormals on a clean mesh, repaired winding numbe
     for (std::size_t i = 0; i < plain.phi.size(); ++i) CHECK(std::abs(plain.phi[i]) == doctest::Approx(std::abs(repaired.phi[i])).epsilon(1e-12));
 }
 
+TEST_CASE("mesh_sdf gradient: the unit vector from the nearest point, signed as φ (on a sphere: x/|x|)") {
+    const PolygonMesh sphere = shapes::icosphere(4);
+    const Points q = uniform_queries(2000, 1.6, 31);
+    for (const SdfSign sign : {SdfSign::automatic, SdfSign::winding}) {
+        MeshSdfOptions o;
+        o.device = "cpu";
+        o.sign = sign;
+        o.gradient = true;
+        const MeshSdfResult r = mesh_sdf(sphere, q, o);
+        REQUIRE(r.gradient.size() == 3 * r.phi.size());
+        for (Eigen::Index i = 0; i < q.rows(); ++i) {
+            if (std::abs(r.phi[std::size_t(i)]) < 0.05) continue;
+            const Eigen::Vector3d g(r.gradient[3 * std::size_t(i)], r.gradient[3 * std::size_t(i) + 1], r.gradient[3 * std::size_t(i) + 2]);
+            CHECK(g.norm() == doctest::Approx(1.0).epsilon(1e-12));
+            CHECK(g.dot(q.row(i).normalized().transpose()) > 0.99);
+        }
+    }
+    MeshSdfOptions plain;
+    plain.device = "cpu";
+    CHECK(mesh_sdf(sphere, q, plain).gradient.empty());
+}
+
 TEST_CASE("mesh_sdf --sign shm: the grid SHM's sign on a broken mesh") {
     const auto torus_shape = shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2);
     shapes::MeshCorruption c;
@@ -362,6 +384,16 @@ TEST_CASE("gsd sdf --samples: (S,4) rows x y z sdf and a sidecar with the frame"
         CHECK(std::abs(a.data[4 * i + 3] - (r - 1)) < 1e-2);  // normalized: the unit sphere
     }
     CHECK(test::file_exists(out + ".json"));
+    // --gradient beside --queries: (M,3) rows, unit vectors.
+    const Points q = uniform_queries(50, 3.0, 4);
+    io::write_npy(dir.file("q.npy"), {50, 3}, std::vector<float>(q.data(), q.data() + q.size()));
+    REQUIRE(run_cli("sdf " + mesh + " --queries " + dir.file("q.npy") + " --gradient " + dir.file("g.npy") +
+                    " --device cpu -o " + dir.file("p.npy")).exit_code == 0);
+    const io::NpyArray g = io::read_npy(dir.file("g.npy"));
+    REQUIRE(g.shape == std::vector<std::size_t>{50, 3});
+    for (std::size_t i = 0; i < 50; ++i)
+        CHECK(std::hypot(g.data[3 * i], g.data[3 * i + 1], g.data[3 * i + 2]) == doctest::Approx(1.0).epsilon(1e-6));
+    CHECK(run_cli("sdf " + mesh + " --samples 10 --gradient " + dir.file("g2.npy") + " -o " + dir.file("x.npy")).exit_code == 2);
     CHECK(run_cli("sdf " + mesh + " --samples 10 --grid 8 -o " + dir.file("x.npy")).exit_code == 2);   // two domains
     CHECK(run_cli("sdf " + mesh + " --samples 10 -o " + dir.file("x.vdb")).exit_code == 2);            // not .npy
     CHECK(run_cli("sdf " + mesh + " --samples 10 --near-sigma 0 -o " + dir.file("x.npy")).exit_code == 2);

@@ -50,11 +50,15 @@ struct MeshSdfOptions : Execution {
     /// SdfSign::shm: the grid's nodes per axis, on the mesh's bounding cube + 10 % (queries
     /// outside it are outside). In [8, 512].
     int shm_grid = 32;
+    /// Also ∇φ: the unit vector from the nearest point of the mesh to the query, times φ's sign
+    /// (the exact distance's gradient wherever the nearest point is unique; 0 on the surface).
+    bool gradient = false;
 };
 
 struct MeshSdfResult {
     std::vector<double> phi;      ///< per query: ± distance to the nearest triangle (negative inside)
     std::vector<double> winding;  ///< per query: the winding number that set the sign (winding signs only)
+    std::vector<double> gradient; ///< 3 per query (x, y, z) if MeshSdfOptions::gradient
     std::size_t triangles = 0;    ///< triangles the distance was taken to (polygons fanned)
     std::size_t degenerate = 0;   ///< zero-area triangles left out (their points lie on other triangles' sides or nowhere)
     SdfSign sign = SdfSign::none; ///< the sign used (automatic resolved)

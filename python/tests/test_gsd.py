@@ -117,6 +117,10 @@ def test_mesh_sdf_is_the_sphere_distance_and_matches_cli(tmp_path):
     far = np.abs(exact) > 0.05
     assert far.sum() > 250
     np.testing.assert_allclose(phi[far], exact[far], atol=0.02)
+    phi_again, grad = gsd.mesh_sdf(v, f, q, device="cpu", gradient=True)
+    np.testing.assert_array_equal(phi_again, phi)
+    assert grad.shape == (500, 3)
+    np.testing.assert_allclose(np.sum(grad[far] * q[far], axis=1) / np.linalg.norm(q[far], axis=1), 1.0, atol=0.02)
     unsigned = gsd.mesh_sdf(v, f, q, sign="none", device="cpu")
     np.testing.assert_array_equal(unsigned, np.abs(phi))
     np.save(tmp_path / "q.npy", q)

@@ -18,6 +18,8 @@ double angle(const Eigen::Vector3d& u, const Eigen::Vector3d& v) {
     return std::atan2(u.cross(v).norm(), u.dot(v));
 }
 
+}  // namespace
+
 // Where on triangle abc the nearest point to x lies: its corner k (0–2), its side k → k+1
 // (3 + k), or inside (6); and the point. The Voronoi regions of the triangle's features, tested
 // in turn (Ericson, Real-Time Collision Detection, §5.1.5).
@@ -41,8 +43,6 @@ int nearest_feature(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Ei
     const double s = 1 / (va + vb + vc);
     return p = a + ab * (vb * s) + ac * (vc * s), 6;
 }
-
-}  // namespace
 
 Pseudonormals::Pseudonormals(const Triangles& t) : t_(t) {
     face_.resize(t.triangles.size());

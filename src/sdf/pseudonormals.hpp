@@ -15,6 +15,11 @@
 
 namespace gsd::sdf {
 
+/// The nearest point p of triangle abc to x, and the feature it lies on: corner k (0–2), side
+/// k → k+1 (3 + k), or inside (6).
+int nearest_feature(const Eigen::Vector3d& x, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                    const Eigen::Vector3d& c, Eigen::Vector3d& p);
+
 class Pseudonormals {
 public:
     explicit Pseudonormals(const Triangles& t);

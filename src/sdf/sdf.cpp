@@ -143,6 +143,26 @@ private:
     std::vector<std::array<std::uint32_t, 3>> corners_;
 };
 
+// ∇φ at each query: the unit vector from its nearest point p, negated inside (0 at p itself).
+std::vector<double> gradients(const sdf::Triangles& t, PointsView queries, const std::vector<std::uint32_t>& nearest,
+                              const std::vector<std::uint8_t>& inside) {
+    std::vector<double> g(3 * nearest.size(), 0.0);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(nearest.size()); ++i) {
+        const auto& v = t.triangles[nearest[std::size_t(i)]];
+        const Eigen::Vector3d x = queries.row(i).transpose();
+        Eigen::Vector3d p;
+        sdf::nearest_feature(x, t.vertices.row(v[0]).transpose(), t.vertices.row(v[1]).transpose(),
+                             t.vertices.row(v[2]).transpose(), p);
+        const Eigen::Vector3d d = x - p;
+        const double n = d.norm();
+        if (!(n > 0)) continue;
+        const Eigen::Vector3d u = (inside[std::size_t(i)] ? -1.0 : 1.0) / n * d;
+        for (int a = 0; a < 3; ++a) g[3 * std::size_t(i) + std::size_t(a)] = u[a];
+    }
+    return g;
+}
+
 std::string fmt_number(double v) {
     char b[32];
     std::snprintf(b, sizeof b, "%g", v);
@@ -213,11 +233,11 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
     if (queries.rows() == 0) return r;
     const sums::SumTree tree(elements_of(t));
     std::vector<std::uint32_t> nearest;
-    r.phi = distances(tree, queries, r.sign == SdfSign::pseudonormal ? &nearest : nullptr, progress);
+    r.phi = distances(tree, queries, r.sign == SdfSign::pseudonormal || options.gradient ? &nearest : nullptr, progress);
     std::vector<std::uint8_t> inside(r.phi.size(), 0);
     switch (r.sign) {
         case SdfSign::automatic:  // resolved above
-        case SdfSign::none: return r;
+        case SdfSign::none: break;
         case SdfSign::pseudonormal: {
             const sdf::Pseudonormals normals(t);
 #pragma omp parallel for schedule(static)
@@ -250,6 +270,7 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
     }
     for (std::size_t i = 0; i < r.phi.size(); ++i)
         if (inside[i]) r.phi[i] = -r.phi[i];
+    if (options.gradient) r.gradient = gradients(t, queries, nearest, inside);
     return r;
 }
 

@@ -24,7 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 struct SdfArgs {
-    std::string input, output;
+    std::string input, output, gradient;
     Domain domain;
     std::size_t samples = 0;
     std::vector<double> near_sigma = SdfSampleOptions{}.near_sigma;
@@ -82,25 +82,26 @@ void sdf_samples(const SdfArgs& a, const PolygonMesh& mesh, const std::string& o
     note("wrote " + out);
 }
 
-void sdf_field(const SdfArgs& a, const PolygonMesh& mesh, const std::string& out) {
+void sdf_field(const SdfArgs& a, const PolygonMesh& mesh, const std::string& out, const std::string& gradient_out) {
     auto eval = [&](const Points& q, const ProgressFn& p) {
         MeshSdfResult r = mesh_sdf(mesh, q, a.options, p);
         if (globals().verbose) note("sign: " + std::string(sdf_sign_name(r.sign)) + "; " + r.diagnosis);
         else if (r.degenerate) note(std::to_string(r.degenerate) + " degenerate (zero-area) triangles left out");
         FieldValues v;
         v.phi.assign(r.phi.begin(), r.phi.end());
+        v.gradient.assign(r.gradient.begin(), r.gradient.end());
         v.device = r.device;
         return v;
     };
     evaluate_and_write(
-        a.domain, bounding_box(mesh.vertices), out, "", eval,
+        a.domain, bounding_box(mesh.vertices), out, gradient_out, eval,
         [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "sdf", "sdf", kSdfGridBytesPerNode);
 }
 
 void sdf_one(const SdfArgs& a, const std::string& input, const std::string& out) {
     const PolygonMesh mesh = io::read_mesh(input);
     if (a.sampling()) sdf_samples(a, mesh, out);
-    else sdf_field(a, mesh, out);
+    else sdf_field(a, mesh, out, a.gradient);
 }
 
 // ---- --batch --------------------------------------------------------------------------------
@@ -264,6 +265,9 @@ void check(SdfArgs& a) {
     }
     const int domains = int(a.domain.is_grid()) + int(!a.domain.queries.empty()) + int(a.sampling());
     if (domains != 1) throw CLI::ValidationError("--grid, --queries, --samples", "give exactly one");
+    if (!a.gradient.empty() && (a.sampling() || !a.batch.empty()))
+        throw CLI::ValidationError("--gradient", "goes with --queries or --grid on one mesh");
+    a.options.gradient = !a.gradient.empty();
     if (a.sampling() && !a.output.empty() && io::extension(a.output) != ".npy")
         throw CLI::ValidationError("--output", "samples are written as .npy: (N, 4) rows x y z sdf");
     if (!(a.options.inside_threshold > 0 && a.options.inside_threshold < 1))
@@ -287,6 +291,9 @@ void add_sdf(CLI::App& app) {
                     "for a grid")
         ->check(output_file({".npy", ".vdb"}));
     a->domain.add_to(*sdf, true);
+    sdf->add_option("--gradient", a->gradient,
+                    "Also write ∇φ (the unit vector from the nearest point, signed as φ): (M,3) or (N,N,N,3) float32 .npy")
+        ->check(output_file({".npy"}));
     sdf->add_option("--samples", a->samples,
                     "Training samples instead: S points near the surface (offset by Gaussians of --near-sigma) and in its "
                     "box (--uniform), with their signed distances")
