@@ -59,7 +59,7 @@ std::vector<double> distances(const sums::SumTree& tree, PointsView q, std::vect
                 const int m = int(std::min<std::size_t>(L, last - i0));
                 for (int l = 0; l < m; ++l)
                     for (int a = 0; a < 3; ++a) p[3 * l + a] = q(Eigen::Index(order[i0 + std::size_t(l)]), a);
-                tree.nearest_lanes(p, m, nullptr, &nearest, r, nearest_of ? each : nullptr);
+                tree.nearest_triangles(p, m, &nearest, r, nearest_of ? each : nullptr);
                 for (int l = 0; l < m; ++l) d[order[i0 + std::size_t(l)]] = r[l];
                 if (nearest_of)
                     for (int l = 0; l < m; ++l) (*nearest_of)[order[i0 + std::size_t(l)]] = tree.order()[each[l]];

@@ -635,8 +635,9 @@ double SumTree::element_distance(const Vec3& x, std::uint32_t j) const {
     return std::sqrt(sums::point_triangle_distance2(x, vec(c), vec(c + 3), vec(c + 6)));
 }
 
-void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
-                            std::uint32_t* each) const {
+template <class Element2>
+void SumTree::nearest_walk(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
+                           std::uint32_t* each, Element2&& element2_of) const {
     constexpr int L = kScreenedLanes;
     const std::vector<Hot>& records = hot();
     alignas(32) double q[3][L], best2[L];
@@ -649,10 +650,7 @@ void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::
         best2[l] = bound < INFINITY ? bound * bound * (1 + 1e-9) + 1e-300 : INFINITY;
         best[l] = std::uint32_t(-1);
     }
-    auto element2 = [&](std::uint32_t j, int l) {
-        const double* c = corners(j);
-        return sums::point_triangle_distance2(Vec3(q[0][l], q[1][l], q[2][l]), vec(c), vec(c + 3), vec(c + 6));
-    };
+    auto element2 = [&](std::uint32_t j, int l) { return element2_of(j, l, q); };
     const std::uint32_t all = (1u << n) - 1;
     if (nearest && *nearest < size())  // a candidate's own distance: the search only looks for better
         for (int l = 0; l < n; ++l) {
@@ -700,6 +698,76 @@ void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::
     if (each)
         for (int l = 0; l < n; ++l) each[l] = best[l];
     if (nearest) *nearest = best[n - 1];
+}
+
+void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
+                            std::uint32_t* each) const {
+    nearest_walk(p, n, r_bound, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kScreenedLanes]) {
+        const double* c = corners(j);
+        return sums::point_triangle_distance2(Vec3(q[0][l], q[1][l], q[2][l]), vec(c), vec(c + 3), vec(c + 6));
+    });
+}
+
+const std::vector<SumTree::NearRecord>& SumTree::near_records() const {
+    std::call_once(once_->near, [this] {
+        near_.resize(size());
+#pragma omp parallel for schedule(static)
+        for (std::size_t j = 0; j < size(); ++j) {
+            const double* c = corners(j);
+            const Vec3 a = vec(c), ab = vec(c + 3) - a, ac = vec(c + 6) - a, n = ab.cross(ac);
+            NearRecord& r = near_[j];
+            r.flat = !(n.squaredNorm() > 1e-30 * ab.squaredNorm() * ac.squaredNorm());  // as point_triangle_distance2
+            const Vec3 u = r.flat ? Vec3::Zero() : Vec3(n.normalized());
+            for (int k = 0; k < 3; ++k) {
+                r.a[k] = a[k];
+                r.ab[k] = ab[k];
+                r.ac[k] = ac[k];
+                r.n[k] = u[k];
+            }
+            r.d00 = ab.squaredNorm();
+            r.d01 = ab.dot(ac);
+            r.d11 = ac.squaredNorm();
+        }
+    });
+    return near_;
+}
+
+void SumTree::nearest_triangles(const double* p, int n, std::uint32_t* nearest, double* r_min, std::uint32_t* each) const {
+    const std::vector<NearRecord>& rec = near_records();
+    nearest_walk(p, n, nullptr, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kScreenedLanes]) {
+        const NearRecord& r = rec[j];
+        const double x[3] = {q[0][l], q[1][l], q[2][l]};
+        if (r.flat) {
+            const double* c = corners(j);
+            return sums::point_triangle_distance2(Vec3(x[0], x[1], x[2]), vec(c), vec(c + 3), vec(c + 6));
+        }
+        // point_triangle_distance2's Voronoi regions, with d3 … d6 from d1, d2 and the records'
+        // dot products (bp = ap − ab, cp = ap − ac).
+        const double ap[3] = {x[0] - r.a[0], x[1] - r.a[1], x[2] - r.a[2]};
+        const double d1 = r.ab[0] * ap[0] + r.ab[1] * ap[1] + r.ab[2] * ap[2];
+        const double d2 = r.ac[0] * ap[0] + r.ac[1] * ap[1] + r.ac[2] * ap[2];
+        auto dist2 = [&](double s, double t) {  // |ap − s·ab − t·ac|²
+            const double e0 = ap[0] - s * r.ab[0] - t * r.ac[0], e1 = ap[1] - s * r.ab[1] - t * r.ac[1],
+                         e2 = ap[2] - s * r.ab[2] - t * r.ac[2];
+            return e0 * e0 + e1 * e1 + e2 * e2;
+        };
+        if (d1 <= 0 && d2 <= 0) return dist2(0, 0);
+        const double d3 = d1 - r.d00, d4 = d2 - r.d01;
+        if (d3 >= 0 && d4 <= d3) return dist2(1, 0);
+        const double vc = d1 * d4 - d3 * d2;
+        if (vc <= 0 && d1 >= 0 && d3 <= 0) return dist2(d1 / (d1 - d3), 0);
+        const double d5 = d1 - r.d01, d6 = d2 - r.d11;
+        if (d6 >= 0 && d5 <= d6) return dist2(0, 1);
+        const double vb = d5 * d2 - d1 * d6;
+        if (vb <= 0 && d2 >= 0 && d6 <= 0) return dist2(0, d2 / (d2 - d6));
+        const double va = d3 * d6 - d5 * d4;
+        if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+            const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            return dist2(1 - w, w);
+        }
+        const double h = r.n[0] * ap[0] + r.n[1] * ap[1] + r.n[2] * ap[2];
+        return h * h;
+    });
 }
 
 Vec3 SumTree::screened(const Vec3& x, const Screened& k, double& r_min, std::size_t& terms, double r_bound,

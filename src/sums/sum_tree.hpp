@@ -176,8 +176,27 @@ public:
     /// each (may be null): n out, every query's nearest element (tree order).
     void nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
                        std::uint32_t* each = nullptr) const;
+    /// nearest_lanes() for the signed distance (no bound; `each` as there): the same walk and
+    /// the same nearest elements, each triangle's distance from a record made once (its corner,
+    /// edges, their dot products and unit normal: two dot products with the query instead of
+    /// six and a cross product). Distances agree with nearest_lanes()' to rounding.
+    void nearest_triangles(const double* p, int n, std::uint32_t* nearest, double* r_min, std::uint32_t* each) const;
 
 private:
+    /// The walk of nearest_lanes(), with element j's squared distance to lane l's query from
+    /// `element2(j, l, q)` (q: the packet's coordinates, [axis][lane]).
+    template <class Element2>
+    void nearest_walk(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
+                      std::uint32_t* each, Element2&& element2) const;
+    /// A triangle's record for nearest_triangles(): degenerate ones (and points) keep the
+    /// general formula (`flat`).
+    struct NearRecord {
+        double a[3], ab[3], ac[3], n[3];  // n: unit normal
+        double d00, d01, d11;             // ab·ab, ab·ac, ac·ac
+        bool flat;
+    };
+    const std::vector<NearRecord>& near_records() const;
+    mutable std::vector<NearRecord> near_;
     /// Element j's part of screened() at x: the triangle refined until its pieces pass; an
     /// element wider than the reach R, only its part in the cube of half-side R about x.
     void screened_element(std::uint32_t j, const double* x, const Screened& k, double r_min, double R, double budget,
@@ -200,7 +219,7 @@ private:
     detail::UninitializedVector<Node> nodes_;  // every field written by compute_node() / merge_node()
     mutable std::vector<Hot> hot_;  // hot(): made on first use
     struct Once {
-        std::once_flag hot, twice;
+        std::once_flag hot, twice, near;
         std::mutex device;  // device_copy
     };
     std::unique_ptr<Once> once_ = std::make_unique<Once>();  // a pointer: SumTree stays movable
