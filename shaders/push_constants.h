@@ -85,6 +85,13 @@ struct DiffusePush {
     uint group_cap;  // loop iterations one subgroup may run (0: no limit): llvmpipe's limit
 };
 
+// sdf_nearest.comp
+struct SdfNearestPush {
+    uint count;
+    uint first_leaf;
+    uint group_cap;  // loop iterations one subgroup may run (0: no limit): llvmpipe's limit
+};
+
 // torus_net_knn.comp
 struct TorusNetKnnPush {
     uint count;       // points in this chunk
@@ -114,6 +121,7 @@ static_assert(sizeof(RenderPatPush) == 32 && offsetof(RenderPatPush, dmin) == of
 static_assert(sizeof(RenderGridPush) == 44);
 static_assert(sizeof(DiffusePush) == 28);
 static_assert(sizeof(TorusNetKnnPush) == 8);
+static_assert(sizeof(SdfNearestPush) == 12);
 static_assert(sizeof(MultigridPush) == 80 && offsetof(MultigridPush, color) == 12 &&
               offsetof(MultigridPush, axes_off) == 16 && offsetof(MultigridPush, odims) == 32 &&
               offsetof(MultigridPush, oaxes_off) == 48 && offsetof(MultigridPush, inv_h2) == 64 &&

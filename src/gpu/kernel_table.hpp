@@ -31,6 +31,8 @@ using namespace kernels;
 // Sums over oriented elements (src/sums): winding numbers; SHM step 1's screened sum.
 inline constexpr KernelSpec sums_winding{"sums_winding", 4, sizeof(WindingPush), {0b11u}};
 inline constexpr KernelSpec shm_diffuse{"shm_diffuse", 5, sizeof(DiffusePush), {0b111u}};
+// The signed distance's nearest triangle (src/sdf).
+inline constexpr KernelSpec sdf_nearest{"sdf_nearest", 4, sizeof(SdfNearestPush), {0b11u}};
 // The PAT blend (src/blend): tori from jets, evaluation, the sphere-traced render.
 inline constexpr KernelSpec torus_from_jet{"torus_from_jet", 2, sizeof(CountPush)};
 inline constexpr KernelSpec blend_eval{"blend_eval", 5, sizeof(BlendPush), {0b111u}};
@@ -51,7 +53,7 @@ inline constexpr KernelSpec mg_refine{"mg_refine", 4, sizeof(MultigridPush), {0u
 inline constexpr KernelSpec mg_coarse{"mg_coarse", 3, sizeof(CountPush)};
 inline constexpr KernelSpec mg_add{"mg_add", 2, sizeof(CountPush)};
 
-inline constexpr const KernelSpec* all[] = {&sums_winding, &shm_diffuse, &torus_from_jet, &blend_eval, &render_pat,
+inline constexpr const KernelSpec* all[] = {&sums_winding, &shm_diffuse, &sdf_nearest, &torus_from_jet, &blend_eval, &render_pat,
                                             &render_grid,  &torus_net_knn, &torus_net,    &mg_smooth,  &mg_residual,
                                             &mg_restrict,  &mg_prolong,  &mg_update,     &mg_refine,  &mg_coarse,
                                             &mg_add};

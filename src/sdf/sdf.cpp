@@ -6,6 +6,8 @@
 #include <gsd/sums.hpp>
 
 #include "core/grid_sampling.hpp"
+#include "gpu/on_device.hpp"
+#include "sdf/sdf_gpu.hpp"
 #include "sdf/pseudonormals.hpp"
 #include "sdf/triangles.hpp"
 #include "spatial/morton.hpp"
@@ -66,6 +68,34 @@ std::vector<double> distances(const sums::SumTree& tree, PointsView q, std::vect
             }
         }
         if (progress) progress("distance", double(last) / double(n));
+    }
+    return d;
+}
+
+// The distances on the chosen device — the nearest triangle found there in float32, its exact
+// distance here — or on the CPU. `device` names where they ran.
+std::vector<double> distances_on(const sums::SumTree& tree, PointsView q, const MeshSdfOptions& o,
+                                 std::vector<std::uint32_t>* nearest_of, std::string& device, const ProgressFn& progress) {
+    std::vector<std::uint32_t> found;
+    const gpu::DeviceRun run = gpu::on_device(
+        o.device,
+        [&](const auto& ctx, std::string& why_not) {
+            return sdf::gpu_nearest(ctx, tree, q, o.chunk_size, found, progress, why_not);
+        },
+        "; the distance runs on the CPU");
+    if (!run) {
+        device = "cpu";
+        return distances(tree, q, nearest_of, progress);
+    }
+    device = run.device;
+    const std::size_t n = std::size_t(q.rows());
+    std::vector<double> d(n);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i)
+        d[std::size_t(i)] = tree.element_distance(q.row(i).transpose(), found[std::size_t(i)]);
+    if (nearest_of) {
+        nearest_of->resize(n);
+        for (std::size_t i = 0; i < n; ++i) (*nearest_of)[i] = tree.order()[found[i]];
     }
     return d;
 }
@@ -233,7 +263,8 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
     if (queries.rows() == 0) return r;
     const sums::SumTree tree(elements_of(t));
     std::vector<std::uint32_t> nearest;
-    r.phi = distances(tree, queries, r.sign == SdfSign::pseudonormal || options.gradient ? &nearest : nullptr, progress);
+    r.phi = distances_on(tree, queries, options, r.sign == SdfSign::pseudonormal || options.gradient ? &nearest : nullptr,
+                         r.device, progress);
     std::vector<std::uint8_t> inside(r.phi.size(), 0);
     switch (r.sign) {
         case SdfSign::automatic:  // resolved above
@@ -252,7 +283,7 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
             WindingResult wr = sums::winding_numbers(tree, queries, w, progress);
             for (std::size_t i = 0; i < r.phi.size(); ++i) inside[i] = wr.w[i] > options.inside_threshold;
             r.winding = std::move(wr.w);
-            r.device = wr.device;
+            if (wr.device != "cpu") r.device = wr.device;
             if (options.sign == SdfSign::automatic && t.report.boundary_edges > 0) {
                 // Holes: where w is near ½ it says little (in front of a large hole, inside a
                 // dome whose cap is gone); SHM, which completes the surface across holes, decides.
@@ -266,7 +297,11 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
             }
             break;
         }
-        case SdfSign::shm: r.device = shm_inside(mesh, queries, options, inside, progress); break;
+        case SdfSign::shm: {
+            const std::string device = shm_inside(mesh, queries, options, inside, progress);
+            if (device != "cpu") r.device = device;
+            break;
+        }
     }
     for (std::size_t i = 0; i < r.phi.size(); ++i)
         if (inside[i]) r.phi[i] = -r.phi[i];
