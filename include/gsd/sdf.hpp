@@ -40,8 +40,9 @@ constexpr double kSdfAmbiguousWinding = 0.2;
 GSD_EXPORT SdfSign sdf_sign_from_name(const std::string& name);
 GSD_EXPORT const char* sdf_sign_name(SdfSign sign);
 
-/// Where it runs (Execution: the winding numbers' and SHM's device; the distance is computed on
-/// the CPU) and how the sign is decided.
+/// Where it runs (Execution: the nearest-triangle search, the winding numbers and SHM on the
+/// device; the exact distance to the triangle found is always computed in double) and how the
+/// sign is decided.
 struct MeshSdfOptions : Execution {
     SdfSign sign = SdfSign::automatic;
     /// Inside where w > this (winding numbers are ≈ 1 inside a closed mesh, 0 outside, and
@@ -65,7 +66,7 @@ struct MeshSdfResult {
     std::size_t reoriented = 0;   ///< triangles the automatic sign turned before summing winding numbers
     std::size_t shm_decided = 0;  ///< queries whose sign the automatic sign took from SHM
     std::string diagnosis;        ///< what the mesh check found, and the sign it led to
-    std::string device;           ///< where the winding numbers or SHM ran ("cpu" or a Vulkan device)
+    std::string device;           ///< where the work ran: a Vulkan device if any stage did (distance, winding numbers, SHM), else "cpu"
 };
 
 /// Signed distance from each query to the mesh: |φ| is the exact distance to the nearest of the
