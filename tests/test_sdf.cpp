@@ -476,7 +476,9 @@ TEST_CASE("gsd sdf --batch: good inputs written, bad ones listed, finished ones 
     for (int i = 0; i < 7; ++i) CHECK(io::read_npy(out_dir + "/m" + std::to_string(i) + ".npy").shape[0] == 200);
     // As after a kill: one output gone. Run again: only that one is made.
     std::filesystem::remove(out_dir + "/m4.npy");
+    test::write_bytes(out_dir + "/m4.npy.tmp-1-2-3", "half an array");  // what the kill left
     const test::RunResult again = run_cli(base);
+    CHECK(!test::file_exists(out_dir + "/m4.npy.tmp-1-2-3"));
     CHECK(again.output.find("1 written, 6 already there, 2 failed") != std::string::npos);
     CHECK(test::file_exists(out_dir + "/m4.npy"));
 

@@ -15,6 +15,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 
 namespace gsd::cli {
@@ -204,6 +205,22 @@ bool finished(const SdfArgs& a, const std::string& out) {
     return fs::exists(out) && (!sidecar || fs::exists(out + ".json"));
 }
 
+// What runs killed while writing this shard's outputs left in the folder: the atomic writer's
+// temporary files (OUT.tmp-…, OUT.json.tmp-…, src/io/common.cpp). One pass over the folder.
+void remove_leftovers(const std::string& out_dir, const std::vector<BatchItem>& items) {
+    std::set<std::string> outputs;
+    for (const BatchItem& item : items) outputs.insert(fs::path(item.output).filename().string());
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(out_dir, ec)) {
+        std::string f = entry.path().filename().string();
+        const auto tmp = f.find(".tmp-");
+        if (tmp == std::string::npos) continue;
+        f.resize(tmp);
+        if (f.size() > 5 && f.compare(f.size() - 5, 5, ".json") == 0) f.resize(f.size() - 5);
+        if (outputs.count(f)) fs::remove(entry.path(), ec);
+    }
+}
+
 void run_batch(const SdfArgs& a) {
     const std::vector<BatchItem> all = read_batch(a.batch, a.out_dir);
     const Shard shard = parse_shard(a.shard);
@@ -222,6 +239,7 @@ void run_batch(const SdfArgs& a) {
     std::error_code ec;
     fs::create_directories(a.out_dir, ec);
     if (ec) throw Error(a.out_dir, "cannot create the output folder: " + ec.message());
+    remove_leftovers(a.out_dir, mine);
     std::size_t done = 0, skipped = 0;
     std::vector<std::string> failed;
     for (std::size_t k = 0; k < mine.size(); ++k) {
@@ -235,7 +253,9 @@ void run_batch(const SdfArgs& a) {
             sdf_one(a, item.input, item.output);
             ++done;
         } catch (const Error& e) {
-            std::fprintf(stderr, "gsd: error: %s\n", e.what());
+            // "gsd: error: INPUT: what", with the part the error names when it is not the input.
+            const std::string why = e.where().empty() || e.where() == item.input ? e.what() : e.where() + ": " + e.what();
+            std::fprintf(stderr, "gsd: error: %s: %s\n", item.input.c_str(), why.c_str());
             failed.push_back(item.input);
         } catch (const std::bad_alloc&) {
             std::fprintf(stderr, "gsd: error: %s: out of memory\n", item.input.c_str());
