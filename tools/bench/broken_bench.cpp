@@ -17,6 +17,7 @@
 // the broken mesh's winding number, the last two NaN within two cells of the surface — to see
 // where and why a sign goes wrong.
 #include <CLI/CLI.hpp>
+#include "broken_meshes.hpp"
 #include <gsd/io.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
@@ -34,29 +35,12 @@
 #include <vector>
 
 using namespace gsd;
+using bench::normalized;
+using bench::with_duplicates;
 
 namespace {
 
-PolygonMesh normalized(PolygonMesh m) {
-    const Box b = bounding_box(m.vertices);
-    const Eigen::RowVector3d center = 0.5 * (b.lo + b.hi).transpose();
-    const double scale = 1.8 / b.extent().maxCoeff();
-    for (Eigen::Index i = 0; i < m.vertices.rows(); ++i) m.vertices.row(i) = (m.vertices.row(i) - center) * scale;
-    return m;
-}
 
-// 10 % of the faces again, every other one reversed.
-PolygonMesh with_duplicates(PolygonMesh m, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    const std::size_t n = m.face_count();
-    for (std::size_t k = 0; k < n / 10; ++k) {
-        const std::size_t f = rng() % n;
-        std::vector<std::uint32_t> face(m.indices.begin() + m.offsets[f], m.indices.begin() + m.offsets[f + 1]);
-        if (k % 2) std::reverse(face.begin(), face.end());
-        m.add_face(face.data(), face.size());
-    }
-    return m;
-}
 
 struct Score {
     double shm_in = 0, shm_out = 0, gwn_in = 0, gwn_out = 0;
@@ -150,7 +134,7 @@ int main(int argc, char** argv) {
         noisy.vertex_noise = 0.005;
         const PolygonMesh a = shapes::corrupt(intact, holes, seed);
         const std::vector<std::pair<const char*, PolygonMesh>> damaged{
-            {"holes+flips", a}, {"+duplicates", with_duplicates(a, seed + 1)}, {"+self-crossing", shapes::corrupt(intact, noisy, seed)}};
+            {"holes+flips", a}, {"+duplicates", with_duplicates(a, 10, seed + 1)}, {"+self-crossing", shapes::corrupt(intact, noisy, seed)}};
         for (const auto& [what, broken] : damaged) {
             const ShmOptions o = shm;
             const auto t0 = std::chrono::steady_clock::now();

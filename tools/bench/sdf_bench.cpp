@@ -11,6 +11,7 @@
 // of mesh_sdf (auto, winding of the faces as given, pseudonormals, the grid SHM) and by ray
 // parity (a crossing count along one ray, and the majority of three), and each sign's time.
 #include <CLI/CLI.hpp>
+#include "broken_meshes.hpp"
 #include <gsd/io.hpp>
 #include <gsd/sdf.hpp>
 #include <gsd/shapes.hpp>
@@ -26,29 +27,12 @@
 #include <vector>
 
 using namespace gsd;
+using bench::normalized;
+using bench::with_duplicates;
 
 namespace {
 
-PolygonMesh normalized(PolygonMesh m) {
-    const Box b = bounding_box(m.vertices);
-    const Eigen::RowVector3d center = 0.5 * (b.lo + b.hi).transpose();
-    const double scale = 1.8 / b.extent().maxCoeff();
-    for (Eigen::Index i = 0; i < m.vertices.rows(); ++i) m.vertices.row(i) = (m.vertices.row(i) - center) * scale;
-    return m;
-}
 
-// A share of the faces again, every other one reversed.
-PolygonMesh with_duplicates(PolygonMesh m, double share, std::uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    const std::size_t n = m.face_count();
-    for (std::size_t k = 0; k < std::size_t(share * double(n)); ++k) {
-        const std::size_t f = rng() % n;
-        std::vector<std::uint32_t> face(m.indices.begin() + m.offsets[f], m.indices.begin() + m.offsets[f + 1]);
-        if (k % 2) std::reverse(face.begin(), face.end());
-        m.add_face(face.data(), face.size());
-    }
-    return m;
-}
 
 // Ray parity along +x after a rotation R (so that the rays meet the mesh in general position):
 // the mesh's triangles bucketed by their (y, z) extent in a G × G grid; a query counts the
@@ -168,9 +152,9 @@ int main(int argc, char** argv) {
         const std::vector<std::pair<std::string, PolygonMesh>> damaged{
             {"holes10+flips5", shapes::corrupt(intact, holes(0.1, 0.05, 0), seed)},
             {"holes20+flips10", shapes::corrupt(intact, holes(0.2, 0.1, 0), seed)},
-            {"+duplicates", with_duplicates(shapes::corrupt(intact, holes(0.15, 0.07, 0), seed), 0.1, seed + 1)},
+            {"+duplicates", with_duplicates(shapes::corrupt(intact, holes(0.15, 0.07, 0), seed), 10, seed + 1)},
             {"+self-crossing", shapes::corrupt(intact, holes(0.15, 0.07, 0.005), seed)},
-            {"all", with_duplicates(shapes::corrupt(intact, holes(0.15, 0.07, 0.005), seed), 0.1, seed + 1)}};
+            {"all", with_duplicates(shapes::corrupt(intact, holes(0.15, 0.07, 0.005), seed), 10, seed + 1)}};
         // The scored queries and their truth, once per mesh.
         std::mt19937_64 rng(seed);
         std::uniform_real_distribution<double> u(-1, 1);
