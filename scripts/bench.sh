@@ -17,6 +17,8 @@
 #                               PAT evaluation, winding numbers, a PAT render, SHM step 1 / step 3,
 #                               TorusNet fit; full sizes on a hardware GPU, small ones on lavapipe;
 #                               GSD_BENCH_GPU_ARGS adds arguments, e.g. --full or --stages pat,winding)
+#   scripts/bench.sh sdf        gsd sdf: its signs on broken closed meshes beside ray parity (gsd-sdf-bench),
+#                               whole runs of 10⁶ queries and 5·10⁵ samples, Open3D's unsigned BVH if installed
 #   scripts/bench.sh swn        Surface Winding Numbers: mislabeled area on a synthetic benchmark
 #                               (SWN full and reduced, naive rounding, SHM sign, a reference program
 #                               when one is there), time per step vs mesh size, whole runs
@@ -232,5 +234,37 @@ if [ "$what" = all ] || [ "$what" = swn ]; then
       fi
       printf "%-34s %9.2f %9.2f %12s %12s\n" "$m" "$(awk "BEGIN{print $t1 - $t0}")" "$(awk "BEGIN{print $t2 - $t1}")" "$ra" "$rf"
     done
+  fi
+fi
+
+if [ "$what" = all ] || [ "$what" = sdf ]; then
+  echo
+  echo "== Signed distance to broken meshes (docs/sdf.md): the signs on broken closed meshes, beside ray parity"
+  build/bin/gsd-sdf-bench --queries "${GSD_BENCH_SDF_QUERIES:-20000}"
+  echo
+  echo "== gsd sdf whole runs: 10^6 uniform queries around a 9·10^4-face broken double torus"
+  "$gsd" -q mesh double-torus -r 110 --holes 3 --hole-area 0.1 --flip 0.05 -o "$work/dt.obj"
+  python3 - "$work/q.npy" <<'PY'
+import sys, numpy as np
+np.save(sys.argv[1], np.random.default_rng(1).uniform(-1.3, 1.3, (1000000, 3)))
+PY
+  for sign in none auto; do
+    /usr/bin/time -f "gsd sdf --sign $sign: %e s wall, %M KiB peak" "$gsd" -q sdf "$work/dt.obj" --queries "$work/q.npy" \
+      --sign "$sign" --device cpu -o "$work/sdf.npy"
+  done
+  /usr/bin/time -f "gsd sdf --samples 500000: %e s wall, %M KiB peak" "$gsd" -q sdf "$work/dt.obj" --samples 500000 \
+    --device cpu -o "$work/samples.npy"
+  # Open3D's BVH, where Debian's python3-open3d is installed (its unsigned distance only: its ray
+  # casting returns no hits there, so it cannot give a sign).
+  if python3 -c "import open3d" 2>/dev/null; then
+    python3 - "$work/dt.obj" "$work/q.npy" <<'PY'
+import sys, time, numpy as np, open3d as o3d
+m = o3d.io.read_triangle_mesh(sys.argv[1]); q = np.load(sys.argv[2]).astype(np.float32)
+V = np.asarray(m.vertices, dtype=np.float32); F = np.asarray(m.triangles, dtype=np.uint32)
+t0 = time.perf_counter()
+scene = o3d.t.geometry.RaycastingScene(); scene.add_triangles(o3d.core.Tensor(V), o3d.core.Tensor(F))
+scene.compute_distance(o3d.core.Tensor(q))
+print("Open3D RaycastingScene build + compute_distance (unsigned): %.2f s" % (time.perf_counter() - t0))
+PY
   fi
 fi
