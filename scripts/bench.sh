@@ -244,7 +244,9 @@ if [ "$what" = all ] || [ "$what" = sdf ]; then
   echo
   echo "== gsd sdf whole runs: 10^6 uniform queries around a 9·10^4-face broken double torus"
   "$gsd" -q mesh double-torus -r 110 --holes 3 --hole-area 0.1 --flip 0.05 -o "$work/dt.obj"
-  python3 - "$work/q.npy" <<'PY'
+  py=/usr/bin/python3  # Debian's, with NumPy (scripts/setup-deps.sh); not a virtual environment's
+  [ -x "$py" ] || py=python3
+  "$py" - "$work/q.npy" <<'PY'
 import sys, numpy as np
 np.save(sys.argv[1], np.random.default_rng(1).uniform(-1.3, 1.3, (1000000, 3)))
 PY
@@ -256,8 +258,8 @@ PY
     --device cpu -o "$work/samples.npy"
   # Open3D's BVH, where Debian's python3-open3d is installed (its unsigned distance only: its ray
   # casting returns no hits there, so it cannot give a sign).
-  if python3 -c "import open3d" 2>/dev/null; then
-    python3 - "$work/dt.obj" "$work/q.npy" <<'PY'
+  if "$py" -c "import open3d" 2>/dev/null; then
+    "$py" - "$work/dt.obj" "$work/q.npy" <<'PY'
 import sys, time, numpy as np, open3d as o3d
 m = o3d.io.read_triangle_mesh(sys.argv[1]); q = np.load(sys.argv[2]).astype(np.float32)
 V = np.asarray(m.vertices, dtype=np.float32); F = np.asarray(m.triangles, dtype=np.uint32)
