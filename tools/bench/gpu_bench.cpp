@@ -6,7 +6,7 @@
 // the work and its rate (items per second) is what the ratio compares. `scripts/bench.sh gpu`
 // runs it; docs/gpu.md says how to run it on a machine without gsd's build dependencies.
 //
-//   gsd-gpu-bench [--full] [--device D] [--stages pat,winding,render,shm,net]
+//   gsd-gpu-bench [--full] [--device D] [--stages pat,winding,sdf,render,shm,net]
 //
 // Sizes: small ones by default (a software device such as lavapipe), the full ones with
 // --full (a real GPU: PAT of 10⁵ and 10⁶ points, winding numbers of 10⁶ queries on 10⁵ faces, a
@@ -15,6 +15,7 @@
 #include <gsd/gpu.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/render.hpp>
+#include <gsd/sdf.hpp>
 #include <gsd/shapes.hpp>
 
 #include "bench_queries.hpp"
@@ -131,6 +132,39 @@ Row bench_winding(int resolution, std::size_t queries, double cpu_share, const s
     return r;
 }
 
+// The signed distance's nearest-triangle search alone (--sign none: the device's stage; the
+// exact distance to the triangle found is computed on the host either way), whole mesh_sdf calls.
+Row bench_sdf(int resolution, std::size_t queries, double cpu_share, const std::string& device) {
+    PolygonMesh mesh = shapes::double_torus_mesh(resolution);
+    shapes::MeshCorruption c;
+    c.holes = 3;
+    c.hole_area = 0.1;
+    c.flip_fraction = 0.05;
+    mesh = shapes::corrupt(mesh, c, 3);
+    const Box b = bounding_box(mesh.vertices);
+    std::mt19937_64 rng(7);
+    Points q(Eigen::Index(queries), 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) q(i, a) = std::uniform_real_distribution<double>(b.lo[a] - 0.1, b.hi[a] + 0.1)(rng);
+    const Points q_cpu = q.topRows(Eigen::Index(double(queries) * cpu_share));
+    Row r{"sdf distance", count(double(mesh.face_count())) + " faces (broken), " + count(double(queries)) + " queries", "queries/s"};
+    std::vector<double> ref;
+    for (const std::string& d : {std::string("cpu"), device}) {
+        MeshSdfOptions o;
+        o.device = d;
+        o.sign = SdfSign::none;
+        mesh_sdf(mesh, q.topRows(256), o);  // setup: pipelines
+        const Points& use = d == "cpu" ? q_cpu : q;
+        MeshSdfResult s;
+        const double t = seconds([&] { s = mesh_sdf(mesh, use, o); });
+        if (d == "cpu") ref = s.phi;
+        else r.difference = max_difference(ref, s.phi);
+        (d == "cpu" ? r.cpu_rate : r.device_rate) = double(use.rows()) / t;
+        if (d != "cpu") r.device_seconds = t;
+    }
+    return r;
+}
+
 Row bench_render(const shapes::Shape& torus, std::size_t points, int width, int height, int cpu_divisor, const std::string& device) {
     const FittedTori tori = JetFitter().fit(torus.sample(points, 1));
     const Box box{{-1, -1, -1}, {1, 1, 1}};
@@ -209,11 +243,11 @@ Row bench_net(const shapes::Shape& torus, std::size_t points, double cpu_share, 
 int main(int argc, char** argv) {
     bool full = false;
     std::string device = "gpu";
-    std::set<std::string> stages{"pat", "winding", "render", "shm", "net"};
+    std::set<std::string> stages{"pat", "winding", "sdf", "render", "shm", "net"};
     CLI::App app{"Every GPU stage beside the CPU path, in one table (scripts/bench.sh gpu; docs/gpu.md)"};
     app.add_flag("--full", full, "the large sizes (for a GPU)");
     app.add_option("--device", device, "the device to time against the CPU path");
-    app.add_option("--stages", stages, "stages to run")->delimiter(',')->check(CLI::IsMember({"pat", "winding", "render", "shm", "net"}));
+    app.add_option("--stages", stages, "stages to run")->delimiter(',')->check(CLI::IsMember({"pat", "winding", "sdf", "render", "shm", "net"}));
     CLI11_PARSE(app, argc, argv);
     set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
     const gpu::Selection sel = gpu::select(device);
@@ -238,6 +272,10 @@ int main(int argc, char** argv) {
             // double_torus_mesh(n): about 8.4 n² triangles (n 110: 10⁵).
             if (full) print_row(bench_winding(110, 10000000, 0.1, device));
             else print_row(bench_winding(72, 300000, 1.0, device));
+        }
+        if (stages.count("sdf")) {
+            if (full) print_row(bench_sdf(110, 10000000, 0.1, device));
+            else print_row(bench_sdf(72, 300000, 1.0, device));
         }
         if (stages.count("render")) {
             if (full) print_row(bench_render(*torus, 1000000, 1920, 1080, 4, device));
