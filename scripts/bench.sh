@@ -14,7 +14,7 @@
 #                               and SHM step 1 on broken meshes with coarse faces (step 1 / step 3
 #                               seconds, terms)
 #   scripts/bench.sh gpu        one table of every query-heavy stage, CPU path vs device (gsd-gpu-bench:
-#                               PAT evaluation, winding numbers, a PAT render, SHM step 1 / step 3,
+#                               PAT evaluation, winding numbers, the sdf distance, a PAT render, SHM step 1 / step 3,
 #                               TorusNet fit; full sizes on a hardware GPU, small ones on lavapipe;
 #                               GSD_BENCH_GPU_ARGS adds arguments, e.g. --full or --stages pat,winding)
 #   scripts/bench.sh sdf        gsd sdf: its signs on broken closed meshes beside ray parity (gsd-sdf-bench),
