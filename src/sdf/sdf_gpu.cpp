@@ -35,7 +35,12 @@ bool gpu_nearest(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     // In Morton order, so that a subgroup's lanes are neighbours and walk nearly the same nodes
     // (in the input's order, 10⁵ random queries took 1.5–2× as long on lavapipe); results go back
     // to their queries' places.
-    const std::vector<std::uint32_t> order = spatial::morton_order(queries);
+    std::vector<std::uint32_t> order;
+    if (spatial::sort_queries_for_device()) order = spatial::morton_order(queries);
+    else {  // $GSD_QUERY_ORDER=input: to measure what the order is worth
+        order.resize(n);
+        for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
+    }
     job.fill = [&](std::size_t first, std::size_t m, void* dst) {
         auto* f = static_cast<float*>(dst);
         for (std::size_t i = 0; i < m; ++i) {
