@@ -154,7 +154,12 @@ py::array_t<std::uint8_t> image_array(Image&& image) {
     return to_numpy(std::move(image.rgb), {image.height, image.width, 3});
 }
 
-SdfSign sdf_sign_from(const std::string& sign) { return sdf_sign_from_name(sign); }
+// The options mesh_sdf and sample_sdf share.
+void set_sdf_options(MeshSdfOptions& o, const std::string& sign, double inside, const std::string& device) {
+    o.sign = sdf_sign_from_name(sign);
+    o.inside_threshold = inside;
+    o.device = device;
+}
 
 }  // namespace
 
@@ -398,9 +403,7 @@ PYBIND11_MODULE(_gsd, m) {
         const PolygonMesh mesh = mesh_from(vertices, faces);
         const Points q = points_from(queries, "queries");
         MeshSdfOptions o;
-        o.sign = sdf_sign_from(sign);
-        o.inside_threshold = inside;
-        o.device = device;
+        set_sdf_options(o, sign, inside, device);
         o.gradient = gradient;
         MeshSdfResult r;
         {
@@ -424,19 +427,13 @@ PYBIND11_MODULE(_gsd, m) {
         o.uniform_fraction = uniform;
         o.normalize = normalize;
         o.seed = seed;
-        o.sign = sdf_sign_from(sign);
-        o.inside_threshold = inside;
-        o.device = device;
+        set_sdf_options(o, sign, inside, device);
         SdfSamples s;
         std::vector<float> rows;
         {
             py::gil_scoped_release nogil;
             s = sample_sdf(mesh, count, o);
-            rows.resize(4 * count);
-            for (std::size_t i = 0; i < count; ++i) {
-                for (int c = 0; c < 3; ++c) rows[4 * i + std::size_t(c)] = float(s.points(Eigen::Index(i), c));
-                rows[4 * i + 3] = float(s.phi[i]);
-            }
+            rows = sample_rows(s);
         }
         return py::make_tuple(to_numpy(std::move(rows), {py::ssize_t(count), 4}),
                               to_numpy(std::vector<double>{s.center.x(), s.center.y(), s.center.z()}, {3}), s.radius);

@@ -107,6 +107,9 @@ struct SdfSamples {
     std::string device;
 };
 
+/// The samples as (n, 4) float32 rows `x y z sdf`, as `gsd sdf --samples` writes them.
+GSD_EXPORT std::vector<float> sample_rows(const SdfSamples& samples);
+
 /// `count` samples of the mesh's signed distance (mesh_sdf at points drawn as SdfSampleOptions
 /// says). Throws Error for an invalid mesh, count 0 or past the memory budget, or options out of
 /// range.

@@ -283,21 +283,21 @@ void ConstrainedDelaunay::insert_segment(std::uint32_t a, std::uint32_t b) {
 void ConstrainedDelaunay::drop_outside() {
     // Everything reachable from the enclosing triangle's corners without crossing a segment.
     outside_.assign(tris_.size(), 0);
-    std::vector<std::uint32_t> todo;
+    std::vector<std::uint32_t> pending;
     for (std::uint32_t t = 0; t < tris_.size(); ++t)
         for (std::uint32_t v : tris_[t].v)
             if (v >= n_ && !outside_[t]) {
                 outside_[t] = 1;
-                todo.push_back(t);
+                pending.push_back(t);
             }
-    while (!todo.empty()) {
-        const std::uint32_t t = todo.back();
-        todo.pop_back();
+    while (!pending.empty()) {
+        const std::uint32_t t = pending.back();
+        pending.pop_back();
         for (int k = 0; k < 3; ++k) {
             const std::uint32_t u = tris_[t].n[std::size_t(k)];
             if (u != kNone && !tris_[t].fixed[std::size_t(k)] && !outside_[u]) {
                 outside_[u] = 1;
-                todo.push_back(u);
+                pending.push_back(u);
             }
         }
     }

@@ -373,4 +373,14 @@ SdfSamples sample_sdf(const PolygonMesh& mesh, std::size_t count, const SdfSampl
     return out;
 }
 
+std::vector<float> sample_rows(const SdfSamples& s) {
+    const std::size_t n = s.phi.size();
+    std::vector<float> rows(4 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+        for (int c = 0; c < 3; ++c) rows[4 * i + std::size_t(c)] = float(s.points(Eigen::Index(i), c));
+        rows[4 * i + 3] = float(s.phi[i]);
+    }
+    return rows;
+}
+
 }  // namespace gsd

@@ -57,11 +57,11 @@ void for_each_edge(std::vector<EdgeUse>& uses, Visit visit) {
     }
 }
 
-std::vector<EdgeUse> edge_uses(const Triangles& t, const std::vector<std::uint8_t>& duplicate) {
+std::vector<EdgeUse> edge_uses(const Triangles& t) {  // duplicates left out
     std::vector<EdgeUse> uses;
     uses.reserve(3 * t.triangles.size());
     for (std::uint32_t f = 0; f < t.triangles.size(); ++f) {
-        if (duplicate[f]) continue;
+        if (t.duplicate[f]) continue;
         for (int k = 0; k < 3; ++k) {
             const std::uint32_t a = t.triangles[f][std::size_t(k)], b = t.triangles[f][std::size_t((k + 1) % 3)];
             uses.push_back({std::min(a, b), std::max(a, b), f, a < b});
@@ -96,7 +96,7 @@ bool boxes_overlap(const Box& a, const Box& b) {
 
 // Components through manifold edges (two uses), and whether two of them have overlapping boxes
 // (checked pairwise up to a few hundred components; more count as overlapping).
-void count_components(Triangles& t, const std::vector<std::uint8_t>& duplicate, std::vector<EdgeUse> uses) {
+void count_components(Triangles& t, std::vector<EdgeUse> uses) {
     detail::DisjointSets sets(t.triangles.size());
     for_each_edge(uses, [&](const EdgeUse* e, std::size_t n) {
         if (n == 2) sets.join(e[0].triangle, e[1].triangle);
@@ -104,7 +104,7 @@ void count_components(Triangles& t, const std::vector<std::uint8_t>& duplicate, 
     std::vector<std::int64_t> index(t.triangles.size(), -1);
     std::vector<Box> boxes;
     for (std::uint32_t f = 0; f < t.triangles.size(); ++f) {
-        if (duplicate[f]) continue;
+        if (t.duplicate[f]) continue;
         std::int64_t& c = index[sets.find(f)];
         if (c < 0) {
             c = std::int64_t(boxes.size());
@@ -169,9 +169,9 @@ Triangles check_triangles(const PolygonMesh& mesh) {
     t.report.triangles = fanned;
     t.report.degenerate = fanned - t.triangles.size();
     if (t.triangles.empty()) throw Error("mesh", "all faces are degenerate (zero area)");
-    const std::vector<std::uint8_t> duplicate = find_duplicates(t.triangles, t.report.duplicates);
-    std::vector<EdgeUse> uses = edge_uses(t, duplicate);
-    count_components(t, duplicate, uses);  // sorts its own copy
+    t.duplicate = find_duplicates(t.triangles, t.report.duplicates);
+    std::vector<EdgeUse> uses = edge_uses(t);
+    count_components(t, uses);  // sorts its own copy
     for_each_edge(uses, [&](const EdgeUse* e, std::size_t n) {
         if (n == 1) ++t.report.boundary_edges;
         else if (n > 2) ++t.report.nonmanifold_edges;
@@ -181,11 +181,10 @@ Triangles check_triangles(const PolygonMesh& mesh) {
 }
 
 std::size_t repair_orientation(Triangles& t) {
-    std::size_t ignored = 0;
-    const std::vector<std::uint8_t> duplicate = find_duplicates(t.triangles, ignored);
+    const std::vector<std::uint8_t>& duplicate = t.duplicate;  // found by check_triangles
     // Neighbours across manifold edges, each with whether the two run along it the same way
     // (then one of them must turn).
-    std::vector<EdgeUse> uses = edge_uses(t, duplicate);
+    std::vector<EdgeUse> uses = edge_uses(t);
     const std::size_t F = t.triangles.size();
     std::vector<std::uint32_t> begin(F + 1, 0);
     std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;  // (triangle, neighbour·2 + same)
@@ -234,6 +233,7 @@ std::size_t repair_orientation(Triangles& t) {
         }
     t.triangles.resize(kept);
     t.source.resize(kept);
+    t.duplicate.assign(kept, 0);
     return turned;
 }
 

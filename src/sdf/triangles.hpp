@@ -43,6 +43,7 @@ struct Triangles {
     Points vertices;
     std::vector<Triangle> triangles;
     std::vector<std::uint32_t> source;  ///< per triangle: its index among the input's fanned triangles
+    std::vector<std::uint8_t> duplicate;  ///< per triangle: over the same three vertices as an earlier one
     TriangleReport report;
 };
 

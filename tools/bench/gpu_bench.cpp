@@ -100,19 +100,29 @@ Row bench_pat(const shapes::Shape& torus, std::size_t points, std::size_t querie
     return r;
 }
 
-Row bench_winding(int resolution, std::size_t queries, double cpu_share, const std::string& device) {
-    PolygonMesh mesh = shapes::double_torus_mesh(resolution);
+// The winding and sdf stages' mesh: a double torus with 3 holes (10 % of its area) and 5 % of
+// its faces flipped.
+PolygonMesh broken_double_torus(int resolution) {
     shapes::MeshCorruption c;
     c.holes = 3;
     c.hole_area = 0.1;
     c.flip_fraction = 0.05;
-    mesh = shapes::corrupt(mesh, c, 3);
-    const OrientedElements elements = OrientedElements::from_mesh(mesh);
-    const Box b = bounding_box(elements.corners);
-    std::mt19937_64 rng(5);
-    Points q(Eigen::Index(queries), 3);
+    return shapes::corrupt(shapes::double_torus_mesh(resolution), c, 3);
+}
+
+// n queries uniform in the box enlarged by 0.1 on every side (seeded).
+Points queries_around(const Box& b, std::size_t n, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    Points q(Eigen::Index(n), 3);
     for (Eigen::Index i = 0; i < q.rows(); ++i)
         for (int a = 0; a < 3; ++a) q(i, a) = std::uniform_real_distribution<double>(b.lo[a] - 0.1, b.hi[a] + 0.1)(rng);
+    return q;
+}
+
+Row bench_winding(int resolution, std::size_t queries, double cpu_share, const std::string& device) {
+    const PolygonMesh mesh = broken_double_torus(resolution);
+    const OrientedElements elements = OrientedElements::from_mesh(mesh);
+    const Points q = queries_around(bounding_box(elements.corners), queries, 5);
     const Points q_cpu = q.topRows(Eigen::Index(double(queries) * cpu_share));
     Row r{"winding numbers", count(double(elements.size())) + " faces (broken), " + count(double(queries)) + " queries", "queries/s"};
     std::vector<double> ref;
@@ -135,17 +145,8 @@ Row bench_winding(int resolution, std::size_t queries, double cpu_share, const s
 // The signed distance's nearest-triangle search alone (--sign none: the device's stage; the
 // exact distance to the triangle found is computed on the host either way), whole mesh_sdf calls.
 Row bench_sdf(int resolution, std::size_t queries, double cpu_share, const std::string& device) {
-    PolygonMesh mesh = shapes::double_torus_mesh(resolution);
-    shapes::MeshCorruption c;
-    c.holes = 3;
-    c.hole_area = 0.1;
-    c.flip_fraction = 0.05;
-    mesh = shapes::corrupt(mesh, c, 3);
-    const Box b = bounding_box(mesh.vertices);
-    std::mt19937_64 rng(7);
-    Points q(Eigen::Index(queries), 3);
-    for (Eigen::Index i = 0; i < q.rows(); ++i)
-        for (int a = 0; a < 3; ++a) q(i, a) = std::uniform_real_distribution<double>(b.lo[a] - 0.1, b.hi[a] + 0.1)(rng);
+    const PolygonMesh mesh = broken_double_torus(resolution);
+    const Points q = queries_around(bounding_box(mesh.vertices), queries, 7);
     const Points q_cpu = q.topRows(Eigen::Index(double(queries) * cpu_share));
     Row r{"sdf distance", count(double(mesh.face_count())) + " faces (broken), " + count(double(queries)) + " queries", "queries/s"};
     std::vector<double> ref;

@@ -43,13 +43,7 @@ struct SdfArgs {
 // Samples as (N, 4) float32 rows `x y z sdf`, and a sidecar OUT.json with the frame (center and
 // radius of the bounding sphere: what --normalize divides by) and the options: both or neither.
 void write_samples(const std::string& path, const SdfSamples& s, const SdfArgs& a) {
-    const std::size_t n = s.phi.size();
-    std::vector<float> rows(4 * n);
-    for (std::size_t i = 0; i < n; ++i) {
-        for (int c = 0; c < 3; ++c) rows[4 * i + std::size_t(c)] = float(s.points(Eigen::Index(i), c));
-        rows[4 * i + 3] = float(s.phi[i]);
-    }
-    io::write_npy(path, {n, 4}, rows);
+    io::write_npy(path, {s.phi.size(), 4}, sample_rows(s));
     nlohmann::json j;
     j["method"] = "sdf samples";
     j["columns"] = {"x", "y", "z", "sdf"};
