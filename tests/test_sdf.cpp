@@ -11,6 +11,7 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <random>
 #include <sstream>
@@ -277,6 +278,30 @@ TEST_CASE("mesh_sdf on the device (nearest triangles, winding numbers, SHM): the
         }
         CAPTURE(sdf_sign_name(sign));
         CHECK(differ <= x.phi.size() / 200);
+    }
+}
+
+TEST_CASE("sdf_nearest, both builds (the GPUs' and the software devices'): the CPU's distances") {
+    const auto torus_shape = shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2);
+    shapes::MeshCorruption c;
+    c.holes = 3;
+    c.hole_area = 0.1;
+    const PolygonMesh broken = shapes::corrupt(shapes::mesh(*torus_shape, 40), c, 4);
+    const Points q = uniform_queries(test::sized(3000, 800), 1.0, 19);
+    MeshSdfOptions cpu;
+    cpu.device = "cpu";
+    cpu.sign = SdfSign::none;
+    const MeshSdfResult ref = mesh_sdf(broken, q, cpu);
+    for (const char* shaped : {"0", "1"}) {
+        CAPTURE(shaped);
+        ::setenv("GSD_SOFTWARE_SHAPED", shaped, 1);
+        MeshSdfOptions gpu = cpu;
+        gpu.device = "gpu";
+        const MeshSdfResult r = mesh_sdf(broken, q, gpu);
+        ::unsetenv("GSD_SOFTWARE_SHAPED");
+        CHECK(r.device != "cpu");  // the suites run with a device (lavapipe at least)
+        REQUIRE(r.phi.size() == ref.phi.size());
+        for (std::size_t i = 0; i < r.phi.size(); ++i) CHECK(std::abs(r.phi[i] - ref.phi[i]) <= 1e-6 * (1 + ref.phi[i]));
     }
 }
 
