@@ -119,6 +119,22 @@ TEST_CASE("mesh_sdf on a broken mesh: holes and flipped faces keep the sign away
     REQUIRE(far > std::size_t(q.rows()) / 3);
     MESSAGE("sign right at " << right << " of " << far << " queries farther than 0.05 from the torus");
     CHECK(double(right) >= 0.99 * double(far));
+    // Outside the mesh's bounding box the automatic sign sums nothing: outside, w = 0; inside
+    // it, the winding numbers of the repaired faces, deep in the tube ≈ 1.
+    REQUIRE(r.winding.size() == std::size_t(q.rows()));
+    const Box box = bounding_box(broken.vertices);
+    std::size_t outside_box = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const Eigen::Vector3d x = q.row(i).transpose();
+        if ((x.array() >= box.lo.array()).all() && (x.array() <= box.hi.array()).all()) {
+            if (torus.sdf(x) < -0.15) CHECK(r.winding[std::size_t(i)] > 0.5);
+            continue;
+        }
+        ++outside_box;
+        CHECK(r.winding[std::size_t(i)] == 0.0);
+        CHECK(r.phi[std::size_t(i)] > 0);
+    }
+    CHECK(outside_box > std::size_t(q.rows()) / 4);
 }
 
 namespace {

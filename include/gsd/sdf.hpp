@@ -27,7 +27,8 @@ enum class SdfSign {
     /// with duplicates dropped and each manifold patch turned to one orientation (the one most of
     /// its area had), and where the mesh has holes, the grid SHM's sign (shm_grid) wherever that
     /// winding number is within kSdfAmbiguousWinding of ½ (in front of large holes, where w
-    /// says little). MeshSdfResult::sign says which, `diagnosis` why.
+    /// says little). Queries outside the mesh's bounding box are outside without a sum (what a
+    /// surface encloses lies within its box). MeshSdfResult::sign says which, `diagnosis` why.
     automatic,
     winding,       ///< negative where the generalized winding number of the faces as given exceeds inside_threshold
     pseudonormal,  ///< angle-weighted pseudonormals at the nearest point (exact on clean meshes only)
@@ -58,7 +59,9 @@ struct MeshSdfOptions : Execution {
 
 struct MeshSdfResult {
     std::vector<double> phi;      ///< per query: ± distance to the nearest triangle (negative inside)
-    std::vector<double> winding;  ///< per query: the winding number that set the sign (winding signs only)
+    /// Per query: the winding number that set the sign (winding signs only; the automatic sign's
+    /// are 0 outside the mesh's bounding box, where it sums none).
+    std::vector<double> winding;
     std::vector<double> gradient; ///< 3 per query (x, y, z) if MeshSdfOptions::gradient
     std::size_t triangles = 0;    ///< triangles the distance was taken to (polygons fanned)
     std::size_t degenerate = 0;   ///< zero-area triangles left out (their points lie on other triangles' sides or nowhere)

@@ -40,10 +40,11 @@ void check(const MeshSdfOptions& o, PointsView queries) {
 // distance prunes it; in blocks, for progress. In input order, 10⁶ random queries around a
 // 9·10⁴-face mesh took 3.5× as long (docs/sdf.md). Runs of 16 packets are handed out as threads
 // free up: far queries cost many times what near ones do, and Morton order keeps them together
-// (a static split of each block took 2.17–2.29 s for those 10⁶ queries, this 1.93–1.98 s).
+// (a static split of each block took 2.17–2.29 s for those 10⁶ queries, this 1.93–1.98 s in
+// packets of 4; packets of 16, SumTree::kNearestLanes, 1.52 s).
 std::vector<double> distances(const sums::SumTree& tree, PointsView q, std::vector<std::uint32_t>* nearest_of,
                               const ProgressFn& progress) {
-    constexpr int L = sums::SumTree::kScreenedLanes;
+    constexpr int L = sums::SumTree::kNearestLanes;
     const std::size_t n = std::size_t(q.rows());
     std::vector<double> d(n);
     if (nearest_of) nearest_of->resize(n);
@@ -229,6 +230,11 @@ std::string shm_inside(const PolygonMesh& mesh, PointsView queries, const MeshSd
     ShmOptions so;
     so.device = o.device;
     so.chunk_size = o.chunk_size;
+    // Step 1 sums the kernel exactly within 2 cells of the mesh, not 6, and interpolates
+    // farther out: the sign needs φ's sign, not its value far from the surface. On the
+    // broken-mesh bench (docs/sdf.md) every % signed right stayed within 0.01, and the solve
+    // of a 9·10⁴-face mesh took 0.05 s less.
+    so.interpolation_cells = 2;
     const ShmResult shm = SignedHeatGrid(shm_source(mesh), grid, so).solve(progress);
     const auto n = std::ptrdiff_t(only ? only->size() : std::size_t(queries.rows()));
 #pragma omp parallel for schedule(static)
@@ -239,6 +245,25 @@ std::string shm_inside(const PolygonMesh& mesh, PointsView queries, const MeshSd
         inside[std::size_t(i)] = in_box && detail::trilinear(grid, shm.phi, x, nullptr) < 0;
     }
     return shm.device;
+}
+
+// The queries in `box` (by index), those rows, and values for them put back in place (0 elsewhere).
+std::vector<std::uint32_t> in_box(const Box& box, PointsView q) {
+    std::vector<std::uint32_t> kept;
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        if ((q.row(i).transpose().array() >= box.lo.array()).all() && (q.row(i).transpose().array() <= box.hi.array()).all())
+            kept.push_back(std::uint32_t(i));
+    return kept;
+}
+Points rows_of(PointsView q, const std::vector<std::uint32_t>& rows) {
+    Points out(Eigen::Index(rows.size()), 3);
+    for (std::size_t k = 0; k < rows.size(); ++k) out.row(Eigen::Index(k)) = q.row(Eigen::Index(rows[k]));
+    return out;
+}
+std::vector<double> scattered(const std::vector<double>& values, const std::vector<std::uint32_t>& rows, std::size_t n) {
+    std::vector<double> out(n, 0.0);
+    for (std::size_t k = 0; k < rows.size(); ++k) out[rows[k]] = values[k];
+    return out;
 }
 
 }  // namespace
@@ -282,7 +307,15 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
             WindingOptions w;
             w.device = options.device;
             w.chunk_size = options.chunk_size;
-            WindingResult wr = sums::winding_numbers(tree, queries, w, progress);
+            // The automatic sign sums only the queries in the mesh's bounding box: what a surface
+            // encloses lies in its box, so the rest are outside (w = 0 there). Uniform queries
+            // in a cube about a flat part are mostly such.
+            const std::vector<std::uint32_t> boxed =
+                options.sign == SdfSign::automatic ? in_box(bounding_box(t.vertices), queries) : std::vector<std::uint32_t>{};
+            const bool subset = options.sign == SdfSign::automatic && boxed.size() < std::size_t(queries.rows());
+            const Points boxed_queries = subset ? rows_of(queries, boxed) : Points();
+            WindingResult wr = sums::winding_numbers(tree, subset ? PointsView(boxed_queries) : queries, w, progress);
+            if (subset) wr.w = scattered(wr.w, boxed, r.phi.size());
             for (std::size_t i = 0; i < r.phi.size(); ++i) inside[i] = wr.w[i] > options.inside_threshold;
             r.winding = std::move(wr.w);
             if (wr.device != "cpu") r.device = wr.device;

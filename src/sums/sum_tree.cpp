@@ -635,10 +635,9 @@ double SumTree::element_distance(const Vec3& x, std::uint32_t j) const {
     return std::sqrt(sums::point_triangle_distance2(x, vec(c), vec(c + 3), vec(c + 6)));
 }
 
-template <class Element2>
+template <int L, class Element2>
 void SumTree::nearest_walk(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
                            std::uint32_t* each, Element2&& element2_of) const {
-    constexpr int L = kScreenedLanes;
     const std::vector<Hot>& records = hot();
     alignas(32) double q[3][L], best2[L];
     std::uint32_t best[L];
@@ -660,21 +659,39 @@ void SumTree::nearest_walk(const double* p, int n, const double* r_bound, std::u
                 best[l] = *nearest;
             }
         }
-    struct Entry { std::uint32_t node, lanes; };
+    // Each entry carries its box's squared distance from every lane, measured when it was
+    // pushed (∞ for lanes that do not visit it): popping it only compares those with the lanes'
+    // best so far, and the parent orders its children by the distances it measured anyway.
+    struct Entry {
+        alignas(32) double box2[L];
+        std::uint32_t node;
+    };
     Entry stack[kStack];
     int top = 0;
-    stack[top++] = {0, all};
-    while (top > 0) {
-        const Entry e = stack[--top];
-        const Hot& h = records[e.node];
-        alignas(32) double box2[L];
+    auto push = [&](std::uint32_t node, std::uint32_t lanes) {
+        Entry& e = stack[top];
+        const Hot& h = records[node];
 #pragma omp simd
-        for (int l = 0; l < L; ++l) box2[l] = box_distance2(h, q, l);
+        for (int l = 0; l < L; ++l) e.box2[l] = box_distance2(h, q, l);
+        for (int l = 0; l < L; ++l)
+            if (!(lanes >> l & 1)) e.box2[l] = INFINITY;
+        e.node = node;
+        return &e;
+    };
+    auto live_lanes = [&](const double* box2) {
         std::uint32_t live = 0;
         for (int l = 0; l < L; ++l) live |= std::uint32_t(box2[l] < best2[l]) << l;
-        live &= e.lanes;
+        return live;
+    };
+    push(0, all);
+    ++top;
+    while (top > 0) {
+        const Entry& e = stack[--top];
+        const std::uint32_t live = live_lanes(e.box2);
         if (!live) continue;
-        if (e.node >= first_leaf_) {
+        const std::uint32_t node = e.node;
+        if (node >= first_leaf_) {
+            const Hot& h = records[node];
             for (std::uint32_t j = h.begin; j < h.end; ++j)
                 for (std::uint32_t m = live; m; m &= m - 1) {
                     const int l = __builtin_ctz(m);
@@ -687,12 +704,19 @@ void SumTree::nearest_walk(const double* p, int n, const double* r_bound, std::u
             continue;
         }
         // The child nearer to the first live lane on top: it most likely holds the nearest
-        // element, whose distance then prunes the other.
-        const std::uint32_t a = 2 * e.node + 1, b = 2 * e.node + 2;
+        // element, whose distance then prunes the other. (Pushing writes over the entry just
+        // popped: `node` and `live` were read out of it.)
         const int l0 = __builtin_ctz(live);
-        const bool a_first = box_distance2(records[a], q, l0) <= box_distance2(records[b], q, l0);
-        stack[top++] = {a_first ? b : a, live};
-        stack[top++] = {a_first ? a : b, live};
+        Entry& lower = *push(2 * node + 1, live);
+        ++top;
+        Entry& upper = *push(2 * node + 2, live);
+        ++top;
+        if (lower.box2[l0] <= upper.box2[l0]) std::swap(lower, upper);
+        // What no lane reaches is dropped.
+        const bool keep_lower = live_lanes(lower.box2) != 0, keep_upper = live_lanes(upper.box2) != 0;
+        top -= 2;
+        if (keep_lower) ++top;
+        if (keep_upper) stack[top++] = upper;
     }
     for (int l = 0; l < n; ++l) r_min[l] = std::sqrt(best2[l]);
     if (each)
@@ -702,7 +726,7 @@ void SumTree::nearest_walk(const double* p, int n, const double* r_bound, std::u
 
 void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::uint32_t* nearest, double* r_min,
                             std::uint32_t* each) const {
-    nearest_walk(p, n, r_bound, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kScreenedLanes]) {
+    nearest_walk<kScreenedLanes>(p, n, r_bound, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kScreenedLanes]) {
         const double* c = corners(j);
         return sums::point_triangle_distance2(Vec3(q[0][l], q[1][l], q[2][l]), vec(c), vec(c + 3), vec(c + 6));
     });
@@ -734,7 +758,7 @@ const std::vector<SumTree::NearRecord>& SumTree::near_records() const {
 
 void SumTree::nearest_triangles(const double* p, int n, std::uint32_t* nearest, double* r_min, std::uint32_t* each) const {
     const std::vector<NearRecord>& rec = near_records();
-    nearest_walk(p, n, nullptr, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kScreenedLanes]) {
+    nearest_walk<kNearestLanes>(p, n, nullptr, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kNearestLanes]) {
         const NearRecord& r = rec[j];
         const double x[3] = {q[0][l], q[1][l], q[2][l]};
         if (r.flat) {
