@@ -416,4 +416,25 @@ std::vector<float> sample_rows(const SdfSamples& s) {
     return rows;
 }
 
+MeshSdfField::MeshSdfField(PolygonMesh mesh, MeshSdfOptions options) : mesh_(std::move(mesh)), options_(std::move(options)) {
+    validate(mesh_, "mesh");
+}
+
+FieldValues MeshSdfField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
+    MeshSdfOptions o = options_;
+    o.gradient = with_gradient;
+    const MeshSdfResult r = mesh_sdf(mesh_, queries, o, progress);
+    FieldValues v;
+    v.phi.assign(r.phi.begin(), r.phi.end());
+    v.gradient.assign(r.gradient.begin(), r.gradient.end());
+    v.device = r.device;
+    return v;
+}
+
+FieldValues MeshSdfField::evaluate(const GridSpec& grid, bool with_gradient, const ProgressFn& progress) const {
+    grid.validate();
+    check_memory(80.0 * double(grid.node_count()), "grid", "a grid of " + std::to_string(grid.node_count()) + " nodes");
+    return evaluate(grid.nodes(), with_gradient, progress);
+}
+
 }  // namespace gsd

@@ -165,5 +165,7 @@ void add_curve(CLI::App& app);
 void add_swn(CLI::App& app);
 /// gsd sdf (sdf.cpp).
 void add_sdf(CLI::App& app);
+/// gsd field (field.cpp): the field algebra.
+void add_field(CLI::App& app);
 
 }  // namespace gsd::cli

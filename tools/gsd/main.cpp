@@ -744,6 +744,7 @@ int main(int argc, char** argv) {
     add_mesh(app);
     add_winding(app);
     add_sdf(app);
+    add_field(app);
     add_curve(app);
     add_swn(app);
     add_render(app);

@@ -1,0 +1,253 @@
+// The field algebra (gsd/field_algebra.hpp) and `gsd field`: a grid as a field against the
+// functions it samples, the operators against exact signed distances of spheres, their
+// gradients against finite differences, their Lipschitz bounds, bad input, the CLI.
+#include <gsd/field_algebra.hpp>
+#include <gsd/io.hpp>
+#include <gsd/sdf.hpp>
+#include <gsd/shapes.hpp>
+
+#include "support.hpp"
+
+#include <doctest/doctest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace gsd;
+using test::run_cli;
+using test::ScratchDir;
+
+namespace {
+
+// A sphere's exact signed distance, written here: the reference the operators are held to.
+class SphereField final : public Field {
+public:
+    SphereField(Eigen::Vector3d c, double r, bool gradient = true) : c_(c), r_(r), gradient_(gradient) {}
+    using Field::evaluate;
+    FieldValues evaluate(PointsView q, bool with_gradient, const ProgressFn&) const override {
+        refuse_gradient(with_gradient && !gradient_, "test spheres");
+        FieldValues v;
+        v.device = "cpu";
+        for (Eigen::Index i = 0; i < q.rows(); ++i) {
+            const Eigen::Vector3d d = q.row(i).transpose() - c_;
+            v.phi.push_back(float(exact(q.row(i).transpose())));
+            if (!with_gradient) continue;
+            const Eigen::Vector3d g = d.norm() > 0 ? Eigen::Vector3d(d.normalized()) : Eigen::Vector3d::UnitX();
+            for (int a = 0; a < 3; ++a) v.gradient.push_back(float(g[a]));
+        }
+        return v;
+    }
+    FieldValues evaluate(const GridSpec& g, bool with_gradient, const ProgressFn& p) const override {
+        return evaluate(g.nodes(), with_gradient, p);
+    }
+    bool has_gradient() const override { return gradient_; }
+    double exact(const Eigen::Vector3d& x) const { return (x - c_).norm() - r_; }
+
+private:
+    Eigen::Vector3d c_;
+    double r_;
+    bool gradient_;
+};
+
+Points random_points(int n, double half, std::uint64_t seed) {
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u(-half, half);
+    Points p(n, 3);
+    for (int i = 0; i < n; ++i) p.row(i) << u(rng), u(rng), u(rng);
+    return p;
+}
+
+double phi_at(const Field& f, const Eigen::Vector3d& x) {
+    Points q(1, 3);
+    q.row(0) = x.transpose();
+    return f.evaluate(q).phi[0];
+}
+
+}  // namespace
+
+TEST_CASE("GridField: trilinear inside, the nearest value plus the distance outside") {
+    const GridSpec g = GridSpec::cube(9, {{-1, -1, -1}, {1, 1, 1}});
+    const Eigen::Vector3d slope(0.3, -0.2, 0.5);
+    std::vector<float> values(g.node_count());
+    const Points nodes = g.nodes();
+    for (Eigen::Index i = 0; i < nodes.rows(); ++i) values[std::size_t(i)] = float(slope.dot(nodes.row(i).transpose()) + 0.1);
+    const GridField f(g, values);
+    // A linear function is its own trilinear interpolant: exact, with its gradient, inside.
+    const Points inside = random_points(200, 0.99, 1);
+    const FieldValues v = f.evaluate(inside, true);
+    for (Eigen::Index i = 0; i < inside.rows(); ++i) {
+        CHECK(v.phi[std::size_t(i)] == doctest::Approx(slope.dot(inside.row(i).transpose()) + 0.1).epsilon(1e-5));
+        for (int a = 0; a < 3; ++a) CHECK(v.gradient[3 * std::size_t(i) + std::size_t(a)] == doctest::Approx(slope[a]).epsilon(1e-5));
+    }
+    // Outside: the value at the box's nearest point plus the distance to it.
+    Points out(2, 3);
+    out.row(0) << 3, 0.5, 0;   // past x only
+    out.row(1) << 2, -2, 1.5;  // past three sides
+    const FieldValues w = f.evaluate(out, true);
+    const Eigen::Vector3d c0(1, 0.5, 0), c1(1, -1, 1);
+    CHECK(w.phi[0] == doctest::Approx(slope.dot(c0) + 0.1 + 2).epsilon(1e-5));
+    CHECK(w.phi[1] == doctest::Approx(slope.dot(c1) + 0.1 + (Eigen::Vector3d(2, -2, 1.5) - c1).norm()).epsilon(1e-5));
+    CHECK(w.gradient[0] == doctest::Approx(1));               // the distance term along x
+    CHECK(w.gradient[1] == doctest::Approx(slope.y()));       // the interpolant along y, z
+    // Its own grid: the values as they are.
+    CHECK(f.evaluate(g).phi == values);
+    CHECK_THROWS_AS(GridField(g, std::vector<float>(10)), Error);
+    values[3] = NAN;
+    CHECK_THROWS_AS(GridField(g, values), Error);
+}
+
+TEST_CASE("Booleans, offsets and shells against the exact distances of spheres") {
+    const auto a = std::make_shared<SphereField>(Eigen::Vector3d(-0.6, 0, 0), 0.4);
+    const auto b = std::make_shared<SphereField>(Eigen::Vector3d(0.6, 0, 0), 0.3);
+    const auto c = std::make_shared<SphereField>(Eigen::Vector3d(-0.3, 0, 0), 0.4);  // overlaps a
+    const Points q = random_points(500, 1.5, 2);
+    // Two spheres apart: their union's distance is the min of theirs, exactly (inside each too).
+    const FieldValues u = field_union(a, b)->evaluate(q);
+    // a − c and a ∩ c: max(a, −c) and max(a, c), exact where the sign is concerned.
+    const FieldValues d = field_difference(a, c)->evaluate(q), i = field_intersection(a, c)->evaluate(q);
+    // Offsets of a sphere are spheres: exact; a shell of thickness 2r about it.
+    const FieldValues grown = field_offset(a, 0.1)->evaluate(q), shrunk = field_offset(a, -0.1)->evaluate(q);
+    const FieldValues shell = field_shell(a, 0.05)->evaluate(q);
+    const SphereField a_grown({-0.6, 0, 0}, 0.5), a_shrunk({-0.6, 0, 0}, 0.3);
+    for (Eigen::Index k = 0; k < q.rows(); ++k) {
+        const Eigen::Vector3d x = q.row(k).transpose();
+        const auto j = std::size_t(k);
+        CHECK(u.phi[j] == doctest::Approx(std::min(a->exact(x), b->exact(x))).epsilon(1e-6));
+        const bool in_a = a->exact(x) < 0, in_c = c->exact(x) < 0;
+        if (std::abs(d.phi[j]) > 1e-6) CHECK((d.phi[j] < 0) == (in_a && !in_c));
+        if (std::abs(i.phi[j]) > 1e-6) CHECK((i.phi[j] < 0) == (in_a && in_c));
+        CHECK(grown.phi[j] == doctest::Approx(a_grown.exact(x)).epsilon(1e-6));
+        CHECK(shrunk.phi[j] == doctest::Approx(a_shrunk.exact(x)).epsilon(1e-6));
+        CHECK(shell.phi[j] == doctest::Approx(std::abs(a->exact(x)) - 0.05).epsilon(1e-6));
+    }
+    // On a grid, each operand takes its grid path; the result is the same as at the nodes.
+    const GridSpec g = GridSpec::cube(6, {{-1, -1, -1}, {1, 1, 1}});
+    const FieldPtr expr = field_union(field_offset(a, 0.05), field_difference(b, c, 0.1), 0.2);
+    CHECK(expr->evaluate(g).phi == expr->evaluate(g.nodes()).phi);
+}
+
+TEST_CASE("Smooth Booleans: within k/4 of the sharp ones, equal where the operands differ by k or more") {
+    const auto a = std::make_shared<SphereField>(Eigen::Vector3d(-0.3, 0, 0), 0.4);
+    const auto b = std::make_shared<SphereField>(Eigen::Vector3d(0.3, 0.1, 0), 0.35);
+    const double k = 0.2;
+    const Points q = random_points(800, 1.2, 3);
+    const FieldValues su = field_union(a, b, k)->evaluate(q), si = field_intersection(a, b, k)->evaluate(q),
+                      sd = field_difference(a, b, k)->evaluate(q);
+    std::size_t blended = 0;
+    for (Eigen::Index r = 0; r < q.rows(); ++r) {
+        const Eigen::Vector3d x = q.row(r).transpose();
+        const double pa = a->exact(x), pb = b->exact(x);
+        const auto j = std::size_t(r);
+        const double sharp[3] = {std::min(pa, pb), std::max(pa, pb), std::max(pa, -pb)};
+        const double gap[3] = {std::abs(pa - pb), std::abs(pa - pb), std::abs(pa + pb)};
+        const double smooth[3] = {su.phi[j], si.phi[j], sd.phi[j]};
+        const double side[3] = {-1, 1, 1};  // the union rounds below the min, the others above the max
+        for (int o = 0; o < 3; ++o) {
+            const double shift = side[o] * (smooth[o] - sharp[o]);
+            CHECK(shift >= -1e-6);
+            CHECK(shift <= k / 4 + 1e-6);
+            if (gap[o] >= k) CHECK(smooth[o] == doctest::Approx(sharp[o]).epsilon(1e-6));
+        }
+        blended += gap[0] < k;
+    }
+    CHECK(blended > 20);
+}
+
+TEST_CASE("Operator gradients match finite differences; composites of distances stay 1-Lipschitz") {
+    const auto a = std::make_shared<SphereField>(Eigen::Vector3d(-0.3, 0, 0), 0.4);
+    const auto b = std::make_shared<SphereField>(Eigen::Vector3d(0.3, 0.1, 0), 0.35);
+    const std::vector<std::pair<const char*, FieldPtr>> fields = {
+        {"union", field_union(a, b)},
+        {"smooth union", field_union(a, b, 0.3)},
+        {"smooth intersection", field_intersection(a, b, 0.3)},
+        {"smooth difference", field_difference(a, b, 0.3)},
+        {"shell of an offset", field_shell(field_offset(a, 0.1), 0.05)},
+    };
+    const Points q = random_points(300, 1.2, 4);
+    const Points p = random_points(300, 1.2, 5);
+    for (const auto& [name, f] : fields) {
+        CAPTURE(name);
+        const FieldValues v = f->evaluate(q, true), w = f->evaluate(p);
+        const double h = 1e-4;
+        std::size_t checked = 0;
+        for (Eigen::Index r = 0; r < q.rows(); ++r) {
+            const Eigen::Vector3d x = q.row(r).transpose();
+            // Skip the creases of the sharp operators and of |φ| (a kink within h).
+            Eigen::Vector3d fd;
+            for (int ax = 0; ax < 3; ++ax) {
+                const Eigen::Vector3d e = h * Eigen::Vector3d::Unit(ax);
+                fd[ax] = (phi_at(*f, x + e) - phi_at(*f, x - e)) / (2 * h);
+            }
+            const Eigen::Vector3d g(v.gradient[3 * std::size_t(r)], v.gradient[3 * std::size_t(r) + 1], v.gradient[3 * std::size_t(r) + 2]);
+            if ((fd - g).norm() > 0.5) continue;  // a crease between the samples
+            ++checked;
+            CHECK((fd - g).norm() < 2e-2);  // float32 values: differences of 1e-4 carry ~1e-3 noise
+            // 1-Lipschitz: no pair of queries farther apart in φ than in space.
+            const Eigen::Vector3d y = p.row(r).transpose();
+            CHECK(std::abs(double(v.phi[std::size_t(r)]) - double(w.phi[std::size_t(r)])) <= (x - y).norm() * (1 + 1e-6) + 1e-6);
+        }
+        CHECK(checked > 250);
+    }
+}
+
+TEST_CASE("Field operators: bad operands and options are errors") {
+    const auto a = std::make_shared<SphereField>(Eigen::Vector3d::Zero(), 0.4);
+    const auto no_gradient = std::make_shared<SphereField>(Eigen::Vector3d::Zero(), 0.2, false);
+    CHECK_THROWS_AS(field_union(a, nullptr), Error);
+    CHECK_THROWS_AS(field_union(a, a, -0.1), Error);
+    CHECK_THROWS_AS(field_intersection(a, a, NAN), Error);
+    CHECK_THROWS_AS(field_offset(a, INFINITY), Error);
+    CHECK_THROWS_AS(field_shell(a, -0.1), Error);
+    const FieldPtr f = field_union(a, no_gradient);
+    CHECK_FALSE(f->has_gradient());
+    CHECK_THROWS_AS(f->evaluate(random_points(3, 1, 6), true), Error);
+    CHECK(f->evaluate(random_points(3, 1, 6)).phi.size() == 3);
+}
+
+TEST_CASE("MeshSdfField is mesh_sdf as a field") {
+    const PolygonMesh sphere = shapes::icosphere(2);
+    const Points q = random_points(100, 1.5, 7);
+    MeshSdfOptions o;
+    o.device = "cpu";
+    const MeshSdfField f(sphere, o);
+    const MeshSdfResult r = mesh_sdf(sphere, q, o);
+    const FieldValues v = f.evaluate(q, true);
+    REQUIRE(v.gradient.size() == 3 * r.phi.size());
+    for (std::size_t i = 0; i < r.phi.size(); ++i) CHECK(v.phi[i] == float(r.phi[i]));
+    PolygonMesh bad = sphere;
+    bad.vertices(0, 0) = NAN;
+    CHECK_THROWS_AS(MeshSdfField(bad, o), Error);
+}
+
+TEST_CASE("gsd field: an expression over meshes and grids, and its errors") {
+    ScratchDir dir("field");
+    const std::string s = dir.file("s.obj"), t = dir.file("t.obj");
+    REQUIRE(run_cli("mesh sphere -r 24 -o " + s).exit_code == 0);
+    REQUIRE(run_cli("mesh torus -r 24 -o " + t).exit_code == 0);
+    const std::string bounds = " --grid 12 --bounds -1.5 -1.5 -1.5 1.5 1.5 1.5 --device cpu ";
+    REQUIRE(run_cli("sdf " + s + bounds + "-o " + dir.file("s.npy")).exit_code == 0);
+    REQUIRE(run_cli("sdf " + t + bounds + "-o " + dir.file("t.npy")).exit_code == 0);
+    const auto r = run_cli("field \"smooth_union(" + dir.file("s.npy") + ", offset(" + t + ", 0.05), 0.1)\"" + bounds + "-o " +
+                           dir.file("u.npy") + " --gradient " + dir.file("g.npy"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    const auto phi_s = io::read_npy(dir.file("s.npy")).data, phi_t = io::read_npy(dir.file("t.npy")).data;
+    const auto u = io::read_npy(dir.file("u.npy"));
+    REQUIRE(u.size() == phi_s.size());
+    CHECK(io::read_npy(dir.file("g.npy")).size() == 3 * u.size());
+    for (std::size_t i = 0; i < u.size(); ++i) {
+        const double x = phi_s[i], y = phi_t[i] - 0.05, h = std::max(0.1 - std::abs(x - y), 0.0);
+        CHECK(u.data[i] == doctest::Approx(std::min(x, y) - h * h / 0.4).epsilon(1e-5));
+    }
+    // Errors say where and what.
+    const auto unknown = run_cli("field \"blend(" + s + ", " + t + ")\"" + bounds + "-o " + dir.file("x.npy"));
+    CHECK(unknown.exit_code == 1);
+    CHECK(unknown.output.find("at character 1") != std::string::npos);
+    CHECK(unknown.output.find("unknown operator 'blend'") != std::string::npos);
+    const auto unclosed = run_cli("field \"union(" + s + ", " + t + "\"" + bounds + "-o " + dir.file("x.npy"));
+    CHECK(unclosed.exit_code == 1);
+    CHECK(unclosed.output.find("expected ',' or ')'") != std::string::npos);
+    CHECK(run_cli("field \"offset(0.1, " + s + ")\"" + bounds + "-o " + dir.file("x.npy")).output.find("takes a field here") !=
+          std::string::npos);
+    CHECK(run_cli("field \"union(" + s + ", " + dir.file("missing.obj") + ")\"" + bounds + "-o " + dir.file("x.npy")).exit_code == 1);
+    CHECK_FALSE(test::file_exists(dir.file("x.npy")));
+}

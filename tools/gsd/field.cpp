@@ -1,0 +1,302 @@
+// gsd field EXPR: a field made of fields (gsd/field_algebra.hpp), named by files and combined
+// by operators, evaluated on a grid or at queries (docs/field.md).
+//
+//   gsd field "union(a.tori, offset(b.npy, 0.05))" --grid 128 -o out.npy
+//
+// The expression: a leaf is a file — fitted tori (.tori), a grid read back (.npy with its
+// sidecar), a mesh (a file with faces: its exact signed distance, gsd sdf's automatic sign) or
+// an oriented point cloud (fitted by the jet fitter and blended as PAT) — and an operator is
+// NAME(operand, …): union and intersection of two or more, difference of two, their smooth_
+// variants with a radius last, offset and shell with a distance. A path with parentheses,
+// commas or spaces at its ends goes in quotes.
+#include "cli.hpp"
+
+#include <gsd/field_algebra.hpp>
+#include <gsd/io.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/sdf.hpp>
+
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace gsd::cli {
+
+namespace {
+
+/// What a parsed (sub)expression is: its field, and the box its zero set can reach (the leaves'
+/// boxes, grown by outward offsets), for a grid's default bounds.
+struct Parsed {
+    FieldPtr field;
+    Box box;
+};
+
+/// How leaves become fields.
+struct LeafOptions {
+    std::string device;
+};
+
+Box merged(const Box& a, const Box& b) { return {a.lo.cwiseMin(b.lo), a.hi.cwiseMax(b.hi)}; }
+Box grown(const Box& b, double r) {
+    const Eigen::Vector3d d = Eigen::Vector3d::Constant(std::max(r, 0.0));
+    return {b.lo - d, b.hi + d};
+}
+
+Parsed load_leaf(const std::string& path, const LeafOptions& o) {
+    if (!std::filesystem::exists(path)) throw Error(path, "no such file");
+    const std::string ext = io::extension(path);
+    if (ext == ".tori") {
+        FittedTori t = load_tori(path);
+        const Box box = bounding_box(t.points);
+        BlendOptions b;
+        b.device = o.device;
+        return {std::make_shared<TorusField>(std::move(t), b), box};
+    }
+    if (ext == ".npy") {
+        const io::NpyArray a = io::read_grid(path);
+        const GridSpec g = grid_of(a.shape, path, {});
+        std::vector<float> values(a.data.begin(), a.data.end());
+        std::shared_ptr<GridField> f;
+        naming_file(path, "values", [&] { f = std::make_shared<GridField>(g, std::move(values)); });
+        return {f, g.box};
+    }
+    if (ext == ".vdb") throw Error(path, "reading .vdb grids is not supported yet: write the grid as .npy (with its sidecar)");
+    if (io::file_has_faces(path)) {
+        PolygonMesh mesh = io::read_mesh(path);
+        const Box box = bounding_box(mesh.vertices);
+        MeshSdfOptions m;
+        m.device = o.device;
+        std::shared_ptr<MeshSdfField> f;
+        naming_file(path, "mesh", [&] { f = std::make_shared<MeshSdfField>(std::move(mesh), m); });
+        return {f, box};
+    }
+    const PointCloud cloud = io::read_point_cloud(path);
+    Progress progress("fit " + std::filesystem::path(path).filename().string());
+    FittedTori t = JetFitter().fit(cloud, progress.fn());
+    progress.finish();
+    const Box box = bounding_box(t.points);
+    BlendOptions b;
+    b.device = o.device;
+    return {std::make_shared<TorusField>(std::move(t), b), box};
+}
+
+/// A recursive-descent parser of EXPR; errors name the character (1-based) where it went wrong
+/// and what it expected there.
+class ExpressionParser {
+public:
+    ExpressionParser(std::string text, LeafOptions options) : text_(std::move(text)), options_(std::move(options)) {}
+
+    Parsed parse() {
+        Parsed p = expression();
+        skip_space();
+        if (pos_ < text_.size()) fail("expected the end of the expression after a complete field");
+        return p;
+    }
+
+private:
+    // An operand is a field or a number; a call's arguments are these.
+    struct Operand {
+        std::optional<Parsed> field;
+        double number = 0;
+        std::size_t at = 0;  // where it starts, for errors
+    };
+
+    [[noreturn]] void fail(const std::string& what, std::size_t at) const {
+        throw Error("expression", "at character " + std::to_string(at + 1) + " of '" + text_ + "': " + what);
+    }
+    [[noreturn]] void fail(const std::string& what) const { fail(what, pos_); }
+
+    void skip_space() {
+        while (pos_ < text_.size() && std::isspace(static_cast<unsigned char>(text_[pos_]))) ++pos_;
+    }
+
+    // A quoted string, or a run of characters other than ( ) , (trimmed).
+    std::string token() {
+        skip_space();
+        if (pos_ < text_.size() && (text_[pos_] == '"' || text_[pos_] == '\'')) {
+            const char quote = text_[pos_];
+            const std::size_t close = text_.find(quote, pos_ + 1);
+            if (close == std::string::npos) fail(std::string("expected the closing ") + quote);
+            std::string t = text_.substr(pos_ + 1, close - pos_ - 1);
+            pos_ = close + 1;
+            return t;
+        }
+        const std::size_t start = pos_;
+        while (pos_ < text_.size() && text_[pos_] != '(' && text_[pos_] != ')' && text_[pos_] != ',') ++pos_;
+        std::size_t end = pos_;
+        while (end > start && std::isspace(static_cast<unsigned char>(text_[end - 1]))) --end;
+        return text_.substr(start, end - start);
+    }
+
+    static std::optional<double> as_number(const std::string& t) {
+        if (t.empty()) return std::nullopt;
+        char* end = nullptr;
+        const double v = std::strtod(t.c_str(), &end);
+        if (end != t.c_str() + t.size()) return std::nullopt;
+        return v;
+    }
+
+    Operand operand() {
+        skip_space();
+        Operand o;
+        o.at = pos_;
+        const bool quoted = pos_ < text_.size() && (text_[pos_] == '"' || text_[pos_] == '\'');
+        const std::string t = token();
+        skip_space();
+        if (!quoted && pos_ < text_.size() && text_[pos_] == '(') {
+            o.field = call(t, o.at);
+            return o;
+        }
+        if (t.empty()) fail("expected a field (a file, or an operator such as union(…)) or a number", o.at);
+        if (!quoted)
+            if (const auto v = as_number(t)) {
+                if (!std::isfinite(*v)) fail("the number '" + t + "' is not finite", o.at);
+                o.number = *v;
+                return o;
+            }
+        o.field = load_leaf(t, options_);
+        return o;
+    }
+
+    Parsed expression() {
+        Operand o = operand();
+        if (!o.field) fail("expected a field, not a number", o.at);
+        return std::move(*o.field);
+    }
+
+    // NAME( operands ) — pos_ at the '('.
+    Parsed call(const std::string& name, std::size_t at) {
+        static const std::map<std::string, std::string> kSignature = {
+            {"union", "union(a, b, …)"},
+            {"intersection", "intersection(a, b, …)"},
+            {"difference", "difference(a, b)"},
+            {"smooth_union", "smooth_union(a, b, radius)"},
+            {"smooth_intersection", "smooth_intersection(a, b, radius)"},
+            {"smooth_difference", "smooth_difference(a, b, radius)"},
+            {"offset", "offset(a, distance)"},
+            {"shell", "shell(a, half_thickness)"},
+        };
+        const auto it = kSignature.find(name);
+        if (it == kSignature.end()) {
+            std::string known;
+            for (const auto& [k, v] : kSignature) known += (known.empty() ? "" : ", ") + k;
+            fail("unknown operator '" + name + "' (known: " + known + ")", at);
+        }
+        ++pos_;  // '('
+        std::vector<Operand> args;
+        while (true) {
+            args.push_back(operand());
+            skip_space();
+            if (pos_ < text_.size() && text_[pos_] == ',') {
+                ++pos_;
+                continue;
+            }
+            if (pos_ < text_.size() && text_[pos_] == ')') {
+                ++pos_;
+                break;
+            }
+            fail("expected ',' or ')' in " + it->second);
+        }
+        return apply(name, it->second, args, at);
+    }
+
+    Parsed apply(const std::string& name, const std::string& signature, std::vector<Operand>& args, std::size_t at) const {
+        auto field_at = [&](std::size_t k) -> Parsed& {
+            if (!args[k].field) fail(signature + " takes a field here, not a number", args[k].at);
+            return *args[k].field;
+        };
+        auto number_at = [&](std::size_t k) {
+            if (args[k].field) fail(signature + " takes a number here, not a field", args[k].at);
+            return args[k].number;
+        };
+        auto arity = [&](std::size_t least, std::size_t most) {
+            if (args.size() < least || args.size() > most)
+                fail(signature + ": " + std::to_string(args.size()) + " operand" + (args.size() == 1 ? "" : "s") + " given", at);
+        };
+        Parsed out;
+        try {
+            if (name == "union" || name == "intersection") {
+                arity(2, std::size_t(-1));
+                out = field_at(0);
+                for (std::size_t k = 1; k < args.size(); ++k) {
+                    const Parsed& b = field_at(k);
+                    out.field = name == "union" ? field_union(out.field, b.field) : field_intersection(out.field, b.field);
+                    out.box = merged(out.box, b.box);
+                }
+            } else if (name == "difference") {
+                arity(2, 2);
+                out = {field_difference(field_at(0).field, field_at(1).field), field_at(0).box};
+            } else if (name.rfind("smooth_", 0) == 0) {
+                arity(3, 3);
+                const Parsed &a = field_at(0), &b = field_at(1);
+                const double k = number_at(2);
+                if (name == "smooth_union") out = {field_union(a.field, b.field, k), grown(merged(a.box, b.box), k / 4)};
+                else if (name == "smooth_intersection") out = {field_intersection(a.field, b.field, k), merged(a.box, b.box)};
+                else out = {field_difference(a.field, b.field, k), a.box};
+            } else {  // offset, shell
+                arity(2, 2);
+                const Parsed& a = field_at(0);
+                const double r = number_at(1);
+                out = {name == "offset" ? field_offset(a.field, r) : field_shell(a.field, r), grown(a.box, r)};
+            }
+        } catch (const Error& e) {
+            if (e.where() == "expression") throw;
+            // An operator's own check (a negative radius, …).
+            fail(signature + ": " + (e.where().empty() ? "" : e.where() + ": ") + e.what(), at);
+        }
+        return out;
+    }
+
+    std::string text_;
+    LeafOptions options_;
+    std::size_t pos_ = 0;
+};
+
+}  // namespace
+
+void add_field(CLI::App& app) {
+    auto* cmd = app.add_subcommand(
+        "field", "A field made of fields: Booleans, offsets and shells of fitted tori, grids, meshes and clouds, on a grid "
+                 "or at queries (docs/field.md)");
+    struct Args {
+        std::string expression, output, gradient, device;
+        Domain domain;
+    };
+    auto a = std::make_shared<Args>();
+    cmd->add_option("EXPR", a->expression,
+                    "The expression, e.g. \"union(a.tori, offset(b.npy, 0.05))\": leaves are files (.tori, a .npy grid "
+                    "with its sidecar, a mesh, an oriented cloud); operators union, intersection, difference, "
+                    "smooth_union, smooth_intersection, smooth_difference (radius last), offset, shell")
+        ->required();
+    cmd->add_option("-o,--output", a->output,
+                    "Output .npy: (N,N,N) for a grid, (M,) for queries; or .vdb (a grid: φ as an OpenVDB level set)")
+        ->required()
+        ->check(output_file({".npy", ".vdb"}));
+    cmd->add_option("--gradient", a->gradient, "Also write ∇φ: (N,N,N,3) or (M,3) .npy")->check(output_file({".npy"}));
+    cmd->add_option("--device", a->device,
+                    "Where the leaves evaluate: auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE "
+                    "or auto); the operators combine on the CPU");
+    a->domain.add_to(*cmd, true);
+    cmd->callback([a] {
+        if (!a->domain.is_grid() && a->domain.queries.empty()) throw CLI::RequiredError("--grid or --queries");
+        if (!a->domain.bounds.empty()) bounds_from(a->domain.bounds, "--bounds");  // before any costly fit
+        LeafOptions leaves;
+        leaves.device = a->device;
+        const Parsed p = ExpressionParser(a->expression, leaves).parse();
+        const bool want_gradient = !a->gradient.empty();
+        if (want_gradient && !p.field->has_gradient())
+            throw Error("--gradient", "a field of this expression offers no gradient");
+        evaluate_and_write(
+            a->domain, p.box, a->output, a->gradient,
+            [&](const Points& q, const ProgressFn& pr) { return p.field->evaluate(q, want_gradient, pr); },
+            [&](const GridSpec& g, const ProgressFn& pr) { return p.field->evaluate(g, want_gradient, pr); }, "field",
+            "field", kSdfGridBytesPerNode);
+    });
+}
+
+}  // namespace gsd::cli
