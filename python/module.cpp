@@ -4,6 +4,7 @@
 // matrices; results (std::vector) are handed to NumPy without a copy (the array owns them).
 // gsd::Error becomes gsd.Error, a ValueError. python/gsd/__init__.py documents the API.
 #include <gsd/baselines.hpp>
+#include <gsd/field_algebra.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
@@ -257,7 +258,74 @@ PYBIND11_MODULE(_gsd, m) {
        "(confidence (N,) float32, residual (N,), sparsity (N,)): PAT's outlier measures (docs/pat.md, Outliers);\n"
        "a point is an outlier where confidence < 0.5.");
 
-    py::class_<TorusField>(m, "TorusField", "The PAT generalized signed distance of fitted tori.")
+    // ---- fields and their algebra (gsd/field_algebra.hpp, docs/field.md) ----
+    // Every field is a gsd.Field held by a shared pointer, so that operators can hold their
+    // operands: a | b, a & b, a - b, a.offset(r), a.shell(r), gsd.smooth_union(a, b, k), ….
+    py::class_<Field, std::shared_ptr<Field>> field(m, "Field",
+        "Any gsd field: PAT, a grid, a mesh's exact distance, or a composite of them (docs/field.md).");
+    auto shared = [](FieldPtr f) { return std::const_pointer_cast<Field>(std::move(f)); };
+    auto held = [](const std::shared_ptr<Field>& f) { return FieldPtr(f); };
+    field
+        .def("evaluate", [](const Field& f, const DoubleArray& queries, bool gradient) {
+            const Eigen::Map<const Points> q = points_view(queries, "queries");  // no copy
+            FieldValues v;
+            {
+                py::gil_scoped_release nogil;
+                v = f.evaluate(q, gradient);
+            }
+            return field_result(std::move(v), gradient, {py::ssize_t(q.rows())});
+        }, py::arg("queries"), py::arg("gradient") = false,
+           "φ (M,) float32 at (M,3) queries; with gradient=True, (φ, ∇φ (M,3)).")
+        .def("evaluate_on_grid", [](const Field& f, int n, std::array<double, 6> bounds, bool gradient) {
+            const GridSpec g = grid_from(n, bounds, Box{});
+            FieldValues v;
+            {
+                py::gil_scoped_release nogil;
+                v = f.evaluate(g, gradient);
+            }
+            return field_result(std::move(v), gradient, {n, n, n});
+        }, py::arg("n"), py::arg("bounds"), py::arg("gradient") = false,
+           "φ (n,n,n) float32 on the n³ grid of bounds (x0,y0,z0,x1,y1,z1); with gradient=True, (φ, ∇φ (n,n,n,3)).")
+        .def_property_readonly("has_gradient", &Field::has_gradient)
+        .def("__or__", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b) { return shared(field_union(held(a), held(b))); },
+             "Union: min(a, b).")
+        .def("__and__", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b) { return shared(field_intersection(held(a), held(b))); },
+             "Intersection: max(a, b).")
+        .def("__sub__", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b) { return shared(field_difference(held(a), held(b))); },
+             "Difference: max(a, −b).")
+        .def("offset", [=](const std::shared_ptr<Field>& a, double r) { return shared(field_offset(held(a), r)); }, py::arg("r"),
+             "φ − r: grown by r > 0, shrunk by r < 0.")
+        .def("shell", [=](const std::shared_ptr<Field>& a, double r) { return shared(field_shell(held(a), r)); }, py::arg("r"),
+             "|φ| − r: a shell of thickness 2r.");
+    m.def("union", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b, double smooth) {
+        return shared(field_union(held(a), held(b), smooth));
+    }, py::arg("a"), py::arg("b"), py::arg("smooth") = 0.0, "min(a, b); smooth = k > 0: the polynomial smooth minimum.");
+    m.def("intersection", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b, double smooth) {
+        return shared(field_intersection(held(a), held(b), smooth));
+    }, py::arg("a"), py::arg("b"), py::arg("smooth") = 0.0, "max(a, b); smooth = k > 0: its smooth variant.");
+    m.def("difference", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b, double smooth) {
+        return shared(field_difference(held(a), held(b), smooth));
+    }, py::arg("a"), py::arg("b"), py::arg("smooth") = 0.0, "max(a, −b); smooth = k > 0: its smooth variant.");
+    py::class_<GridField, Field, std::shared_ptr<GridField>>(m, "GridField",
+        "A grid's values as a field: trilinear inside its box, the nearest value plus the distance outside.")
+        .def(py::init([](const py::array_t<float, py::array::c_style | py::array::forcecast>& values, std::array<double, 6> bounds) {
+                 if (values.ndim() != 3) throw Error("values", "must be an (nx, ny, nz) grid");
+                 const GridSpec g{int(values.shape(0)), int(values.shape(1)), int(values.shape(2)),
+                                  Box{{bounds[0], bounds[1], bounds[2]}, {bounds[3], bounds[4], bounds[5]}}};
+                 return std::make_shared<GridField>(g, std::vector<float>(values.data(), values.data() + values.size()));
+             }),
+             py::arg("values"), py::arg("bounds"), "values (nx,ny,nz) float; bounds (x0,y0,z0,x1,y1,z1): the first and last nodes.");
+    py::class_<MeshSdfField, Field, std::shared_ptr<MeshSdfField>>(m, "MeshSdfField",
+        "mesh_sdf as a field: the exact distance to a mesh in any state, signed as `sign` says.")
+        .def(py::init([](const DoubleArray& vertices, const py::object& faces, const std::string& sign, double inside,
+                         const std::string& device) {
+                 MeshSdfOptions o;
+                 set_sdf_options(o, sign, inside, device);
+                 return std::make_shared<MeshSdfField>(mesh_from(vertices, faces), o);
+             }),
+             py::arg("vertices"), py::arg("faces"), py::arg("sign") = "auto", py::arg("inside") = 0.5, py::arg("device") = "");
+
+    py::class_<TorusField, Field, std::shared_ptr<TorusField>>(m, "TorusField", "The PAT generalized signed distance of fitted tori.")
         .def(py::init([](const FittedTori& tori, bool exact, const std::string& device, double r_eval,
                          bool keep_outliers, std::optional<OutlierOptions> outliers) {
                  BlendOptions o;
@@ -267,7 +335,7 @@ PYBIND11_MODULE(_gsd, m) {
                  OutlierOptions out = outliers.value_or(OutlierOptions{});
                  if (keep_outliers) out.enabled = false;
                  py::gil_scoped_release nogil;
-                 return std::make_unique<TorusField>(tori, o, out);
+                 return std::make_shared<TorusField>(tori, o, out);
              }),
              py::arg("tori"), py::arg("exact") = false, py::arg("device") = "", py::arg("r_eval") = 0.0,
              py::arg("keep_outliers") = false, py::arg("outliers") = py::none(),

@@ -19,15 +19,23 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     labels, w = gsd.surface_winding_numbers(v, f, "curves.txt")    # inside/outside on a surface
     image = field.render(640, 480)                    # (480, 640, 3) uint8: φ = 0 sphere-traced
     image = gsd.render_grid(grid, bounds)             # the same for a grid
+    both = field | gsd.MeshSdfField(v, f).offset(0.05)           # fields made of fields (docs/field.md):
+    phi = both.evaluate(queries)                      #   | & - offset shell, gsd.union(a, b, smooth=k)
 
 Errors in the input raise gsd.Error (a ValueError) naming the argument or file at fault.
 """
 from ._gsd import (  # noqa: F401
     Error,
+    Field,
+    GridField,
+    MeshSdfField,
     OutlierOptions,
     Tori,
     TorusField,
     devices,
+    difference,
+    intersection,
+    union,
     fit_tori,
     load_tori,
     mesh_sdf,
