@@ -217,6 +217,27 @@ TEST_CASE("MeshSdfField is mesh_sdf as a field") {
     PolygonMesh bad = sphere;
     bad.vertices(0, 0) = NAN;
     CHECK_THROWS_AS(MeshSdfField(bad, o), Error);
+    // A broken mesh, the automatic sign (winding numbers, SHM near w = ½): what the field keeps
+    // between evaluations (tree, SHM grid) answers each batch as mesh_sdf does from scratch, and
+    // a copy keeps working after the original is gone.
+    shapes::MeshCorruption c;
+    c.holes = 3;
+    c.hole_area = 0.15;
+    c.flip_fraction = 0.1;
+    const PolygonMesh broken = shapes::corrupt(shapes::mesh(*shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2), 32), c, 3);
+    auto field = std::make_unique<MeshSdfField>(broken, o);
+    const MeshSdfField copy = *field;
+    for (std::uint64_t seed : {8, 9}) {
+        const Points batch = random_points(400, 1.0, seed);
+        const std::vector<double> expected = mesh_sdf(broken, batch, o).phi;
+        const FieldValues v = field->evaluate(batch);
+        for (std::size_t i = 0; i < expected.size(); ++i) CHECK(v.phi[i] == float(expected[i]));
+    }
+    field.reset();
+    const Points last = random_points(100, 1.0, 10);
+    const std::vector<double> expected = mesh_sdf(broken, last, o).phi;
+    const FieldValues w = copy.evaluate(last);
+    for (std::size_t i = 0; i < expected.size(); ++i) CHECK(w.phi[i] == float(expected[i]));
 }
 
 TEST_CASE("gsd field: an expression over meshes and grids, and its errors") {

@@ -20,6 +20,8 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <memory>
+#include <mutex>
 #include <random>
 
 namespace gsd {
@@ -220,13 +222,8 @@ OrientedElements elements_of(const sdf::Triangles& t) {
     return e;
 }
 
-// Inside where the grid SHM's φ (the mesh as given: SHM needs no repair) is negative, sampled
-// trilinearly; queries outside the grid's box are outside. For the queries listed in `only`
-// (all if null). Returns the device that ran it.
-std::string shm_inside(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& o,
-                       std::vector<std::uint8_t>& inside, const ProgressFn& progress,
-                       const std::vector<std::uint32_t>* only = nullptr) {
-    const GridSpec grid = GridSpec::cube(o.shm_grid, padded_cube(bounding_box(mesh.vertices)));
+// The grid SHM of the mesh as given (SHM needs no repair) for the sign, on the mesh's cube + 10 %.
+ShmResult shm_for_sign(const PolygonMesh& mesh, const GridSpec& grid, const MeshSdfOptions& o, const ProgressFn& progress) {
     ShmOptions so;
     so.device = o.device;
     so.chunk_size = o.chunk_size;
@@ -235,16 +232,21 @@ std::string shm_inside(const PolygonMesh& mesh, PointsView queries, const MeshSd
     // broken-mesh bench (docs/sdf.md) every % signed right stayed within 0.01, and the solve
     // of a 9·10⁴-face mesh took 0.05 s less.
     so.interpolation_cells = 2;
-    const ShmResult shm = SignedHeatGrid(shm_source(mesh), grid, so).solve(progress);
+    return SignedHeatGrid(shm_source(mesh), grid, so).solve(progress);
+}
+
+// Inside where SHM's φ, sampled trilinearly, is negative; queries outside the grid's box are
+// outside. For the queries listed in `only` (all if null).
+void shm_inside(const GridSpec& grid, const std::vector<float>& phi, PointsView queries, std::vector<std::uint8_t>& inside,
+                const std::vector<std::uint32_t>* only = nullptr) {
     const auto n = std::ptrdiff_t(only ? only->size() : std::size_t(queries.rows()));
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t k = 0; k < n; ++k) {
         const auto i = only ? Eigen::Index((*only)[std::size_t(k)]) : Eigen::Index(k);
         const Eigen::Vector3d x = queries.row(i).transpose();
         const bool in_box = (x.array() >= grid.box.lo.array()).all() && (x.array() <= grid.box.hi.array()).all();
-        inside[std::size_t(i)] = in_box && detail::trilinear(grid, shm.phi, x, nullptr) < 0;
+        inside[std::size_t(i)] = in_box && detail::trilinear(grid, phi, x, nullptr) < 0;
     }
-    return shm.device;
 }
 
 // The queries in `box` (by index), those rows, and values for them put back in place (0 elsewhere).
@@ -268,36 +270,83 @@ std::vector<double> scattered(const std::vector<double>& values, const std::vect
 
 }  // namespace
 
-MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& options,
-                       const ProgressFn& progress) {
-    validate(mesh, "mesh");
-    check(options, queries);
-    MeshSdfResult r;
-    sdf::Triangles t = sdf::check_triangles(mesh);
-    r.degenerate = t.report.degenerate;
-    r.sign = options.sign;
-    r.diagnosis = t.report.summary();
-    if (options.sign == SdfSign::automatic) {
-        r.sign = t.report.clean() ? SdfSign::pseudonormal : SdfSign::winding;
-        if (r.sign == SdfSign::winding) r.reoriented = sdf::repair_orientation(t);
-        r.diagnosis += t.report.clean() ? ": clean, signed by pseudonormals"
-                                        : ": signed by winding numbers, " + std::to_string(r.reoriented) +
-                                              " triangles turned to their patch's orientation" +
-                                              (t.report.duplicates ? ", duplicates dropped" : "");
+namespace detail {
+
+// What mesh_sdf builds before its queries, kept by MeshSdfField between evaluations: the checked
+// (and, for the automatic sign, repaired) triangles and the resolved sign at once; the sum tree,
+// the pseudonormals and SHM's grid when a query first needs them.
+struct MeshSdfState {
+    MeshSdfState(const PolygonMesh& m, const MeshSdfOptions& o) : mesh(m), options(o), t(sdf::check_triangles(m)) {
+        sign = options.sign;
+        diagnosis = t.report.summary();
+        if (options.sign == SdfSign::automatic) {
+            sign = t.report.clean() ? SdfSign::pseudonormal : SdfSign::winding;
+            if (sign == SdfSign::winding) reoriented = sdf::repair_orientation(t);
+            diagnosis += t.report.clean() ? ": clean, signed by pseudonormals"
+                                          : ": signed by winding numbers, " + std::to_string(reoriented) +
+                                                " triangles turned to their patch's orientation" +
+                                                (t.report.duplicates ? ", duplicates dropped" : "");
+        }
+        box = bounding_box(t.vertices);
     }
-    r.triangles = t.triangles.size();
+    const sums::SumTree& sum_tree() const {
+        std::call_once(tree_once, [this] { tree = std::make_unique<sums::SumTree>(elements_of(t)); });
+        return *tree;
+    }
+    const sdf::Pseudonormals& pseudonormals() const {
+        std::call_once(normals_once, [this] { normals = std::make_unique<sdf::Pseudonormals>(t); });
+        return *normals;
+    }
+    // SHM's φ on shm_grid³ over the mesh's cube + 10 %, solved once.
+    const ShmResult& shm(const ProgressFn& progress) const {
+        std::call_once(shm_once, [&] {
+            shm_grid = GridSpec::cube(options.shm_grid, padded_cube(bounding_box(mesh.vertices)));
+            shm_result = shm_for_sign(mesh, shm_grid, options, progress);
+        });
+        return shm_result;
+    }
+
+    const PolygonMesh& mesh;
+    const MeshSdfOptions options;
+    sdf::Triangles t;
+    SdfSign sign;
+    std::size_t reoriented = 0;
+    std::string diagnosis;
+    Box box;  // of the triangles' vertices
+    mutable GridSpec shm_grid;
+
+private:
+    mutable std::once_flag tree_once, normals_once, shm_once;
+    mutable std::unique_ptr<sums::SumTree> tree;
+    mutable std::unique_ptr<sdf::Pseudonormals> normals;
+    mutable ShmResult shm_result;
+};
+
+}  // namespace detail
+
+namespace {
+
+// The queries' signed distances from a prepared mesh (`gradient` as MeshSdfOptions::gradient).
+MeshSdfResult query(const detail::MeshSdfState& s, PointsView queries, bool gradient, const ProgressFn& progress) {
+    const MeshSdfOptions& options = s.options;
+    MeshSdfResult r;
+    r.degenerate = s.t.report.degenerate;
+    r.sign = s.sign;
+    r.reoriented = s.reoriented;
+    r.diagnosis = s.diagnosis;
+    r.triangles = s.t.triangles.size();
     r.device = "cpu";
     if (queries.rows() == 0) return r;
-    const sums::SumTree tree(elements_of(t));
+    const sums::SumTree& tree = s.sum_tree();
     std::vector<std::uint32_t> nearest;
-    r.phi = distances_on(tree, queries, options, r.sign == SdfSign::pseudonormal || options.gradient ? &nearest : nullptr,
-                         r.device, progress);
+    r.phi = distances_on(tree, queries, options, r.sign == SdfSign::pseudonormal || gradient ? &nearest : nullptr, r.device,
+                         progress);
     std::vector<std::uint8_t> inside(r.phi.size(), 0);
     switch (r.sign) {
-        case SdfSign::automatic:  // resolved above
+        case SdfSign::automatic:  // resolved by the state
         case SdfSign::none: break;
         case SdfSign::pseudonormal: {
-            const sdf::Pseudonormals normals(t);
+            const sdf::Pseudonormals& normals = s.pseudonormals();
 #pragma omp parallel for schedule(static)
             for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(r.phi.size()); ++i)
                 inside[std::size_t(i)] = normals.inside(queries.row(i).transpose(), nearest[std::size_t(i)]);
@@ -310,22 +359,25 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
             // The automatic sign sums only the queries in the mesh's bounding box: what a surface
             // encloses lies in its box, so the rest are outside (w = 0 there). Uniform queries
             // in a cube about a flat part are mostly such.
-            const std::vector<std::uint32_t> boxed =
-                options.sign == SdfSign::automatic ? in_box(bounding_box(t.vertices), queries) : std::vector<std::uint32_t>{};
-            const bool subset = options.sign == SdfSign::automatic && boxed.size() < std::size_t(queries.rows());
+            const bool automatic = options.sign == SdfSign::automatic;
+            const std::vector<std::uint32_t> boxed = automatic ? in_box(s.box, queries) : std::vector<std::uint32_t>{};
+            const bool subset = automatic && boxed.size() < std::size_t(queries.rows());
             const Points boxed_queries = subset ? rows_of(queries, boxed) : Points();
             WindingResult wr = sums::winding_numbers(tree, subset ? PointsView(boxed_queries) : queries, w, progress);
             if (subset) wr.w = scattered(wr.w, boxed, r.phi.size());
             for (std::size_t i = 0; i < r.phi.size(); ++i) inside[i] = wr.w[i] > options.inside_threshold;
             r.winding = std::move(wr.w);
             if (wr.device != "cpu") r.device = wr.device;
-            if (options.sign == SdfSign::automatic && t.report.boundary_edges > 0) {
+            if (automatic && s.t.report.boundary_edges > 0) {
                 // Holes: where w is near ½ it says little (in front of a large hole, inside a
                 // dome whose cap is gone); SHM, which completes the surface across holes, decides.
                 std::vector<std::uint32_t> ambiguous;
                 for (std::size_t i = 0; i < r.phi.size(); ++i)
                     if (std::abs(r.winding[i] - 0.5) < kSdfAmbiguousWinding) ambiguous.push_back(std::uint32_t(i));
-                if (!ambiguous.empty()) shm_inside(mesh, queries, options, inside, progress, &ambiguous);
+                if (!ambiguous.empty()) {
+                    const ShmResult& shm = s.shm(progress);
+                    shm_inside(s.shm_grid, shm.phi, queries, inside, &ambiguous);
+                }
                 r.shm_decided = ambiguous.size();
                 r.diagnosis += "; holes: SHM decided the " + std::to_string(ambiguous.size()) +
                                " queries whose winding number was within " + fmt_number(kSdfAmbiguousWinding) + " of 1/2";
@@ -333,15 +385,26 @@ MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSd
             break;
         }
         case SdfSign::shm: {
-            const std::string device = shm_inside(mesh, queries, options, inside, progress);
-            if (device != "cpu") r.device = device;
+            const ShmResult& shm = s.shm(progress);
+            shm_inside(s.shm_grid, shm.phi, queries, inside);
+            if (shm.device != "cpu") r.device = shm.device;
             break;
         }
     }
     for (std::size_t i = 0; i < r.phi.size(); ++i)
         if (inside[i]) r.phi[i] = -r.phi[i];
-    if (options.gradient) r.gradient = gradients(t, queries, nearest, inside);
+    if (gradient) r.gradient = gradients(s.t, queries, nearest, inside);
     return r;
+}
+
+}  // namespace
+
+MeshSdfResult mesh_sdf(const PolygonMesh& mesh, PointsView queries, const MeshSdfOptions& options,
+                       const ProgressFn& progress) {
+    validate(mesh, "mesh");
+    check(options, queries);
+    const detail::MeshSdfState state(mesh, options);
+    return query(state, queries, options.gradient, progress);
 }
 
 SdfSign sdf_sign_from_name(const std::string& name) {
@@ -416,14 +479,18 @@ std::vector<float> sample_rows(const SdfSamples& s) {
     return rows;
 }
 
-MeshSdfField::MeshSdfField(PolygonMesh mesh, MeshSdfOptions options) : mesh_(std::move(mesh)), options_(std::move(options)) {
-    validate(mesh_, "mesh");
+MeshSdfField::MeshSdfField(PolygonMesh mesh, MeshSdfOptions options) {
+    validate(mesh, "mesh");
+    check(options, Points(0, 3));
+    mesh_ = std::make_shared<const PolygonMesh>(std::move(mesh));
+    state_ = std::make_shared<const detail::MeshSdfState>(*mesh_, options);
 }
 
+const PolygonMesh& MeshSdfField::mesh() const { return *mesh_; }
+
 FieldValues MeshSdfField::evaluate(PointsView queries, bool with_gradient, const ProgressFn& progress) const {
-    MeshSdfOptions o = options_;
-    o.gradient = with_gradient;
-    const MeshSdfResult r = mesh_sdf(mesh_, queries, o, progress);
+    check(state_->options, queries);
+    const MeshSdfResult r = query(*state_, queries, with_gradient, progress);
     FieldValues v;
     v.phi.assign(r.phi.begin(), r.phi.end());
     v.gradient.assign(r.gradient.begin(), r.gradient.end());
