@@ -51,6 +51,12 @@ bounds="-1 -1 -1 1 1 1"
 "$gsd" -v winding "$broken" --grid 96 --bounds $bounds -o "$out/winding.npy"   # the classic answer, for comparison
 "$gsd" slice "$out/winding.npy" --bounds $bounds --axis z --at 0 --level 0.5 -o "$out/winding-slice-z.png"
 
+# Fields made of fields: the torus of the holey cloud (PAT) joined smoothly to the broken box's
+# SHM distance shrunk by 0.3, on a grid and in a picture (docs/field.md).
+expr="smooth_union('$out/torus.tori', offset('$out/shm.npy', -0.3), 0.15)"
+"$gsd" -v field "$expr" --grid 96 --bounds $bounds -o "$out/field.npy"
+"$gsd" -v render --expr "$expr" --size 640 480 --view-from 1 1.4 1.2 -o "$out/field-render.png"
+
 surf_mesh="$out/torus-mesh.ply"
 "$gsd" mesh torus -r 72 -o "$surf_mesh"
 "$gsd" curve "$surf_mesh" --sphere 0.39 0.31 0.2 0.28 --break 0.4 --gaps 3 --seed 4 -o "$out/torus-cut.txt"
@@ -84,6 +90,10 @@ SHM on a broken mesh (input: $broken, 20% of the area in 3 holes, 10% of faces f
   slice                $out/shm-slice-z.png
   picture of φ = 0     $out/shm-render.png
   winding number       $out/winding.npy  $out/winding-slice-z.png  (contour at ½: the holes leak)
+
+Fields made of fields: smooth_union(PAT of the cloud, SHM of the broken box offset by -0.3, 0.15):
+  grid 96^3            $out/field.npy
+  picture of φ = 0     $out/field-render.png
 
 SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 40% cut away):
   φ per vertex         $out/surface-phi.npy   (float32, the mesh's vertex order)

@@ -3,6 +3,8 @@
 // gradients against finite differences, their Lipschitz bounds, bad input, the CLI.
 #include <gsd/field_algebra.hpp>
 #include <gsd/io.hpp>
+#include <gsd/pat.hpp>
+#include <gsd/render.hpp>
 #include <gsd/sdf.hpp>
 #include <gsd/shapes.hpp>
 
@@ -10,6 +12,7 @@
 
 #include <doctest/doctest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -240,6 +243,90 @@ TEST_CASE("MeshSdfField is mesh_sdf as a field") {
     for (std::size_t i = 0; i < expected.size(); ++i) CHECK(w.phi[i] == float(expected[i]));
 }
 
+namespace {
+
+// Where the ray o + t·d first meets the sphere (−1: never).
+double sphere_hit(const Eigen::Vector3d& o, const Eigen::Vector3d& d, const Eigen::Vector3d& c, double r) {
+    const Eigen::Vector3d oc = o - c;
+    const double b = d.dot(oc), disc = b * b - (oc.squaredNorm() - r * r);
+    if (disc < 0) return -1;
+    const double t = -b - std::sqrt(disc);
+    return t >= 0 ? t : -1;
+}
+
+}  // namespace
+
+TEST_CASE("render_field of a composite: the union of two spheres as ray casting sees it") {
+    const auto a = std::make_shared<SphereField>(Eigen::Vector3d(-0.35, 0, 0), 0.4);
+    const auto b = std::make_shared<SphereField>(Eigen::Vector3d(0.4, 0.1, 0), 0.3, /*gradient=*/false);
+    FieldRenderOptions o;
+    o.width = 64;
+    o.height = 48;
+    o.supersample = 1;
+    o.device = "cpu";
+    o.eye = Eigen::Vector3d(0.4, 0.6, 2.2);  // close: the spheres fill much of the picture
+    const Box box{{-1, -1, -1}, {1, 1, 1}};
+    // b has no ∇φ: the shading takes central differences there.
+    const RenderedField r = render_field(*field_union(a, b), box, o);
+    // A hit is where |φ| < ε (1e-4 of the box's diagonal) along the ray: at most ε/|cos θ| deep
+    // of the surface, θ between the ray and the surface's normal there.
+    const double eps = 1e-4 * box.diagonal();
+    std::size_t differ = 0, both = 0, beyond = 0;
+    for (int y = 0; y < r.render_height; ++y)
+        for (int x = 0; x < r.render_width; ++x) {
+            const Eigen::Vector3d d = r.camera.ray(x, y, r.render_width, r.render_height);
+            const Eigen::Vector3d ca(-0.35, 0, 0), cb(0.4, 0.1, 0);
+            const double ta = sphere_hit(r.camera.eye, d, ca, 0.4), tb = sphere_hit(r.camera.eye, d, cb, 0.3);
+            const bool first_a = ta >= 0 && (tb < 0 || ta <= tb);
+            const double exact = first_a ? ta : tb;
+            const double t = r.depth[std::size_t(y) * std::size_t(r.render_width) + std::size_t(x)];
+            if ((t >= 0) != (exact >= 0)) {
+                ++differ;
+                continue;
+            }
+            if (t < 0) continue;
+            ++both;
+            const Eigen::Vector3d p = r.camera.eye + exact * d;
+            const double cosine = std::abs(d.dot((p - (first_a ? ca : cb)).normalized()));
+            beyond += std::abs(t - exact) > eps / std::max(cosine, 0.02) + 1e-5;
+        }
+    MESSAGE("masks differ at " << differ << " of " << r.depth.size() << " pixels; " << beyond << " of " << both
+                               << " hits deeper than ε/|cos θ|");
+    CHECK(both > 600);
+    CHECK(double(differ) <= 0.01 * double(r.depth.size()));
+    CHECK(beyond == 0);
+}
+
+TEST_CASE("render_field of a composite marches as the CPU reference does a field alone") {
+    // PAT of a sampled torus, alone (the per-ray CPU reference) and as offset(·, 0): a composite,
+    // marched a band of rays at a time with φ in float32.
+    const auto torus = shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2);
+    const PointCloud cloud = torus->sample(3000, 2);
+    JetFitterOptions jo;
+    const auto pat = std::make_shared<TorusField>(JetFitter(jo).fit(cloud));
+    FieldRenderOptions o;
+    o.width = 64;
+    o.height = 48;
+    o.supersample = 1;
+    o.device = "cpu";
+    // The same camera for both: an explicit eye, looking at the center of the cloud's box, which
+    // both subjects share (the cloud's box for PAT, `box` for the composite).
+    o.eye = Eigen::Vector3d(0.8, 0.9, 1.6);
+    const Box box = padded_cube(bounding_box(cloud.points));
+    const RenderedField alone = render_field(*pat, box, o), composite = render_field(*field_offset(pat, 0), box, o);
+    REQUIRE(alone.depth.size() == composite.depth.size());
+    std::size_t differ = 0, hits = 0;
+    double worst = 0;
+    for (std::size_t p = 0; p < alone.depth.size(); ++p) {
+        if ((alone.depth[p] >= 0) != (composite.depth[p] >= 0)) ++differ;
+        else if (alone.depth[p] >= 0) worst = std::max(worst, double(std::abs(alone.depth[p] - composite.depth[p]))), ++hits;
+    }
+    MESSAGE("masks differ at " << differ << " pixels; largest depth difference " << worst);
+    CHECK(hits > 300);
+    CHECK(differ <= alone.depth.size() / 100);
+    CHECK(worst < 1e-3 * box.diagonal());
+}
+
 TEST_CASE("gsd field: an expression over meshes and grids, and its errors") {
     ScratchDir dir("field");
     const std::string s = dir.file("s.obj"), t = dir.file("t.obj");
@@ -271,4 +358,11 @@ TEST_CASE("gsd field: an expression over meshes and grids, and its errors") {
           std::string::npos);
     CHECK(run_cli("field \"union(" + s + ", " + dir.file("missing.obj") + ")\"" + bounds + "-o " + dir.file("x.npy")).exit_code == 1);
     CHECK_FALSE(test::file_exists(dir.file("x.npy")));
+    // The same expression rendered (gsd render --expr), and a bad one refused before any work.
+    const auto rendered = run_cli("render --expr \"smooth_union(" + dir.file("s.npy") + ", offset(" + t + ", 0.05), 0.1)\" --size 48 36 "
+                                  "--device cpu -o " + dir.file("u.png"));
+    REQUIRE_MESSAGE(rendered.exit_code == 0, rendered.output);
+    CHECK(test::file_exists(dir.file("u.png")));
+    CHECK(run_cli("render --expr \"union(" + s + "\" -o " + dir.file("x.png")).exit_code == 1);
+    CHECK(run_cli("render " + s + " --expr \"union(" + s + ", " + t + ")\" -o " + dir.file("x.png")).exit_code == 2);
 }

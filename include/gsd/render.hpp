@@ -1,7 +1,7 @@
 // gsd/render.hpp — pictures of a field's zero level set, sphere-traced (thesis fig. 5.3).
 //
 //   gsd::FieldRenderOptions o;                    // 800×600, a three-quarter view
-//   gsd::RenderedField r = gsd::render_field(field, box, o);   // a TorusField or BaselineField
+//   gsd::RenderedField r = gsd::render_field(field, box, o);   // any gsd::Field
 //   gsd::write_png("surface.png", r.image);
 //
 // Every pixel's ray is clipped to a box and marched by the field's own value (sphere tracing)
@@ -14,6 +14,7 @@
 #include <gsd/export.hpp>
 
 #include <gsd/core.hpp>
+#include <gsd/field.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/viz.hpp>
 
@@ -85,6 +86,14 @@ GSD_EXPORT RenderedField render_field(const TorusField& field, const Box& box, c
                                       const ProgressFn& progress = {});
 GSD_EXPORT RenderedField render_field(const BaselineField& field, const Box& box,
                                       const FieldRenderOptions& options = {}, const ProgressFn& progress = {});
+/// Renders any field's zero set inside `box`: a TorusField or BaselineField as above, a
+/// GridField as its grid below; any other (a composite of gsd/field_algebra.hpp, a MeshSdfField,
+/// …) on the CPU, every ray of a band together, one evaluation of the field a step, the same
+/// march as the CPU reference's; its leaves evaluate where their options say (one line says the
+/// march itself stays on the CPU when a device was asked for). ∇φ for the shading: the field's,
+/// or central differences where it has none.
+GSD_EXPORT RenderedField render_field(const Field& field, const Box& box, const FieldRenderOptions& options = {},
+                                      const ProgressFn& progress = {});
 /// Renders the zero set of a grid of φ (trilinear between nodes) inside its box.
 GSD_EXPORT RenderedField render_field(const GridSpec& grid, const std::vector<float>& values,
                                       const FieldRenderOptions& options = {}, const ProgressFn& progress = {});

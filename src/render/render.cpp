@@ -4,6 +4,7 @@
 #include "core/grid_sampling.hpp"
 
 #include <gsd/baselines.hpp>
+#include <gsd/field_algebra.hpp>
 #include "gpu/on_device.hpp"
 #include <gsd/pat.hpp>
 
@@ -349,6 +350,29 @@ RenderedField render_field(const GridSpec& grid, const std::vector<float>& value
             });
         },
         progress);
+}
+
+RenderedField render_field(const Field& field, const Box& box, const FieldRenderOptions& options,
+                           const ProgressFn& progress) {
+    // The fields with a march of their own (on a device, or the CPU reference per ray).
+    if (const auto* f = dynamic_cast<const TorusField*>(&field)) return render_field(*f, box, options, progress);
+    if (const auto* f = dynamic_cast<const BaselineField*>(&field)) return render_field(*f, box, options, progress);
+    if (const auto* f = dynamic_cast<const GridField*>(&field)) return render_field(f->grid(), f->values(), options, progress);
+    // Where the surface can be, for the camera's framing: the nodes of a coarse grid over the box
+    // within half a cell of φ ≤ 0 (a few thousand evaluations, against the march's millions).
+    validate_box(box, "box");
+    const GridSpec coarse{24, 24, 24, box};
+    const render::Frame f = render::frame_for(box, render::grid_subject(coarse, field.evaluate(coarse).phi), options);
+    gpu::on_device(
+        options.device,
+        [](const auto&, std::string& why_not) {
+            why_not = "a field made of other fields has no device march of its own (its leaves may evaluate there)";
+            return false;
+        },
+        "; its rays are marched on the CPU");
+    std::string device;
+    const std::vector<float> hits = render::march_wavefront(field, f.cam, f.march, device, progress);
+    return render::shade(hits, f.cam, options, device);
 }
 
 }  // namespace gsd

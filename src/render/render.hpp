@@ -51,6 +51,12 @@ using Sampler = std::function<double(const Eigen::Vector3d& x, Eigen::Vector3d* 
 /// for a miss.
 Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& o, const Eigen::Vector3d& d, const March& m);
 
+/// Per-pixel hits, 4 floats each (t, ∇φ; t = −1 for a miss), of any field marched on the CPU a
+/// band of rays at a time, one evaluation of the field per step (wavefront.cpp). `device`: where
+/// the field's evaluations ran.
+std::vector<float> march_wavefront(const Field& field, const Camera& cam, const March& m, std::string& device,
+                                   const ProgressFn& progress);
+
 /// Per-pixel hits, 4 floats each (t, ∇φ), from a device; false (and why) when it cannot run
 /// there, so the caller marches on the CPU instead.
 bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Context>& ctx, const Camera& cam,

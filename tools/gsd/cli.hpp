@@ -9,6 +9,7 @@
 
 #include <chrono>
 #include <functional>
+#include <memory>
 #include <future>
 #include <optional>
 #include <string>
@@ -167,5 +168,12 @@ void add_swn(CLI::App& app);
 void add_sdf(CLI::App& app);
 /// gsd field (field.cpp): the field algebra.
 void add_field(CLI::App& app);
+/// A field expression (docs/field.md) read, its leaves loaded: the field, and the box where its
+/// zero set can be (the leaves' boxes, grown by outward offsets).
+struct ParsedField {
+    std::shared_ptr<const Field> field;
+    Box box;
+};
+ParsedField parse_field_expression(const std::string& expression, const std::string& device);
 
 }  // namespace gsd::cli

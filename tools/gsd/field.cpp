@@ -259,6 +259,13 @@ private:
 
 }  // namespace
 
+ParsedField parse_field_expression(const std::string& expression, const std::string& device) {
+    LeafOptions leaves;
+    leaves.device = device;
+    const Parsed p = ExpressionParser(expression, leaves).parse();
+    return {p.field, p.box};
+}
+
 void add_field(CLI::App& app) {
     auto* cmd = app.add_subcommand(
         "field", "A field made of fields: Booleans, offsets and shells of fitted tori, grids, meshes and clouds, on a grid "
@@ -285,9 +292,7 @@ void add_field(CLI::App& app) {
     cmd->callback([a] {
         if (!a->domain.is_grid() && a->domain.queries.empty()) throw CLI::RequiredError("--grid or --queries");
         if (!a->domain.bounds.empty()) bounds_from(a->domain.bounds, "--bounds");  // before any costly fit
-        LeafOptions leaves;
-        leaves.device = a->device;
-        const Parsed p = ExpressionParser(a->expression, leaves).parse();
+        const ParsedField p = parse_field_expression(a->expression, a->device);
         const bool want_gradient = !a->gradient.empty();
         if (want_gradient && !p.field->has_gradient())
             throw Error("--gradient", "a field of this expression offers no gradient");

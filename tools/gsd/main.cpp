@@ -552,7 +552,7 @@ void add_winding(CLI::App& app) {
 void add_render(CLI::App& app) {
     auto* r = app.add_subcommand(
         "render", "Picture of a field's zero level set, sphere-traced on a Vulkan device or the CPU: PAT from a cloud or "
-                  ".tori, or a grid (trilinear), shaded by its gradient");
+                  ".tori, a grid (trilinear), or a field expression (--expr), shaded by its gradient");
     auto input = std::make_shared<std::string>();
     auto tori = std::make_shared<std::string>();
     auto output = std::make_shared<std::string>();
@@ -566,9 +566,14 @@ void add_render(CLI::App& app) {
     auto fit = std::make_shared<FitArgs>();
     auto blend = std::make_shared<BlendArgs>();
     auto outliers = std::make_shared<OutlierArgs>();
+    auto expr = std::make_shared<std::string>();
     auto* in = r->add_option("INPUT", *input, "Point cloud with normals, a .tori file, or an (N,N,N) .npy grid of φ");
     auto* tin = r->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
+    auto* ein = r->add_option("--expr", *expr,
+                              "Or a field made of fields, as `gsd field` reads it: \"union(a.tori, offset(b.obj, 0.05))\" "
+                              "(docs/field.md); marched on the CPU, its leaves where --device says");
     in->excludes(tin);
+    ein->excludes(in)->excludes(tin);
     r->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
     r->add_option("--size", *size, "Image width and height in pixels")->expected(2)->check(CLI::Range(1, 16384))->capture_default_str();
     r->add_option("--view-from", *view, "Direction the camera looks from, toward the center (default 1 0.8 1.6)")->expected(3);
@@ -590,7 +595,7 @@ void add_render(CLI::App& app) {
     blend->add_to(*r);
     outliers->add_to(*r, true);
     r->callback([=] {
-        if (input->empty() && tori->empty()) throw CLI::RequiredError("INPUT or --tori");
+        if (input->empty() && tori->empty() && expr->empty()) throw CLI::RequiredError("INPUT, --tori or --expr");
         fit->check();
         fit->device = blend->device;
         opt->width = (*size)[0];
@@ -616,7 +621,11 @@ void add_render(CLI::App& app) {
         std::optional<Progress> progress;  // started once the inputs are read (and fitted)
         auto start = [&] { return progress.emplace("render " + std::filesystem::path(*output).filename().string()).fn(); };
         const std::string source = !tori->empty() ? *tori : *input;
-        if (io::extension(source) == ".npy") {
+        if (!expr->empty()) {
+            const ParsedField p = parse_field_expression(*expr, blend->device);
+            if (!box) box = default_bounds(p.box);
+            picture = render_field(*p.field, *box, *opt, start());
+        } else if (io::extension(source) == ".npy") {
             const io::NpyArray a = io::read_grid(source);
             const GridSpec g = grid_of(a.shape, source, *bounds);
             const std::vector<float> values = as_float(a);

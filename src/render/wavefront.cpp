@@ -1,0 +1,169 @@
+// The march of any gsd::Field on the CPU, every ray of a band together: one evaluation of the
+// field per step over all the rays still marching, then the bisections together, then ∇φ at
+// the hits together. For fields whose evaluation is a call over many points — composites of
+// the field algebra, a mesh's exact distance — where a call per point per step would cost more
+// than the sums. The arithmetic of each ray is march_ray's (render.cpp); only φ comes in float32,
+// as every Field gives it.
+#include "render/render.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gsd::render {
+
+namespace {
+
+bool clip(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1) {
+    t0 = 0;
+    t1 = 3e38;
+    for (int a = 0; a < 3; ++a) {
+        if (std::abs(d[a]) < 1e-30) {
+            if (o[a] < b.lo[a] || o[a] > b.hi[a]) return false;
+            continue;
+        }
+        const double ta = (b.lo[a] - o[a]) / d[a], tb = (b.hi[a] - o[a]) / d[a];
+        t0 = std::max(t0, std::min(ta, tb));
+        t1 = std::min(t1, std::max(ta, tb));
+    }
+    return t0 <= t1;
+}
+
+struct Ray {
+    Eigen::Vector3d o, d;  // o: where the ray enters the box
+    double entry = 0, span = 0, t = 0, phi = 0;
+    double a = 0, b = 0, pa = 0;  // the bisection's bracket
+    long pixel = 0;
+};
+
+// φ at o + t·d for the listed rays (t from `t_of`), in one evaluation.
+template <class T>
+std::vector<float> phi_at(const Field& field, const std::vector<Ray>& rays, const std::vector<std::size_t>& which, T&& t_of,
+                          std::string& device) {
+    Points p(Eigen::Index(which.size()), 3);
+    for (std::size_t k = 0; k < which.size(); ++k) {
+        const Ray& r = rays[which[k]];
+        p.row(Eigen::Index(k)) = (r.o + t_of(r) * r.d).transpose();
+    }
+    FieldValues v = field.evaluate(p);
+    device = v.device;
+    return std::move(v.phi);
+}
+
+// ∇φ at the points: the field's own, or central differences of step h.
+std::vector<Eigen::Vector3d> gradients_at(const Field& field, const Points& x, double h) {
+    std::vector<Eigen::Vector3d> g(std::size_t(x.rows()));
+    if (x.rows() == 0) return g;
+    if (field.has_gradient()) {
+        const FieldValues v = field.evaluate(x, true);
+        for (std::size_t i = 0; i < g.size(); ++i) g[i] = {v.gradient[3 * i], v.gradient[3 * i + 1], v.gradient[3 * i + 2]};
+        return g;
+    }
+    Points p(6 * x.rows(), 3);
+    for (Eigen::Index i = 0; i < x.rows(); ++i)
+        for (int a = 0; a < 3; ++a)
+            for (int s = 0; s < 2; ++s) p.row(6 * i + 2 * a + s) = x.row(i) + (s ? -h : h) * Eigen::RowVector3d::Unit(a);
+    const FieldValues v = field.evaluate(p);
+    for (std::size_t i = 0; i < g.size(); ++i)
+        for (int a = 0; a < 3; ++a) g[i][a] = (double(v.phi[6 * i + 2 * std::size_t(a)]) - v.phi[6 * i + 2 * std::size_t(a) + 1]) / (2 * h);
+    return g;
+}
+
+}  // namespace
+
+std::vector<float> march_wavefront(const Field& field, const Camera& cam, const March& m, std::string& device,
+                                   const ProgressFn& progress) {
+    const long n = long(cam.width) * cam.height;
+    std::vector<float> hits(std::size_t(4 * n), 0.0f);
+    for (long p = 0; p < n; ++p) hits[std::size_t(4 * p)] = -1;
+    device = "cpu";
+    // Bands of rays bound the memory (a ray's state and its points: ~200 bytes) and report progress.
+    constexpr long kBand = 1L << 18;
+    for (long first = 0; first < n; first += kBand) {
+        const long last = std::min(n, first + kBand);
+        std::vector<Ray> rays;
+        for (long p = first; p < last; ++p) {
+            Ray r;
+            r.d = cam.ray(int(p % cam.width), int(p / cam.width));
+            double t0, t1;
+            if (!clip(m.box, cam.eye, r.d, t0, t1)) continue;
+            r.o = cam.eye + t0 * r.d;  // from the box entry, as march_ray
+            r.entry = t0;
+            r.span = t1 - t0;
+            r.pixel = p;
+            rays.push_back(r);
+        }
+        std::vector<std::size_t> marching(rays.size()), bisecting;
+        std::vector<std::pair<std::size_t, double>> found;  // (ray, t of its hit)
+        for (std::size_t k = 0; k < rays.size(); ++k) marching[k] = k;
+        const std::vector<float> start = phi_at(field, rays, marching, [](const Ray&) { return 0.0; }, device);
+        std::vector<std::size_t> next;
+        for (std::size_t k = 0; k < rays.size(); ++k) {
+            rays[k].phi = start[k];
+            if (std::abs(rays[k].phi) < m.hit_eps) found.push_back({k, 0.0});
+            else next.push_back(k);
+        }
+        marching.swap(next);
+        for (int s = 0; s < m.max_steps && !marching.empty(); ++s) {
+            // Each ray's next step; those past the box's far side are misses.
+            next.clear();
+            std::vector<double> tn;
+            for (std::size_t k : marching) {
+                const Ray& r = rays[k];
+                const double t = r.t + std::max(m.step_scale * std::abs(r.phi), m.min_step);
+                if (t > r.span) continue;
+                next.push_back(k);
+                tn.push_back(t);
+            }
+            std::size_t j = 0;
+            const std::vector<float> pn = phi_at(field, rays, next, [&](const Ray&) { return tn[j++]; }, device);
+            marching.clear();
+            for (std::size_t i = 0; i < next.size(); ++i) {
+                Ray& r = rays[next[i]];
+                if ((pn[i] < 0) != (r.phi < 0)) {  // crossed within the step: bisect [t, tn]
+                    r.a = r.t;
+                    r.b = tn[i];
+                    r.pa = r.phi;
+                    bisecting.push_back(next[i]);
+                } else if (std::abs(pn[i]) < m.hit_eps) {
+                    found.push_back({next[i], tn[i]});
+                } else {
+                    r.t = tn[i];
+                    r.phi = pn[i];
+                    marching.push_back(next[i]);
+                }
+            }
+            if (progress)
+                progress("march", (double(first) + double(last - first) * (1.0 - double(marching.size()) / double(std::max<std::size_t>(rays.size(), 1)))) / double(n));
+        }
+        for (int k = 0; k < m.bisection && !bisecting.empty(); ++k) {
+            const std::vector<float> pm = phi_at(field, rays, bisecting, [](const Ray& r) { return 0.5 * (r.a + r.b); }, device);
+            for (std::size_t i = 0; i < bisecting.size(); ++i) {
+                Ray& r = rays[bisecting[i]];
+                const double mid = 0.5 * (r.a + r.b);
+                if ((pm[i] < 0) == (r.pa < 0)) {
+                    r.a = mid;
+                    r.pa = pm[i];
+                } else {
+                    r.b = mid;
+                }
+            }
+        }
+        for (std::size_t k : bisecting) found.push_back({k, 0.5 * (rays[k].a + rays[k].b)});
+        Points at(Eigen::Index(found.size()), 3);
+        for (std::size_t i = 0; i < found.size(); ++i) {
+            const Ray& r = rays[found[i].first];
+            at.row(Eigen::Index(i)) = (r.o + found[i].second * r.d).transpose();
+        }
+        const std::vector<Eigen::Vector3d> g = gradients_at(field, at, m.hit_eps);
+        for (std::size_t i = 0; i < found.size(); ++i) {
+            const Ray& r = rays[found[i].first];
+            float* h = &hits[std::size_t(4 * r.pixel)];
+            h[0] = float(r.entry + found[i].second);
+            for (int a = 0; a < 3; ++a) h[1 + a] = float(g[i][a]);
+        }
+        if (progress) progress("march", double(last) / double(n));
+    }
+    return hits;
+}
+
+}  // namespace gsd::render
