@@ -306,6 +306,14 @@ PYBIND11_MODULE(_gsd, m) {
     m.def("difference", [=](const std::shared_ptr<Field>& a, const std::shared_ptr<Field>& b, double smooth) {
         return shared(field_difference(held(a), held(b), smooth));
     }, py::arg("a"), py::arg("b"), py::arg("smooth") = 0.0, "max(a, −b); smooth = k > 0: its smooth variant.");
+    m.def("opening", [=](const std::shared_ptr<Field>& a, double r, int n, std::array<double, 6> bounds) {
+        return shared(field_opening(held(a), r, grid_from(n, bounds, Box{})));
+    }, py::arg("a"), py::arg("r"), py::arg("n"), py::arg("bounds"),
+       "Erosion by r, re-distancing, dilation by r, on the n³ grid of bounds: what is thinner than 2r goes.");
+    m.def("closing", [=](const std::shared_ptr<Field>& a, double r, int n, std::array<double, 6> bounds) {
+        return shared(field_closing(held(a), r, grid_from(n, bounds, Box{})));
+    }, py::arg("a"), py::arg("r"), py::arg("n"), py::arg("bounds"),
+       "Dilation by r, re-distancing, erosion by r, on the n³ grid of bounds: gaps narrower than 2r fill.");
     py::class_<GridField, Field, std::shared_ptr<GridField>>(m, "GridField",
         "A grid's values as a field: trilinear inside its box, the nearest value plus the distance outside.")
         .def(py::init([](const py::array_t<float, py::array::c_style | py::array::forcecast>& values, std::array<double, 6> bounds) {

@@ -60,4 +60,18 @@ GSD_EXPORT FieldPtr field_offset(FieldPtr a, double r);
 /// |φ| − r: a shell of thickness 2r about the surface (r ≥ 0).
 GSD_EXPORT FieldPtr field_shell(FieldPtr a, double r);
 
+/// Opening (erosion by r, then dilation by r: removes what is thinner than 2r) and closing
+/// (dilation, then erosion: fills gaps narrower than 2r) of a field's shape, after thesis
+/// figs. 4.9 and 5.7. On `grid`: the field's values there are offset by ±r, re-distanced
+/// (redistance below) so that the second offset acts on a true distance, and offset back; the
+/// result is that grid as a GridField (trilinear). Computed at the first evaluation and kept.
+/// Throws gsd::Error for a null field, r ≤ 0 or non-finite, or an invalid grid.
+GSD_EXPORT FieldPtr field_opening(FieldPtr a, double r, const GridSpec& grid);
+GSD_EXPORT FieldPtr field_closing(FieldPtr a, double r, const GridSpec& grid);
+
+/// A grid's values re-distanced: the exact distance from each node to the zero set of the
+/// values (marching cubes' mesh of it, gsd::contour), with each node's sign kept. Where the
+/// values never change sign, ± the grid's diagonal.
+GSD_EXPORT std::vector<float> redistance(const GridSpec& grid, const std::vector<float>& values);
+
 }  // namespace gsd

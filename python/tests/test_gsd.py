@@ -158,6 +158,12 @@ def test_field_algebra_matches_cli(sphere, tmp_path):
     np.testing.assert_allclose(g.evaluate_on_grid(12, BOUNDS), grid, atol=1e-6)
     with pytest.raises(gsd.Error):
         gsd.union(pat, torus, smooth=-1.0)
+    # Morphology: an opening by r keeps a shape much thicker than 2r where it was.
+    # (The tube's radius is 0.125: deeper than 0.08 in it is deeper than r.)
+    opened = gsd.opening(torus, 0.05, 48, BOUNDS)
+    deep = np.random.default_rng(7).uniform(-1.0, 1.0, (3000, 3))
+    inside = torus.evaluate(deep) < -0.08
+    assert inside.sum() > 20 and np.all(opened.evaluate(deep)[inside] < 0)
 
 
 def test_sample_sdf_matches_cli_and_the_folder_iterator(tmp_path):

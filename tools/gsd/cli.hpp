@@ -174,6 +174,11 @@ struct ParsedField {
     std::shared_ptr<const Field> field;
     Box box;
 };
-ParsedField parse_field_expression(const std::string& expression, const std::string& device);
+/// Nodes per axis of the grids opening and closing re-distance on, unless --morphology-grid.
+constexpr int kMorphologyGrid = 128;
+ParsedField parse_field_expression(const std::string& expression, const std::string& device,
+                                   int morphology_grid = kMorphologyGrid);
+/// --morphology-grid N, for the commands that read expressions.
+void add_morphology_grid(CLI::App& app, int& nodes);
 
 }  // namespace gsd::cli

@@ -39,6 +39,7 @@ struct Parsed {
 /// How leaves become fields.
 struct LeafOptions {
     std::string device;
+    int morphology_grid = kMorphologyGrid;  ///< nodes per axis of opening's and closing's grids
 };
 
 Box merged(const Box& a, const Box& b) { return {a.lo.cwiseMin(b.lo), a.hi.cwiseMax(b.hi)}; }
@@ -180,6 +181,10 @@ private:
             {"smooth_difference", "smooth_difference(a, b, radius)"},
             {"offset", "offset(a, distance)"},
             {"shell", "shell(a, half_thickness)"},
+            {"erosion", "erosion(a, radius)"},
+            {"dilation", "dilation(a, radius)"},
+            {"opening", "opening(a, radius)"},
+            {"closing", "closing(a, radius)"},
         };
         const auto it = kSignature.find(name);
         if (it == kSignature.end()) {
@@ -238,11 +243,24 @@ private:
                 if (name == "smooth_union") out = {field_union(a.field, b.field, k), grown(merged(a.box, b.box), k / 4)};
                 else if (name == "smooth_intersection") out = {field_intersection(a.field, b.field, k), merged(a.box, b.box)};
                 else out = {field_difference(a.field, b.field, k), a.box};
-            } else {  // offset, shell
+            } else if (name == "opening" || name == "closing") {
                 arity(2, 2);
                 const Parsed& a = field_at(0);
                 const double r = number_at(1);
-                out = {name == "offset" ? field_offset(a.field, r) : field_shell(a.field, r), grown(a.box, r)};
+                // The grid covers what the first offset can reach (a closing grows by r first) and
+                // room for the distances beyond it.
+                const GridSpec g = GridSpec::cube(options_.morphology_grid, padded_cube(grown(a.box, 2 * std::abs(r))));
+                out = {name == "opening" ? field_opening(a.field, r, g) : field_closing(a.field, r, g), a.box};
+            } else {  // offset, shell, erosion, dilation
+                arity(2, 2);
+                const Parsed& a = field_at(0);
+                const double r = number_at(1);
+                if ((name == "erosion" || name == "dilation") && !(r > 0))
+                    fail(signature + ": the radius must be > 0", args[1].at);
+                if (name == "offset") out = {field_offset(a.field, r), grown(a.box, r)};
+                else if (name == "shell") out = {field_shell(a.field, r), grown(a.box, r)};
+                else if (name == "dilation") out = {field_offset(a.field, r), grown(a.box, r)};
+                else out = {field_offset(a.field, -r), a.box};
             }
         } catch (const Error& e) {
             if (e.where() == "expression") throw;
@@ -259,9 +277,17 @@ private:
 
 }  // namespace
 
-ParsedField parse_field_expression(const std::string& expression, const std::string& device) {
+void add_morphology_grid(CLI::App& app, int& nodes) {
+    app.add_option("--morphology-grid", nodes,
+                   "Nodes per axis of the grid an opening or closing re-distances on (the leaves' cube, grown by 2r, + 10 %)")
+        ->check(CLI::Range(8, 1024))
+        ->capture_default_str();
+}
+
+ParsedField parse_field_expression(const std::string& expression, const std::string& device, int morphology_grid) {
     LeafOptions leaves;
     leaves.device = device;
+    leaves.morphology_grid = morphology_grid;
     const Parsed p = ExpressionParser(expression, leaves).parse();
     return {p.field, p.box};
 }
@@ -272,13 +298,15 @@ void add_field(CLI::App& app) {
                  "or at queries (docs/field.md)");
     struct Args {
         std::string expression, output, gradient, device;
+        int morphology_grid = kMorphologyGrid;
         Domain domain;
     };
     auto a = std::make_shared<Args>();
     cmd->add_option("EXPR", a->expression,
                     "The expression, e.g. \"union(a.tori, offset(b.npy, 0.05))\": leaves are files (.tori, a .npy grid "
                     "with its sidecar, a mesh, an oriented cloud); operators union, intersection, difference, "
-                    "smooth_union, smooth_intersection, smooth_difference (radius last), offset, shell")
+                    "smooth_union, smooth_intersection, smooth_difference (radius last), offset, shell, erosion, "
+                    "dilation, opening, closing")
         ->required();
     cmd->add_option("-o,--output", a->output,
                     "Output .npy: (N,N,N) for a grid, (M,) for queries; or .vdb (a grid: φ as an OpenVDB level set)")
@@ -288,11 +316,12 @@ void add_field(CLI::App& app) {
     cmd->add_option("--device", a->device,
                     "Where the leaves evaluate: auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE "
                     "or auto); the operators combine on the CPU");
+    add_morphology_grid(*cmd, a->morphology_grid);
     a->domain.add_to(*cmd, true);
     cmd->callback([a] {
         if (!a->domain.is_grid() && a->domain.queries.empty()) throw CLI::RequiredError("--grid or --queries");
         if (!a->domain.bounds.empty()) bounds_from(a->domain.bounds, "--bounds");  // before any costly fit
-        const ParsedField p = parse_field_expression(a->expression, a->device);
+        const ParsedField p = parse_field_expression(a->expression, a->device, a->morphology_grid);
         const bool want_gradient = !a->gradient.empty();
         if (want_gradient && !p.field->has_gradient())
             throw Error("--gradient", "a field of this expression offers no gradient");

@@ -574,6 +574,8 @@ void add_render(CLI::App& app) {
                               "(docs/field.md); marched on the CPU, its leaves where --device says");
     in->excludes(tin);
     ein->excludes(in)->excludes(tin);
+    auto morphology_grid = std::make_shared<int>(kMorphologyGrid);
+    add_morphology_grid(*r, *morphology_grid);
     r->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
     r->add_option("--size", *size, "Image width and height in pixels")->expected(2)->check(CLI::Range(1, 16384))->capture_default_str();
     r->add_option("--view-from", *view, "Direction the camera looks from, toward the center (default 1 0.8 1.6)")->expected(3);
@@ -622,7 +624,7 @@ void add_render(CLI::App& app) {
         auto start = [&] { return progress.emplace("render " + std::filesystem::path(*output).filename().string()).fn(); };
         const std::string source = !tori->empty() ? *tori : *input;
         if (!expr->empty()) {
-            const ParsedField p = parse_field_expression(*expr, blend->device);
+            const ParsedField p = parse_field_expression(*expr, blend->device, *morphology_grid);
             if (!box) box = default_bounds(p.box);
             picture = render_field(*p.field, *box, *opt, start());
         } else if (io::extension(source) == ".npy") {
