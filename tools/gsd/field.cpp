@@ -294,7 +294,7 @@ ParsedField parse_field_expression(const std::string& expression, const std::str
 
 void add_field(CLI::App& app) {
     auto* cmd = app.add_subcommand(
-        "field", "A field made of fields: Booleans, offsets and shells of fitted tori, grids, meshes and clouds, on a grid "
+        "field", "A field made of fields: Booleans, offsets, shells, opening and closing of fitted tori, grids, meshes and clouds, on a grid "
                  "or at queries (docs/field.md)");
     struct Args {
         std::string expression, output, gradient, device;
