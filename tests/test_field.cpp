@@ -527,6 +527,11 @@ TEST_CASE("gsd field: an expression over meshes and grids, and its errors") {
     CHECK(run_cli("field \"offset(0.1, " + s + ")\"" + bounds + "-o " + dir.file("x.npy")).output.find("takes a field here") !=
           std::string::npos);
     CHECK(run_cli("field \"union(" + s + ", " + dir.file("missing.obj") + ")\"" + bounds + "-o " + dir.file("x.npy")).exit_code == 1);
+    std::string deep = s;
+    for (int k = 0; k < 100; ++k) deep = "offset(" + deep + ", 0.001)";
+    const auto too_deep = run_cli("field \"" + deep + "\"" + bounds + "-o " + dir.file("x.npy"));
+    CHECK(too_deep.exit_code == 1);
+    CHECK(too_deep.output.find("nested deeper than 64") != std::string::npos);
     CHECK_FALSE(test::file_exists(dir.file("x.npy")));
     // The same expression rendered (gsd render --expr), and a bad one refused before any work.
     const auto rendered = run_cli("render --expr \"smooth_union(" + dir.file("s.npy") + ", offset(" + t + ", 0.05), 0.1)\" --size 48 36 "

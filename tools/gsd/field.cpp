@@ -108,7 +108,13 @@ private:
     };
 
     [[noreturn]] void fail(const std::string& what, std::size_t at) const {
-        throw Error("expression", "at character " + std::to_string(at + 1) + " of '" + text_ + "': " + what);
+        throw Error("expression", "at character " + std::to_string(at + 1) + " of '" + excerpt(at) + "': " + what);
+    }
+    // The expression, or for a long one the 80 characters about `at`.
+    std::string excerpt(std::size_t at) const {
+        if (text_.size() <= 100) return text_;
+        const std::size_t from = at > 40 ? at - 40 : 0, to = std::min(text_.size(), from + 80);
+        return (from > 0 ? "…" : "") + text_.substr(from, to - from) + (to < text_.size() ? "…" : "");
     }
     [[noreturn]] void fail(const std::string& what) const { fail(what, pos_); }
 
@@ -192,6 +198,9 @@ private:
             for (const auto& [k, v] : kSignature) known += (known.empty() ? "" : ", ") + k;
             fail("unknown operator '" + name + "' (known: " + known + ")", at);
         }
+        // Each level is a frame of this parser and, later, of every evaluation: bounded, so that
+        // a runaway expression is an error rather than a stack overflow.
+        if (++depth_ > kMaxDepth) fail("operators nested deeper than " + std::to_string(kMaxDepth), at);
         ++pos_;  // '('
         std::vector<Operand> args;
         while (true) {
@@ -207,6 +216,7 @@ private:
             }
             fail("expected ',' or ')' in " + it->second);
         }
+        --depth_;
         return apply(name, it->second, args, at);
     }
 
@@ -270,9 +280,11 @@ private:
         return out;
     }
 
+    static constexpr int kMaxDepth = 64;
     std::string text_;
     LeafOptions options_;
     std::size_t pos_ = 0;
+    int depth_ = 0;
 };
 
 }  // namespace
