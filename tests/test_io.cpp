@@ -965,6 +965,55 @@ TEST_CASE("write_vdb: a VDB file from a valid scalar grid; bad grids and options
     refused(g, v, nameless, "no name");
 }
 
+TEST_CASE("read_vdb: what write_vdb wrote comes back on the same nodes") {
+    if (!io::vdb_available()) {
+        CHECK_THROWS_AS(io::read_vdb("missing.vdb"), Error);
+        return;
+    }
+    ScratchDir dir("io-vdb-read");
+    // Every node's value (not a level set): the same grid, every value.
+    const GridSpec g{5, 6, 7, Box{{-1, -2, 0}, {1, 0.5, 3}}};
+    std::vector<float> v(g.node_count());
+    for (std::size_t i = 0; i < v.size(); ++i) v[i] = float(i % 11) * 0.25f - 1.1f;
+    io::VdbOptions plain;
+    plain.level_set = false;
+    io::write_vdb(dir.file("plain.vdb"), g, v, plain);
+    const auto [pg, pv] = io::read_vdb(dir.file("plain.vdb"));
+    CHECK(pg.nx == 5);
+    CHECK(pg.ny == 6);
+    CHECK(pg.nz == 7);
+    for (int a = 0; a < 3; ++a) {
+        CHECK(pg.box.lo[a] == doctest::Approx(g.box.lo[a]));
+        CHECK(pg.box.hi[a] == doctest::Approx(g.box.hi[a]));
+    }
+    CHECK(pv == v);
+    // A sphere's distance as a level set: the band's values as written, ± the band's half width
+    // beyond it, on the nodes of the band's box grown by one.
+    const GridSpec s = GridSpec::cube(33, Box{{-1, -1, -1}, {1, 1, 1}});
+    const Points nodes = s.nodes();
+    std::vector<float> phi(s.node_count());
+    for (Eigen::Index i = 0; i < nodes.rows(); ++i) phi[std::size_t(i)] = float(nodes.row(i).norm() - 0.5);
+    io::write_vdb(dir.file("sphere.vdb"), s, phi);
+    const auto [lg, lv] = io::read_vdb(dir.file("sphere.vdb"));
+    const double h = 2.0 / 32, band = 3 * h;
+    std::size_t checked = 0;
+    const Points back = lg.nodes();
+    for (Eigen::Index i = 0; i < back.rows(); ++i) {
+        const double exact = back.row(i).norm() - 0.5;
+        if (std::abs(exact) < band - 1e-6) {
+            CHECK(lv[std::size_t(i)] == doctest::Approx(exact).epsilon(1e-5));
+            ++checked;
+        } else {
+            CHECK(std::abs(lv[std::size_t(i)]) <= band + 1e-5);
+            CHECK((lv[std::size_t(i)] < 0) == (exact < 0));
+        }
+    }
+    CHECK(checked > 1000);
+    CHECK_THROWS_AS(io::read_vdb(dir.file("missing.vdb")), Error);
+    test::write_bytes(dir.file("junk.vdb"), "not a vdb file at all");
+    CHECK_THROWS_AS(io::read_vdb(dir.file("junk.vdb")), Error);
+}
+
 TEST_CASE("grid metadata round-trips exactly; absent is nullopt; bad options and grids are refused") {
     ScratchDir dir("io-grid-meta");
     const std::string grid = dir.file("g.npy");

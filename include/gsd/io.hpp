@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace gsd::io {
@@ -149,6 +150,12 @@ GSD_EXPORT void require_vdb(const std::string& path);
 /// non-finite values, non-cubic voxels for a level set, or when vdb_available() is false.
 GSD_EXPORT void write_vdb(const std::string& path, const GridSpec& grid, const std::vector<float>& values,
                           const VdbOptions& options = {});
+/// Reads a .vdb file's float grid (the one named "surface", else the first) as a dense grid over
+/// its active voxels' box — for a level set grown by one voxel, where the inactive outside and
+/// inside read ± the background. Its transform must be an axis-aligned scale and translation.
+/// Throws gsd::Error naming the file when the plugin is missing, the file cannot be read, it
+/// holds no float grid, or the grid would pass the memory budget.
+GSD_EXPORT std::pair<GridSpec, std::vector<float>> read_vdb(const std::string& path);
 
 /// Lower-cased extension including the dot (".ply"), or "" if none.
 GSD_EXPORT std::string extension(const std::string& path);

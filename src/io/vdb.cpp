@@ -39,18 +39,50 @@ std::vector<std::string> plugin_candidates() {
     return out;
 }
 
-GsdVdbEncode plugin() {
-    static GsdVdbEncode encode = nullptr;
+struct Plugin {
+    GsdVdbEncode encode = nullptr;
+    GsdVdbDecode decode = nullptr;
+};
+
+const Plugin& plugin_functions() {
+    static Plugin plugin;
     static std::once_flag once;
     std::call_once(once, [] {
         for (const std::string& path : plugin_candidates())
             if (void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {  // kept for the process's life
-                encode = reinterpret_cast<GsdVdbEncode>(dlsym(handle, GSD_VDB_ENCODE_SYMBOL));
-                if (encode) return;
+                plugin.encode = reinterpret_cast<GsdVdbEncode>(dlsym(handle, GSD_VDB_ENCODE_SYMBOL));
+                plugin.decode = reinterpret_cast<GsdVdbDecode>(dlsym(handle, GSD_VDB_DECODE_SYMBOL));
+                if (plugin.encode) return;
                 dlclose(handle);
             }
     });
-    return encode;
+    return plugin;
+}
+
+GsdVdbEncode plugin() { return plugin_functions().encode; }
+
+// read_vdb's buffer: the grid the plugin describes, if the memory budget allows it.
+struct Decoded {
+    GridSpec grid;
+    std::vector<float> values;
+    std::string refused;
+};
+
+float* allocate(void* context, const GsdVdbDense* d) {
+    auto& out = *static_cast<Decoded*>(context);
+    try {
+        const double nodes = double(d->nx) * d->ny * d->nz;
+        check_memory(4.0 * nodes, "grid", "a .vdb grid of " + std::to_string(d->nx) + "×" + std::to_string(d->ny) + "×" +
+                                             std::to_string(d->nz) + " nodes");
+        out.grid = GridSpec{d->nx, d->ny, d->nz,
+                            Box{{d->lo[0], d->lo[1], d->lo[2]},
+                                {d->lo[0] + d->step[0] * (d->nx - 1), d->lo[1] + d->step[1] * (d->ny - 1), d->lo[2] + d->step[2] * (d->nz - 1)}}};
+        out.values.resize(std::size_t(nodes));
+        return out.values.data();
+    } catch (const Error& e) {
+        out.refused = e.what();
+        return nullptr;
+    }
 }
 
 void append(void* context, const char* bytes, size_t size) { static_cast<std::string*>(context)->append(bytes, size); }
@@ -64,6 +96,22 @@ void require_vdb(const std::string& path) {
         throw Error(path, "this gsd cannot write .vdb: its OpenVDB plugin " GSD_VDB_PLUGIN_NAME
                           " was not found (gsd was built without libopenvdb-dev, or the plugin is not installed beside "
                           "libgsd; $GSD_VDB_PLUGIN may name it); write .npy instead");
+}
+
+std::pair<GridSpec, std::vector<float>> read_vdb(const std::string& path) {
+    if (!vdb_available() || !plugin_functions().decode)
+        throw Error(path, "this gsd cannot read .vdb: its OpenVDB plugin " GSD_VDB_PLUGIN_NAME
+                          " was not found; read the grid as .npy instead");
+    Decoded out;
+    char error[512] = "";
+    if (plugin_functions().decode(path.c_str(), allocate, &out, error, sizeof error) != 0)
+        throw Error(path, !out.refused.empty() ? out.refused : std::string(error));
+    if (out.grid.nx < 2 || out.grid.ny < 2 || out.grid.nz < 2)
+        throw Error(path, "the grid's active voxels span fewer than 2 along an axis");
+    out.grid.validate();
+    for (float v : out.values)
+        if (!std::isfinite(v)) throw Error(path, "the grid holds a value that is not finite");
+    return {out.grid, std::move(out.values)};
 }
 
 void write_vdb(const std::string& path, const GridSpec& g, const std::vector<float>& values, const VdbOptions& o) {

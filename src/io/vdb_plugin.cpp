@@ -6,6 +6,7 @@
 // OpenVDB's types keep default visibility: the plugin builds with hidden visibility, and a
 // hidden copy of their type_info breaks the library's own casts (a segfault on write).
 #pragma GCC visibility push(default)
+#include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
 #pragma GCC visibility pop
@@ -52,7 +53,66 @@ std::string encode(const GsdVdbGrid& g) {
     return bytes.str();
 }
 
+// The file's float grid named "surface", else its first float grid.
+openvdb::FloatGrid::Ptr float_grid(const char* path) {
+    initialize_once();
+    openvdb::io::File file(path);
+    file.open();
+    const openvdb::GridPtrVecPtr grids = file.getGrids();
+    file.close();
+    openvdb::FloatGrid::Ptr first;
+    for (const openvdb::GridBase::Ptr& g : *grids)
+        if (auto f = openvdb::gridPtrCast<openvdb::FloatGrid>(g)) {
+            if (f->getName() == "surface") return f;
+            if (!first) first = f;
+        }
+    if (!first) throw std::runtime_error("the file holds no float grid");
+    return first;
+}
+
+void decode(const char* path, GsdVdbAllocate allocate, void* context) {
+    const openvdb::FloatGrid::Ptr grid = float_grid(path);
+    const openvdb::math::Transform& t = grid->transform();
+    // Nodes on an axis-aligned lattice: a scale and a translation, nothing else.
+    const openvdb::math::MapBase::ConstPtr map = t.baseMap();
+    if (!(map->isType<openvdb::math::ScaleTranslateMap>() || map->isType<openvdb::math::UniformScaleTranslateMap>() ||
+          map->isType<openvdb::math::ScaleMap>() || map->isType<openvdb::math::UniformScaleMap>() ||
+          map->isType<openvdb::math::TranslationMap>()))
+        throw std::runtime_error("the grid's transform is not an axis-aligned scale and translation (" + map->type() + ")");
+    openvdb::CoordBBox box = grid->evalActiveVoxelBoundingBox();
+    if (box.empty()) throw std::runtime_error("the grid has no active voxels");
+    const bool level_set = grid->getGridClass() == openvdb::GRID_LEVEL_SET;
+    if (level_set) box.expand(1);
+    const openvdb::Coord dim = box.dim();
+    GsdVdbDense dense{dim.x(), dim.y(), dim.z(), {}, {}, level_set ? 1 : 0};
+    const openvdb::Vec3d lo = t.indexToWorld(box.min()), step = t.voxelSize();
+    for (int a = 0; a < 3; ++a) {
+        dense.lo[a] = lo[a];
+        dense.step[a] = step[a];
+    }
+    float* values = allocate(context, &dense);
+    if (!values) throw std::runtime_error("");  // refused: the caller knows why
+    openvdb::FloatGrid::ConstAccessor acc = grid->getConstAccessor();
+    std::size_t n = 0;
+    for (int i = box.min().x(); i <= box.max().x(); ++i)
+        for (int j = box.min().y(); j <= box.max().y(); ++j)
+            for (int k = box.min().z(); k <= box.max().z(); ++k) values[n++] = acc.getValue(openvdb::Coord(i, j, k));
+}
+
 }  // namespace
+
+extern "C" __attribute__((visibility("default"))) int gsd_vdb_decode(const char* path, GsdVdbAllocate allocate, void* context,
+                                                                      char* error, size_t error_size) {
+    try {
+        decode(path, allocate, context);
+        return 0;
+    } catch (const std::exception& e) {  // nothing may cross the C boundary
+        std::snprintf(error, error_size, "%s", e.what());
+    } catch (...) {
+        std::snprintf(error, error_size, "OpenVDB could not read the file");
+    }
+    return 1;
+}
 
 extern "C" __attribute__((visibility("default"))) int gsd_vdb_encode(const GsdVdbGrid* grid, GsdVdbSink sink, void* context,
                                                                       char* error, size_t error_size) {

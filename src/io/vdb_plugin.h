@@ -30,7 +30,25 @@ typedef void (*GsdVdbSink)(void* context, const char* bytes, size_t size);
    in error (error_size bytes, NUL-terminated). */
 typedef int (*GsdVdbEncode)(const struct GsdVdbGrid* grid, GsdVdbSink sink, void* context, char* error, size_t error_size);
 
+/* What a decoded grid holds: its nodes, node (i, j, k) at lo + (i, j, k)·step. */
+struct GsdVdbDense {
+    int nx, ny, nz;
+    double lo[3], step[3];
+    int level_set;
+};
+
+/* Gives the decoder a buffer of nx·ny·nz floats for the grid it describes (C order, k fastest),
+   or NULL to refuse it (too large); the refusal's reason stays with the caller. */
+typedef float* (*GsdVdbAllocate)(void* context, const struct GsdVdbDense* dense);
+
+/* Reads the file's float grid (the one named "surface" if there are several, else the first)
+   into a dense grid over its active voxels' box (grown by one voxel for a level set, whose
+   inactive outside and inside then read ± the background). 0 on success; otherwise nonzero with
+   a message in error. */
+typedef int (*GsdVdbDecode)(const char* path, GsdVdbAllocate allocate, void* context, char* error, size_t error_size);
+
 #define GSD_VDB_ENCODE_SYMBOL "gsd_vdb_encode"
+#define GSD_VDB_DECODE_SYMBOL "gsd_vdb_decode"
 #define GSD_VDB_PLUGIN_NAME "libgsd_vdb.so"
 
 #ifdef __cplusplus

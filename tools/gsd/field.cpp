@@ -4,7 +4,7 @@
 //   gsd field "union(a.tori, offset(b.npy, 0.05))" --grid 128 -o out.npy
 //
 // The expression: a leaf is a file — fitted tori (.tori), a grid read back (.npy with its
-// sidecar), a mesh (a file with faces: its exact signed distance, gsd sdf's automatic sign) or
+// sidecar, or an OpenVDB .vdb), a mesh (a file with faces: its exact signed distance, gsd sdf's automatic sign) or
 // an oriented point cloud (fitted by the jet fitter and blended as PAT) — and an operator is
 // NAME(operand, …): union and intersection of two or more, difference of two, their smooth_
 // variants with a radius last, offset and shell with a distance. A path with parentheses,
@@ -66,7 +66,13 @@ Parsed load_leaf(const std::string& path, const LeafOptions& o) {
         naming_file(path, "values", [&] { f = std::make_shared<GridField>(g, std::move(values)); });
         return {f, g.box};
     }
-    if (ext == ".vdb") throw Error(path, "reading .vdb grids is not supported yet: write the grid as .npy (with its sidecar)");
+    if (ext == ".vdb") {
+        auto [g, values] = io::read_vdb(path);
+        const Box box = g.box;
+        std::shared_ptr<GridField> f;
+        naming_file(path, "values", [&] { f = std::make_shared<GridField>(g, std::move(values)); });
+        return {f, box};
+    }
     if (io::file_has_faces(path)) {
         PolygonMesh mesh = io::read_mesh(path);
         const Box box = bounding_box(mesh.vertices);
@@ -316,7 +322,7 @@ void add_field(CLI::App& app) {
     auto a = std::make_shared<Args>();
     cmd->add_option("EXPR", a->expression,
                     "The expression, e.g. \"union(a.tori, offset(b.npy, 0.05))\": leaves are files (.tori, a .npy grid "
-                    "with its sidecar, a mesh, an oriented cloud); operators union, intersection, difference, "
+                    "with its sidecar or a .vdb, a mesh, an oriented cloud); operators union, intersection, difference, "
                     "smooth_union, smooth_intersection, smooth_difference (radius last), offset, shell, erosion, "
                     "dilation, opening, closing")
         ->required();
