@@ -67,10 +67,10 @@ Parsed load_leaf(const std::string& path, const LeafOptions& o) {
         return {f, g.box};
     }
     if (ext == ".vdb") {
-        auto [g, values] = io::read_vdb(path);
-        const Box box = g.box;
+        std::pair<GridSpec, std::vector<float>> grid = io::read_vdb(path);
+        const Box box = grid.first.box;
         std::shared_ptr<GridField> f;
-        naming_file(path, "values", [&] { f = std::make_shared<GridField>(g, std::move(values)); });
+        naming_file(path, "values", [&] { f = std::make_shared<GridField>(grid.first, std::move(grid.second)); });
         return {f, box};
     }
     if (io::file_has_faces(path)) {
