@@ -353,17 +353,7 @@ PYBIND11_MODULE(_gsd, m) {
             const std::vector<float>& c = f.confidence().confidence;
             return py::array_t<float>(py::ssize_t(c.size()), c.data());
         }, "Per point confidence (N,) float32; points below 0.5 are outliers left out of the blend (empty with keep_outliers).")
-        .def_property_readonly("blended_count", &TorusField::blended_count)
-        .def("evaluate", [](const TorusField& f, const DoubleArray& queries, bool gradient) {
-            const Eigen::Map<const Points> q = points_view(queries, "queries");  // no copy
-            FieldValues v;
-            {
-                py::gil_scoped_release nogil;
-                v = f.evaluate(q, gradient);
-            }
-            return field_result(std::move(v), gradient, {py::ssize_t(q.rows())});
-        }, py::arg("queries"), py::arg("gradient") = false,
-           "φ (M,) float32 at (M,3) queries; with gradient=True, (φ, ∇φ (M,3)).")
+        .def_property_readonly("blended_count", &TorusField::blended_count)  // evaluate: gsd.Field's
         .def("evaluate_grid", [](const TorusField& f, int n, std::optional<std::array<double, 6>> bounds, bool gradient) {
             const GridSpec g = grid_from(n, bounds, bounding_box(f.tori().points));
             FieldValues v;

@@ -50,8 +50,6 @@ March make_march(const Box& box, const FieldRenderOptions& o) {
     return m;
 }
 
-namespace {
-
 bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1) {
     t0 = 0;
     t1 = 3e38;
@@ -66,8 +64,6 @@ bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& 
     }
     return t0 <= t1;
 }
-
-}  // namespace
 
 Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& eye, const Eigen::Vector3d& d, const March& m) {
     const Eigen::Vector4d miss(-1, 0, 0, 0);

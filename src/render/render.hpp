@@ -44,6 +44,9 @@ struct March {
 Camera make_camera(const Box& subject, const FieldRenderOptions& o, int width, int height);
 March make_march(const Box& box, const FieldRenderOptions& o);
 
+/// The part [t0, t1] of the ray o + t·d (t ≥ 0) inside the box; false when it misses.
+bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1);
+
 /// φ at x, and ∇φ into `grad` when it is not null.
 using Sampler = std::function<double(const Eigen::Vector3d& x, Eigen::Vector3d* grad)>;
 

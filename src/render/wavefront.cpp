@@ -13,21 +13,6 @@ namespace gsd::render {
 
 namespace {
 
-bool clip(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1) {
-    t0 = 0;
-    t1 = 3e38;
-    for (int a = 0; a < 3; ++a) {
-        if (std::abs(d[a]) < 1e-30) {
-            if (o[a] < b.lo[a] || o[a] > b.hi[a]) return false;
-            continue;
-        }
-        const double ta = (b.lo[a] - o[a]) / d[a], tb = (b.hi[a] - o[a]) / d[a];
-        t0 = std::max(t0, std::min(ta, tb));
-        t1 = std::min(t1, std::max(ta, tb));
-    }
-    return t0 <= t1;
-}
-
 struct Ray {
     Eigen::Vector3d o, d;  // o: where the ray enters the box
     double entry = 0, span = 0, t = 0, phi = 0;
@@ -85,7 +70,7 @@ std::vector<float> march_wavefront(const Field& field, const Camera& cam, const 
             Ray r;
             r.d = cam.ray(int(p % cam.width), int(p / cam.width));
             double t0, t1;
-            if (!clip(m.box, cam.eye, r.d, t0, t1)) continue;
+            if (!clip_to_box(m.box, cam.eye, r.d, t0, t1)) continue;
             r.o = cam.eye + t0 * r.d;  // from the box entry, as march_ray
             r.entry = t0;
             r.span = t1 - t0;
