@@ -112,6 +112,21 @@ struct MultigridPush {
     uint pad3;
 };
 
+// sharpen_dual.comp, sharpen_primal.comp, sharpen_restart.comp (src/shm/sharpen.hpp)
+struct SharpenPush {
+    GSD_ALIGNED_VEC3 uvec3 dims;  // nodes per axis
+    uint nodes;
+    GSD_ALIGNED_VEC3 vec3 inv_h;  // 1/spacing per axis
+    uint rows;                    // zero-set rows
+    float sigma_d;                // the gradient blocks' dual step
+    float row_scale;              // β
+    float damping;                // the soft zero set's dual damping (1: exact)
+    float sign_floor;             // keep_sign: s·φ ≥ this (0: eq. 4.13 as written, no bound)
+    uint keep_sign;               // 1: bound φ to φ₀'s side
+    float inv_count;              // sharpen_restart: 1 / iterations averaged
+    uint pad0, pad1;
+};
+
 #ifdef __cplusplus
 // std430 offsets, as the shaders see them.
 static_assert(sizeof(CountPush) == 4);
@@ -122,6 +137,8 @@ static_assert(sizeof(RenderGridPush) == 44);
 static_assert(sizeof(DiffusePush) == 28);
 static_assert(sizeof(TorusNetKnnPush) == 8);
 static_assert(sizeof(SdfNearestPush) == 12);
+static_assert(sizeof(SharpenPush) == 64 && offsetof(SharpenPush, inv_h) == 16 && offsetof(SharpenPush, rows) == 28 &&
+              offsetof(SharpenPush, keep_sign) == 48 && offsetof(SharpenPush, inv_count) == 52);
 static_assert(sizeof(MultigridPush) == 80 && offsetof(MultigridPush, color) == 12 &&
               offsetof(MultigridPush, axes_off) == 16 && offsetof(MultigridPush, odims) == 32 &&
               offsetof(MultigridPush, oaxes_off) == 48 && offsetof(MultigridPush, inv_h2) == 64 &&

@@ -115,6 +115,43 @@ struct ShmResult {
     std::string device;                    ///< "cpu" or the Vulkan device that ran step 1 / step 3
 };
 
+// ---- distance sharpening (thesis §4.4, eq. 4.13) ---------------------------------------------
+
+/// Sharpening turns a generalized signed distance φ₀ (an SHM result, blurred by its diffusion
+/// time) into the sharpest function that keeps its sign: max Σ sign(φ₀)·φ subject to |∇φ| ≤ 1
+/// and φ = 0 on the source, by the primal–dual hybrid gradient method warm-started from φ₀
+/// (docs/shm.md: distance sharpening).
+struct SharpenOptions : Execution {
+    /// PDHG iterations; 0: 6 × the grid's largest dimension (the dual has to carry the objective
+    /// across the grid, about a cell per iteration or two).
+    int iterations = 0;
+    /// Keep every node on φ₀'s side: sign(φ₀)·φ ≥ 0 (a bound the prox step enforces at no cost),
+    /// so the inside/outside label of every node survives exactly. Off: eq. 4.13 as written.
+    bool keep_sign = true;
+    /// w > 0: the zero set is fitted softly, (w/2)·Σ_rows (P φ / h)² (one row per grid cell the
+    /// source crosses); 0: exactly. The source of a broken shape (a noisy cloud, overlapping
+    /// scans) cannot all lie on the zero set of a function with |∇φ| ≤ 1; the soft fit lets it
+    /// miss where it must instead of pinning φ to 0 over a band.
+    double zero_set_weight = 0;
+};
+
+struct SharpenResult {
+    std::vector<float> phi;          ///< per node, GridSpec storage order
+    int iterations = 0;
+    std::size_t zero_set_rows = 0;   ///< grid cells the source crosses (constraint rows)
+    /// The largest |∇φ| by forward differences (1 at convergence, ≥ 1 just short of it) and
+    /// the mean over nodes of max(|∇φ| − 1, 0): what is left of the constraint.
+    double max_slope = 0, mean_excess_slope = 0;
+    std::size_t sign_changes = 0;    ///< nodes whose sign differs from φ₀'s (0 with keep_sign)
+    double seconds = 0;
+    std::string device;              ///< "cpu" or the Vulkan device
+};
+
+/// Sharpens `phi0` (on `grid`, GridSpec storage order) against the zero set of `source`.
+/// Throws gsd::Error for a size mismatch, a non-finite value or a source outside the grid.
+GSD_EXPORT SharpenResult sharpen_distance(const GridSpec& grid, std::span<const float> phi0, const ShmSource& source,
+                                          const SharpenOptions& options = {}, const ProgressFn& progress = {});
+
 /// The grid SHM solver: sources and grid fixed at construction; solve() runs the three steps.
 class GSD_EXPORT SignedHeatGrid {
 public:
@@ -124,6 +161,10 @@ public:
     SignedHeatGrid& operator=(SignedHeatGrid&&) noexcept;
 
     ShmResult solve(const ProgressFn& progress = {}) const;
+
+    /// Distance sharpening of a solve's φ against this solver's source (sharpen_distance).
+    SharpenResult sharpen(std::span<const float> phi, const SharpenOptions& options = {},
+                          const ProgressFn& progress = {}) const;
 
     /// Step 1–2 alone: the unit vector field Y at every node (3 per node; 0 where undefined).
     std::vector<float> diffused_directions(const ProgressFn& progress = {}) const;

@@ -290,6 +290,11 @@ std::vector<float> SignedHeatGrid::diffused_directions(const ProgressFn& progres
     return std::vector<float>(y.begin(), y.end());
 }
 
+SharpenResult SignedHeatGrid::sharpen(std::span<const float> phi, const SharpenOptions& options,
+                                      const ProgressFn& progress) const {
+    return sharpen_distance(impl_->grid, phi, impl_->source, options, progress);
+}
+
 ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     const Impl& m = *impl_;
     ShmResult out;

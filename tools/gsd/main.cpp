@@ -371,6 +371,12 @@ void add_shm(CLI::App& app) {
         ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
+    auto sharpen = std::make_shared<bool>(false);
+    auto sharpen_opt = std::make_shared<SharpenOptions>();
+    grid->add_flag("--sharpen", *sharpen,
+                   "Distance sharpening (thesis eq. 4.13): the sharpest φ with |∇φ| ≤ 1, zero on the input and φ's sign, by PDHG from the solve's φ");
+    grid->add_option("--iterations", sharpen_opt->iterations, "With --sharpen: PDHG iterations (0: 24 × N)")
+        ->check(CLI::Range(0, 1000000))->capture_default_str();
     grid->callback([=] {
         check_grid_output(*output, true);
         const DevicePrefetch prefetch(opt->device);
@@ -425,8 +431,18 @@ void add_shm(CLI::App& app) {
         opt->solver = poisson_solver_from_name(*solver);
         Progress progress("shm grid");
         const SignedHeatGrid shm(src, g, *opt);
-        const ShmResult r = shm.solve(progress.fn());
+        ShmResult r = shm.solve(progress.fn());
         progress.finish();
+        if (*sharpen) {
+            Progress sharpening("shm grid --sharpen");
+            sharpen_opt->device = opt->device;
+            SharpenResult sr = shm.sharpen(r.phi, *sharpen_opt, sharpening.fn());
+            sharpening.finish();
+            note("sharpened: " + std::to_string(sr.iterations) + " PDHG iterations on " + sr.device + " in " +
+                 fmt("%.2f s", sr.seconds) + ", largest slope " + fmt("%.3f", sr.max_slope) + ", " +
+                 std::to_string(sr.zero_set_rows) + " cells on the input");
+            r.phi = std::move(sr.phi);
+        }
         if (globals().verbose) {
             note("source: " + std::to_string(src.size()) + " elements, h = " + fmt("%.4g", src.spacing) + "; grid " +
                  std::to_string(*n) + "^3 on " + r.device);
@@ -698,6 +714,8 @@ std::string flag_for(const std::string& where) {
         {"SurfaceShmSetup::t_coef", "--t-coef"},
         {"SurfaceShmSetup::refine_min_angle", "--min-angle"},
         {"SurfaceShmOptions::soft_weight", "--soft-weight"},
+        {"SharpenOptions::iterations", "--iterations"},
+        {"SurfaceSharpenOptions::iterations", "--iterations"},
         {"SwnOptions::curve_weight", "--curve-weight"},
     };
     for (const auto& [field, flag] : flags)

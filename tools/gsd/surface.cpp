@@ -24,6 +24,8 @@ struct SurfaceArgs {
     double isoline_spacing = 0;
     SurfaceShmOptions options;
     SurfaceShmSetup setup;
+    bool sharpen = false;
+    SurfaceSharpenOptions sharpening;
 };
 
 /// A round spacing giving about `count` levels over [lo, hi].
@@ -141,6 +143,14 @@ void run(const SurfaceArgs& a) {
     });
     progress.finish();
     report(a, mesh, *shm, r, load_seconds);
+    if (a.sharpen) {
+        Progress sharpening("shm surface --sharpen");
+        SurfaceSharpenResult sr = shm->sharpen(r.phi, sources, a.sharpening, sharpening.fn());
+        sharpening.finish();
+        note("sharpened: " + std::to_string(sr.iterations) + " PDHG iterations in " + fmt("%.2f s", sr.seconds) +
+             ", largest slope " + fmt("%.3f", sr.max_slope));
+        r.phi = std::move(sr.phi);
+    }
 
     // Build every output in memory first, then write them all (or none).
     const auto t1 = std::chrono::steady_clock::now();
@@ -289,6 +299,11 @@ void add_shm_surface(CLI::App& shm) {
     s->add_option("--min-angle", a->setup.refine_min_angle, "Smallest angle --refine aims for, degrees")
         ->check(finite_number())->check(CLI::Range(1.0, 33.0))
         ->capture_default_str();
+    s->add_flag("--sharpen", a->sharpen,
+                "Distance sharpening (thesis eq. 4.13): the sharpest φ with |∇φ| ≤ 1 per triangle, zero on the curves and "
+                "φ's sign, by PDHG from the solve's φ");
+    s->add_option("--iterations", a->sharpening.iterations, "With --sharpen: PDHG iterations (0: 24 × the mesh's diameter in edges)")
+        ->check(CLI::Range(0, 1000000))->capture_default_str();
     s->add_option("-o,--output", a->output, "Output .npy: φ per vertex, float32 (V,), in the mesh's vertex order")->required()->check(output_file({".npy"}));
     s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex)")->check(output_file({".ply"}));
     s->add_option("--isolines", a->isolines, "Also write isolines of φ as .obj polylines (one group per level)")->check(output_file({".obj"}));
