@@ -664,7 +664,8 @@ std::size_t label_changes(const std::vector<float>& a, const std::vector<float>&
 
 }  // namespace
 
-TEST_CASE("sharpening a blurred SHM distance (t = 100h²) halves its error against the exact SDF, every label kept") {
+TEST_CASE("sharpening a blurred SHM distance (t = 100h²) halves its error against the exact SDF, every label kept" *
+          doctest::test_suite("slow")) {
     for (const char* name : {"capsule", "rounded-box"}) {
         CAPTURE(name);
         const SharpenCase c = blurred_shm(name, 48);
@@ -696,7 +697,8 @@ TEST_CASE("sharpening a blurred SHM distance (t = 100h²) halves its error again
     }
 }
 
-TEST_CASE("sharpening on the device equals the CPU (both run the same float32 PDHG) to 1e-4 of the diagonal") {
+TEST_CASE("sharpening on the device equals the CPU (both run the same float32 PDHG) to 1e-4 of the diagonal" *
+          doctest::test_suite("slow")) {
     REQUIRE(gpu::select("gpu").context);
     const SharpenCase c = blurred_shm("torus", 28);
     for (int iterations : {100, 300}) {  // 300 passes a restart (every 6 · 28 = 168)
