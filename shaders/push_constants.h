@@ -112,6 +112,14 @@ struct MultigridPush {
     uint pad3;
 };
 
+// field_combine.comp (src/field/field_gpu.cpp)
+struct CombinePush {
+    uint count;        // queries
+    uint ops;          // program length
+    uint leaf_stride;  // floats from one leaf's results to the next's
+    uint gradient;     // 1: results are (φ, ∇φ) records
+};
+
 // sharpen_dual.comp, sharpen_primal.comp, sharpen_restart.comp (src/shm/sharpen.hpp)
 struct SharpenPush {
     GSD_ALIGNED_VEC3 uvec3 dims;  // nodes per axis
@@ -137,6 +145,7 @@ static_assert(sizeof(RenderGridPush) == 44);
 static_assert(sizeof(DiffusePush) == 28);
 static_assert(sizeof(TorusNetKnnPush) == 8);
 static_assert(sizeof(SdfNearestPush) == 12);
+static_assert(sizeof(CombinePush) == 16);
 static_assert(sizeof(SharpenPush) == 64 && offsetof(SharpenPush, inv_h) == 16 && offsetof(SharpenPush, rows) == 28 &&
               offsetof(SharpenPush, keep_sign) == 48 && offsetof(SharpenPush, inv_count) == 52);
 static_assert(sizeof(MultigridPush) == 80 && offsetof(MultigridPush, color) == 12 &&

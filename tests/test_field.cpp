@@ -541,3 +541,89 @@ TEST_CASE("gsd field: an expression over meshes and grids, and its errors") {
     CHECK(run_cli("render --expr \"union(" + s + "\" -o " + dir.file("x.png")).exit_code == 1);
     CHECK(run_cli("render " + s + " --expr \"union(" + s + ", " + t + ")\" -o " + dir.file("x.png")).exit_code == 2);
 }
+
+#ifdef GSD_HAVE_VULKAN
+#include <gsd/vulkan.hpp>
+
+#include "gpu/field_device.hpp"
+
+namespace {
+
+// A composite of every kind of leaf: PAT (a device program), a mesh's exact distance and a test
+// sphere (none: evaluated on the CPU between copies), through every operator.
+struct MixedComposite {
+    FieldPtr pat, mesh, sphere, composite;
+    MixedComposite() {
+        const PointCloud cloud = shapes::torus(Eigen::Vector3d::Zero(), 0.5, 0.2)->sample(3000, 4);
+        pat = std::make_shared<TorusField>(JetFitter(JetFitterOptions{}).fit(cloud));
+        mesh = std::make_shared<MeshSdfField>(shapes::mesh(*shapes::sphere(Eigen::Vector3d(0.3, 0.2, 0.1), 0.35), 24));
+        sphere = std::make_shared<SphereField>(Eigen::Vector3d(-0.4, 0, 0.1), 0.3);
+        composite = field_difference(field_union(pat, field_offset(mesh, 0.05), 0.1), field_shell(sphere, 0.08), 0.05);
+        composite = field_intersection(composite, field_offset(sphere, 0.9));  // a fourth leaf: the sphere again
+    }
+};
+
+}  // namespace
+
+TEST_CASE("a composite on a device: its leaves into device buffers, one pass combining them, equal to the CPU") {
+    const auto ctx = gpu::select("gpu").context;
+    REQUIRE(ctx);
+    const MixedComposite m;
+    REQUIRE(m.composite->device_program() != nullptr);
+    CHECK(m.mesh->device_program() == nullptr);
+    // No leaf with a device program: nothing to gain on a device, so no program.
+    CHECK(field_union(m.mesh, m.sphere)->device_program() == nullptr);
+    const Points x = random_points(3000, 1.0, 17);
+    for (bool gradient : {false, true}) {
+        CAPTURE(gradient);
+        const FieldValues cpu = m.composite->evaluate(x, gradient);
+        const FieldValues dev = gpu::evaluate_points(*m.composite, ctx, x, gradient);
+        CHECK(dev.device != "cpu");
+        double worst = 0;
+        std::size_t turned = 0;  // queries where float32 picked the other operand of a kink
+        for (std::size_t i = 0; i < cpu.phi.size(); ++i) {
+            worst = std::max(worst, double(std::abs(cpu.phi[i] - dev.phi[i])));
+            if (!gradient) continue;
+            double g = 0;
+            for (std::size_t a = 0; a < 3; ++a) g = std::max(g, double(std::abs(cpu.gradient[3 * i + a] - dev.gradient[3 * i + a])));
+            turned += g > 1e-3;
+        }
+        MESSAGE("largest |φ_device − φ_cpu| " << worst << (gradient ? "; gradients off by > 1e-3 at " + std::to_string(turned) : std::string()));
+        CHECK(worst <= 1e-5 * 2 * std::sqrt(3.0));
+        CHECK(turned <= cpu.phi.size() / 200);
+    }
+    // A field without a program through evaluate_into: the CPU's values at the float32 queries, copied in.
+    const Points xf = x.cast<float>().cast<double>();
+    const FieldValues cpu = m.mesh->evaluate(xf), dev = gpu::evaluate_points(*m.mesh, ctx, x, false);
+    CHECK(std::equal(cpu.phi.begin(), cpu.phi.end(), dev.phi.begin()));
+    // A gradient asked of a composite with a leaf that has none.
+    const auto flat = std::make_shared<SphereField>(Eigen::Vector3d::Zero(), 0.5, /*gradient=*/false);
+    CHECK_THROWS_WITH_AS(gpu::evaluate_points(*field_union(m.pat, flat), ctx, x, true), doctest::Contains("gradient"), Error);
+}
+
+TEST_CASE("render_field of a composite draws the same picture on the device as on the CPU") {
+    REQUIRE(gpu::select("gpu").context);
+    const MixedComposite m;
+    FieldRenderOptions o;
+    o.width = 96;
+    o.height = 72;
+    o.supersample = 1;
+    o.eye = Eigen::Vector3d(1.2, 1.4, 2.0);
+    const Box box{{-1, -1, -1}, {1, 1, 1}};
+    o.device = "cpu";
+    const RenderedField cpu = render_field(*m.composite, box, o);
+    o.device = "gpu";
+    const RenderedField dev = render_field(*m.composite, box, o);
+    CHECK(dev.device != "cpu");
+    REQUIRE(cpu.depth.size() == dev.depth.size());
+    std::size_t differ = 0, hits = 0;
+    for (std::size_t p = 0; p < cpu.depth.size(); ++p) {
+        differ += (cpu.depth[p] >= 0) != (dev.depth[p] >= 0);
+        hits += cpu.depth[p] >= 0;
+    }
+    MESSAGE("hit masks differ at " << differ << " of " << cpu.depth.size() << " pixels (" << hits << " hits on the CPU); device: "
+                                   << dev.device);
+    CHECK(hits > 500);
+    CHECK(double(differ) <= 1e-3 * double(cpu.depth.size()));
+}
+#endif

@@ -7,7 +7,8 @@
 #include <gsd/export.hpp>
 
 #include <gsd/core.hpp>
-#include <gsd/pat.hpp>
+#include <gsd/blend.hpp>
+#include <gsd/field.hpp>
 
 #include <memory>
 
@@ -33,10 +34,11 @@ public:
     FieldValues evaluate(const GridSpec& grid, bool with_gradient = false,
                          const ProgressFn& progress = {}) const override;
     bool has_gradient() const override { return false; }
+    /// The blend's kernel (gpu::evaluate_into, φ only).
+    const DeviceProgram* device_program() const override;
     double r_eval() const;
 
 private:
-    friend struct detail::FieldAccess;  // the library's device paths (gsd/vulkan.hpp)
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -17,10 +17,6 @@
 
 namespace gsd {
 
-namespace detail {
-struct FieldAccess;  // the library's own access to a field's internals (src/blend/blend.hpp)
-}
-
 /// Library version ("major.minor.patch").
 GSD_EXPORT std::string_view version();
 

@@ -15,10 +15,34 @@
 
 #include <gsd/core.hpp>
 
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace gsd {
+
+namespace gpu {
+class Context;
+struct DeviceQueries;
+struct SubmitSync;
+}  // namespace gpu
+
+/// A field's evaluation on a Vulkan device: what gpu::evaluate_into and the renderer run there
+/// (gsd/vulkan.hpp defines the job and sync types). A field offers one through
+/// Field::device_program(); the program is owned by the field and valid while it lives.
+class GSD_EXPORT DeviceProgram {
+public:
+    virtual ~DeviceProgram();
+    /// Evaluates `job.count` queries on the device into `job.results` (gpu::evaluate_into's
+    /// contract: gsd/vulkan.hpp).
+    virtual void evaluate_into(const std::shared_ptr<gpu::Context>& context, const gpu::DeviceQueries& job,
+                               const gpu::SubmitSync& sync) const = 0;
+
+protected:
+    DeviceProgram() = default;
+    DeviceProgram(const DeviceProgram&) = default;
+    DeviceProgram& operator=(const DeviceProgram&) = default;
+};
 
 /// Result of an evaluation.
 struct FieldValues {
@@ -43,6 +67,12 @@ public:
                                  const ProgressFn& progress = {}) const = 0;
     /// Whether evaluate() can return ∇φ.
     virtual bool has_gradient() const = 0;
+    /// The field's program on a Vulkan device, or nullptr (the default): gpu::evaluate_into and
+    /// the renderer then evaluate it with evaluate() on the CPU, with one line saying so. PAT and
+    /// the baselines have one (in a build with Vulkan), and so has every composite of
+    /// gsd/field_algebra.hpp: its leaves evaluate into device buffers (each by its own program,
+    /// or on the CPU) and one pass combines them.
+    virtual const DeviceProgram* device_program() const { return nullptr; }
 
 protected:
     /// Throws Error("with_gradient", …) when a gradient is asked of a field without one.

@@ -25,9 +25,6 @@
 
 namespace gsd {
 
-class TorusField;
-class BaselineField;
-
 /// Where it runs and the rays per GPU submission (0: 2^20 on a GPU, 65 536 on a software
 /// device): Execution (gsd/gpu.hpp).
 struct FieldRenderOptions : Execution {
@@ -79,19 +76,15 @@ struct RenderedField {
     RenderCamera camera;
 };
 
-/// Renders a blended field's zero set inside `box` (the accelerated sum, whatever the field's
-/// BlendOptions::exact says). Throws gsd::Error for bad options or an empty box.
-/// `progress` hears ("march", fraction done).
-GSD_EXPORT RenderedField render_field(const TorusField& field, const Box& box, const FieldRenderOptions& options = {},
-                                      const ProgressFn& progress = {});
-GSD_EXPORT RenderedField render_field(const BaselineField& field, const Box& box,
-                                      const FieldRenderOptions& options = {}, const ProgressFn& progress = {});
-/// Renders any field's zero set inside `box`: a TorusField or BaselineField as above, a
-/// GridField as its grid below; any other (a composite of gsd/field_algebra.hpp, a MeshSdfField,
-/// …) on the CPU, every ray of a band together, one evaluation of the field a step, the same
-/// march as the CPU reference's; its leaves evaluate where their options say (one line says the
-/// march itself stays on the CPU when a device was asked for). ∇φ for the shading: the field's,
-/// or central differences where it has none.
+/// Renders any field's zero set inside `box`. A PAT or baseline field is sphere-traced by its
+/// own kernel (render_pat: every ray marched on the device, or the CPU reference per ray; the
+/// accelerated sum, whatever BlendOptions::exact says); a GridField as its grid below; any other
+/// (a composite of gsd/field_algebra.hpp, a MeshSdfField, …) by the wavefront march, every ray
+/// of a band together, one evaluation of the field a step, the same march as the CPU
+/// reference's: on the chosen device through the field's device program where it has one (a
+/// composite has one when any of its leaves has: gpu::evaluate_into), else on the CPU. ∇φ for the
+/// shading: the field's, or central differences where it has none. Throws gsd::Error for bad
+/// options or an empty box. `progress` hears ("march", fraction done).
 GSD_EXPORT RenderedField render_field(const Field& field, const Box& box, const FieldRenderOptions& options = {},
                                       const ProgressFn& progress = {});
 /// Renders the zero set of a grid of φ (trilinear between nodes) inside its box.

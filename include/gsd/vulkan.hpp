@@ -33,8 +33,7 @@
 
 namespace gsd {
 
-class TorusField;
-class BaselineField;
+class Field;
 
 namespace gpu {
 
@@ -156,18 +155,21 @@ struct SubmitSync {
     VkFence fence = VK_NULL_HANDLE;                 ///< signaled likewise (unsignaled on entry)
 };
 
-/// Evaluates a field at queries already on the device into a buffer on the device. The first
-/// call on a context uploads the field's data (points, tori or terms, tree) to it and waits;
-/// later calls only record and submit. Results match `field.evaluate` (same BlendOptions, the
-/// accelerated or exact sum) to float32 rounding. The field must outlive the work: destroying
-/// it waits for its submissions to finish. Throws gsd::Error for bad spans or counts.
-/// Everything goes into one submission: with BlendOptions::exact (O(queries × points)) keep
-/// each call's count modest, since a display driver may reset a device busy for seconds.
-GSD_EXPORT void evaluate_into(const TorusField& field, const std::shared_ptr<Context>& context,
-                              const DeviceQueries& job, const SubmitSync& sync = {});
-/// The same for a baseline field (φ only: `job.gradient` must be false).
-GSD_EXPORT void evaluate_into(const BaselineField& field, const std::shared_ptr<Context>& context,
-                              const DeviceQueries& job, const SubmitSync& sync = {});
+/// Evaluates any field at queries already on the device into a buffer on the device. A field
+/// with a device program (Field::device_program: PAT, the baselines, composites of
+/// gsd/field_algebra.hpp) runs it: the first call on a context uploads the field's data (points,
+/// tori or terms, tree) and waits; later calls only record and submit. Results match
+/// `field.evaluate` to float32 rounding. A field without one is evaluated by its CPU
+/// evaluate(): the queries are copied back, evaluated, and the results copied in (one line says
+/// so, once); the call then returns when the results are written. A composite evaluates its
+/// leaves into buffers of its own, each by its program or on the CPU, combines them in one pass
+/// and returns when the results are written. The field must outlive the work: destroying it
+/// waits for its submissions to finish. Throws gsd::Error for bad spans or counts, or for
+/// `job.gradient` with a field that has no ∇φ. Everything goes into one submission per leaf:
+/// with BlendOptions::exact (O(queries × points)) keep each call's count modest, since a display
+/// driver may reset a device busy for seconds.
+GSD_EXPORT void evaluate_into(const Field& field, const std::shared_ptr<Context>& context, const DeviceQueries& job,
+                              const SubmitSync& sync = {});
 
 }  // namespace gpu
 }  // namespace gsd

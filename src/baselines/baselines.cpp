@@ -7,6 +7,7 @@ namespace gsd {
 
 struct BaselineField::Impl {
     blend::Engine engine;
+    blend::EngineProgram program{engine, false, "the SSPD and signed Hopf–Cole baselines"};
     static blend::Source source_of(Baseline kind, const PointCloud& cloud) {
         if (cloud.size() < 2) throw Error("a baseline field needs at least 2 points");
         blend::Source s;
@@ -39,7 +40,7 @@ FieldValues BaselineField::evaluate(const GridSpec& grid, bool with_gradient, co
     return impl_->engine.evaluate(blend::Queries(grid), false, progress);
 }
 
-const blend::Engine& detail::FieldAccess::engine(const BaselineField& field) { return field.impl_->engine; }
+const DeviceProgram* BaselineField::device_program() const { return &impl_->program; }
 
 double BaselineField::r_eval() const { return impl_->engine.r_eval(); }
 

@@ -153,14 +153,23 @@ private:
 
 }  // namespace gsd::blend
 
-namespace gsd::detail {
-/// How the device paths reach the engine inside a public field (each defined beside its Impl).
-struct FieldAccess {
-    static const blend::Engine& engine(const TorusField& field);
-    static const blend::Engine& engine(const BaselineField& field);
-};
-}  // namespace gsd::detail
-
 namespace gsd::blend {
+
+/// The device program of a field that is a blend (TorusField, BaselineField: Field::device_program):
+/// evaluate_into through the engine's placement on the context. The renderer finds the engine
+/// through it for its own march (render_pat).
+class EngineProgram final : public DeviceProgram {
+public:
+    /// `what`: the field's name for a refused gradient; `gradient`: whether it offers ∇φ.
+    EngineProgram(const Engine& engine, bool gradient, const char* what) : engine_(engine), gradient_(gradient), what_(what) {}
+    void evaluate_into(const std::shared_ptr<gpu::Context>& context, const gpu::DeviceQueries& job,
+                       const gpu::SubmitSync& sync) const override;
+    const Engine& engine() const { return engine_; }
+
+private:
+    const Engine& engine_;
+    bool gradient_;
+    const char* what_;
+};
 
 }  // namespace gsd::blend

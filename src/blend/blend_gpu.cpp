@@ -335,25 +335,13 @@ std::vector<float> tori_on_device(gpu::Context& ctx, const Points& points, const
 
 }  // namespace gsd::blend
 
-namespace gsd::gpu {
+namespace gsd::blend {
 
-namespace {
-void evaluate_engine_into(const blend::Engine& engine, const std::shared_ptr<Context>& ctx, const DeviceQueries& job,
-                          const SubmitSync& sync) {
-    const blend::Params params = engine.params(job.gradient);
-    engine.on_device(ctx)->evaluate_into(params, job, sync);
-}
-}  // namespace
-
-void evaluate_into(const TorusField& field, const std::shared_ptr<Context>& ctx, const DeviceQueries& job,
-                   const SubmitSync& sync) {
-    evaluate_engine_into(detail::FieldAccess::engine(field), ctx, job, sync);
+void EngineProgram::evaluate_into(const std::shared_ptr<gpu::Context>& ctx, const gpu::DeviceQueries& job,
+                                  const gpu::SubmitSync& sync) const {
+    if (job.gradient && !gradient_) throw Error("DeviceQueries::gradient", std::string(what_) + " offer no gradient");
+    const Params params = engine_.params(job.gradient);
+    engine_.on_device(ctx)->evaluate_into(params, job, sync);
 }
 
-void evaluate_into(const BaselineField& field, const std::shared_ptr<Context>& ctx, const DeviceQueries& job,
-                   const SubmitSync& sync) {
-    if (job.gradient) throw Error("DeviceQueries::gradient", "the baselines offer no gradient");
-    evaluate_engine_into(detail::FieldAccess::engine(field), ctx, job, sync);
-}
-
-}  // namespace gsd::gpu
+}  // namespace gsd::blend

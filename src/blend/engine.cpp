@@ -76,3 +76,13 @@ std::shared_ptr<GpuField> Engine::on_device(const std::shared_ptr<gpu::Context>&
 }
 
 }  // namespace gsd::blend
+
+#if !defined(GSD_HAVE_VULKAN)
+namespace gsd::blend {
+// A build without Vulkan has no context to run on (blend_gpu.cpp is not built).
+void EngineProgram::evaluate_into(const std::shared_ptr<gpu::Context>&, const gpu::DeviceQueries&,
+                                  const gpu::SubmitSync&) const {
+    throw Error("device", "gsd was built without Vulkan");
+}
+}  // namespace gsd::blend
+#endif

@@ -233,6 +233,7 @@ void validate(const PolygonMesh& mesh, const std::string& where) {
 }
 
 Field::~Field() = default;  // the key function: Field's vtable lives in the library
+DeviceProgram::~DeviceProgram() = default;
 
 void Field::refuse_gradient(bool with_gradient, const char* field_kind) {
     if (with_gradient) throw Error("with_gradient", std::string(field_kind) + " offer no gradient");

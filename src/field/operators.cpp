@@ -3,12 +3,45 @@
 // and combines their values (and gradients) query by query.
 #include <gsd/field_algebra.hpp>
 
+#include "field/composite.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <string>
 #include <utility>
 
 namespace gsd {
+
+namespace field {
+
+void OperatorField::flatten_operand(const Field& f, std::vector<CombineOp>& ops, std::vector<const Field*>& leaves) {
+    if (const auto* op = dynamic_cast<const OperatorField*>(&f)) return op->flatten(ops, leaves);
+    ops.push_back({float(kLeaf), float(leaves.size()), 0});
+    leaves.push_back(&f);
+}
+
+const DeviceProgram* OperatorField::device_program() const {
+    std::call_once(once_, [&] {
+        std::vector<CombineOp> ops;
+        std::vector<const Field*> leaves;
+        flatten(ops, leaves);
+        int depth = 0, deepest = 0;
+        for (const CombineOp& op : ops) {
+            const int code = int(op.code);
+            depth += code == kLeaf ? 1 : code <= kDifference ? -1 : 0;
+            deepest = std::max(deepest, depth);
+        }
+        const bool any = std::any_of(leaves.begin(), leaves.end(), [](const Field* f) { return f->device_program() != nullptr; });
+        if (any && deepest <= kMaxStack) program_ = make_composite_program(std::move(ops), std::move(leaves));
+    });
+    return program_.get();
+}
+
+#if !defined(GSD_HAVE_VULKAN)
+std::shared_ptr<const DeviceProgram> make_composite_program(std::vector<CombineOp>, std::vector<const Field*>) { return nullptr; }
+#endif
+
+}  // namespace field
 
 namespace {
 
@@ -29,11 +62,12 @@ ProgressFn half(const ProgressFn& progress, int which) {
 struct BooleanSigns {
     double a, b, result;
     const char* name;
+    field::OpCode code;  // the device's
 };
-constexpr BooleanSigns kUnion{1, 1, 1, "union"}, kIntersection{-1, -1, -1, "intersection"},
-    kDifference{-1, 1, -1, "difference"};
+constexpr BooleanSigns kUnion{1, 1, 1, "union", field::kUnion}, kIntersection{-1, -1, -1, "intersection", field::kIntersection},
+    kDifference{-1, 1, -1, "difference", field::kDifference};
 
-class BooleanField final : public Field {
+class BooleanField final : public field::OperatorField {
 public:
     BooleanField(FieldPtr a, FieldPtr b, BooleanSigns signs, double smooth)
         : a_(std::move(a)), b_(std::move(b)), signs_(signs), smooth_(smooth) {
@@ -51,6 +85,11 @@ public:
         return combined(grid, with_gradient, progress);
     }
     bool has_gradient() const override { return a_->has_gradient() && b_->has_gradient(); }
+    void flatten(std::vector<field::CombineOp>& ops, std::vector<const Field*>& leaves) const override {
+        flatten_operand(*a_, ops, leaves);
+        flatten_operand(*b_, ops, leaves);
+        ops.push_back({float(signs_.code), 0, float(smooth_)});
+    }
 
 private:
     template <class Domain>
@@ -86,7 +125,7 @@ private:
 };
 
 // φ − r, or |φ| − r (a shell).
-class OffsetField final : public Field {
+class OffsetField final : public field::OperatorField {
 public:
     OffsetField(FieldPtr a, double r, bool shell) : a_(std::move(a)), r_(r), shell_(shell) {
         check_operand(a_, shell ? "shell" : "offset");
@@ -103,6 +142,10 @@ public:
         return shifted(a_->evaluate(grid, with_gradient, progress), with_gradient);
     }
     bool has_gradient() const override { return a_->has_gradient(); }
+    void flatten(std::vector<field::CombineOp>& ops, std::vector<const Field*>& leaves) const override {
+        flatten_operand(*a_, ops, leaves);
+        ops.push_back({float(shell_ ? field::kShell : field::kOffset), 0, float(r_)});
+    }
 
 private:
     FieldValues shifted(FieldValues v, bool with_gradient) const {

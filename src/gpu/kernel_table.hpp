@@ -52,6 +52,10 @@ inline constexpr KernelSpec mg_update{"mg_update", 3, sizeof(MultigridPush), {0u
 inline constexpr KernelSpec mg_refine{"mg_refine", 4, sizeof(MultigridPush), {0u, 0u, 0b11u}};
 inline constexpr KernelSpec mg_coarse{"mg_coarse", 3, sizeof(CountPush)};
 inline constexpr KernelSpec mg_add{"mg_add", 2, sizeof(CountPush)};
+// Any field on a device (src/gpu/field_device.cpp, src/field/field_gpu.cpp): copies between
+// gsd's buffers and an application's; a composite's leaves combined in one pass.
+inline constexpr KernelSpec copy_words{"copy_words", 2, sizeof(CountPush)};
+inline constexpr KernelSpec field_combine{"field_combine", 3, sizeof(CombinePush)};
 // Distance sharpening (src/shm/sharpen_gpu.cpp): PDHG's dual and primal steps.
 inline constexpr KernelSpec sharpen_dual{"sharpen_dual", 7, sizeof(SharpenPush)};
 inline constexpr KernelSpec sharpen_primal{"sharpen_primal", 8, sizeof(SharpenPush)};
@@ -61,7 +65,7 @@ inline constexpr const KernelSpec* all[] = {&sums_winding, &shm_diffuse, &sdf_ne
                                             &render_grid,  &torus_net_knn, &torus_net,    &mg_smooth,  &mg_residual,
                                             &mg_restrict,  &mg_prolong,  &mg_update,     &mg_refine,  &mg_coarse,
                                             &mg_add,       &sharpen_dual, &sharpen_primal,
-                                            &sharpen_restart};
+                                            &sharpen_restart, &copy_words,   &field_combine};
 }  // namespace kernel_table
 
 }  // namespace gsd::gpu

@@ -41,6 +41,7 @@ struct TorusField::Impl {
     OutlierOptions outliers;
     PointConfidence confidence;
     blend::Engine engine;
+    blend::EngineProgram program{engine, true, "PAT fields"};
 
     // `all` = t.tori(), built once for the scores and the blend.
     Impl(FittedTori t, std::vector<Torus> all, BlendOptions opt, OutlierOptions out)
@@ -76,7 +77,7 @@ FieldValues TorusField::evaluate(const GridSpec& grid, bool with_gradient, const
     return impl_->engine.evaluate(blend::Queries(grid), with_gradient, progress);
 }
 
-const blend::Engine& detail::FieldAccess::engine(const TorusField& field) { return field.impl_->engine; }
+const DeviceProgram* TorusField::device_program() const { return &impl_->program; }
 
 const FittedTori& TorusField::tori() const { return impl_->tori; }
 const PointConfidence& TorusField::confidence() const { return impl_->confidence; }

@@ -9,6 +9,7 @@
 #include <gsd/pat.hpp>
 
 #include "blend/blend.hpp"
+#include "gpu/field_device.hpp"
 #include "viz/palette.hpp"
 
 #include <algorithm>
@@ -315,16 +316,6 @@ RenderedField render_blend(const blend::Engine& engine, const Box& box, const Fi
 
 namespace gsd {
 
-RenderedField render_field(const TorusField& field, const Box& box, const FieldRenderOptions& options,
-                           const ProgressFn& progress) {
-    return render::render_blend(detail::FieldAccess::engine(field), box, options, progress);
-}
-
-RenderedField render_field(const BaselineField& field, const Box& box, const FieldRenderOptions& options,
-                           const ProgressFn& progress) {
-    return render::render_blend(detail::FieldAccess::engine(field), box, options, progress);
-}
-
 RenderedField render_field(const GridSpec& grid, const std::vector<float>& values, const FieldRenderOptions& options,
                            const ProgressFn& progress) {
     grid.validate();
@@ -350,24 +341,33 @@ RenderedField render_field(const GridSpec& grid, const std::vector<float>& value
 
 RenderedField render_field(const Field& field, const Box& box, const FieldRenderOptions& options,
                            const ProgressFn& progress) {
-    // The fields with a march of their own (on a device, or the CPU reference per ray).
-    if (const auto* f = dynamic_cast<const TorusField*>(&field)) return render_field(*f, box, options, progress);
-    if (const auto* f = dynamic_cast<const BaselineField*>(&field)) return render_field(*f, box, options, progress);
+    // The fields with a march of their own: a blend (render_pat on a device, the CPU reference
+    // per ray), a grid (render_grid).
+    if (const auto* p = dynamic_cast<const blend::EngineProgram*>(field.device_program()))
+        return render::render_blend(p->engine(), box, options, progress);
     if (const auto* f = dynamic_cast<const GridField*>(&field)) return render_field(f->grid(), f->values(), options, progress);
     // Where the surface can be, for the camera's framing: the nodes of a coarse grid over the box
     // within half a cell of φ ≤ 0 (a few thousand evaluations, against the march's millions).
     validate_box(box, "box");
     const GridSpec coarse{24, 24, 24, box};
     const render::Frame f = render::frame_for(box, render::grid_subject(coarse, field.evaluate(coarse).phi), options);
+    // Any other field: the wavefront march, its evaluations by the field's device program where
+    // it has one and a device is chosen, else by its evaluate() on the CPU.
+    render::PointEvaluator eval{[&](const Points& x, bool gradient) { return field.evaluate(x, gradient); },
+                                field.has_gradient()};
     gpu::on_device(
         options.device,
-        [](const auto&, std::string& why_not) {
-            why_not = "a field made of other fields has no device march of its own (its leaves may evaluate there)";
-            return false;
+        [&](const auto& ctx, std::string& why_not) {
+            if (!field.device_program()) {
+                why_not = "the field has no device program (nor has any of its leaves)";
+                return false;
+            }
+            eval.evaluate = [&field, ctx](const Points& x, bool gradient) { return gpu::evaluate_points(field, ctx, x, gradient); };
+            return true;
         },
         "; its rays are marched on the CPU");
     std::string device;
-    const std::vector<float> hits = render::march_wavefront(field, f.cam, f.march, device, progress);
+    const std::vector<float> hits = render::march_wavefront(eval, f.cam, f.march, device, progress);
     return render::shade(hits, f.cam, options, device);
 }
 

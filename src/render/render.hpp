@@ -54,10 +54,17 @@ using Sampler = std::function<double(const Eigen::Vector3d& x, Eigen::Vector3d* 
 /// for a miss.
 Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& o, const Eigen::Vector3d& d, const March& m);
 
+/// How the wavefront march evaluates its field: φ (and ∇φ) at many points in one call — the
+/// field's CPU evaluate(), or its device program through gpu::evaluate_into.
+struct PointEvaluator {
+    std::function<FieldValues(const Points&, bool gradient)> evaluate;
+    bool has_gradient = false;
+};
+
 /// Per-pixel hits, 4 floats each (t, ∇φ; t = −1 for a miss), of any field marched on the CPU a
 /// band of rays at a time, one evaluation of the field per step (wavefront.cpp). `device`: where
 /// the field's evaluations ran.
-std::vector<float> march_wavefront(const Field& field, const Camera& cam, const March& m, std::string& device,
+std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& cam, const March& m, std::string& device,
                                    const ProgressFn& progress);
 
 /// Per-pixel hits, 4 floats each (t, ∇φ), from a device; false (and why) when it cannot run

@@ -22,23 +22,23 @@ struct Ray {
 
 // φ at o + t·d for the listed rays (t from `t_of`), in one evaluation.
 template <class T>
-std::vector<float> phi_at(const Field& field, const std::vector<Ray>& rays, const std::vector<std::size_t>& which, T&& t_of,
-                          std::string& device) {
+std::vector<float> phi_at(const PointEvaluator& field, const std::vector<Ray>& rays, const std::vector<std::size_t>& which,
+                          T&& t_of, std::string& device) {
     Points p(Eigen::Index(which.size()), 3);
     for (std::size_t k = 0; k < which.size(); ++k) {
         const Ray& r = rays[which[k]];
         p.row(Eigen::Index(k)) = (r.o + t_of(r) * r.d).transpose();
     }
-    FieldValues v = field.evaluate(p);
+    FieldValues v = field.evaluate(p, false);
     device = v.device;
     return std::move(v.phi);
 }
 
 // ∇φ at the points: the field's own, or central differences of step h.
-std::vector<Eigen::Vector3d> gradients_at(const Field& field, const Points& x, double h) {
+std::vector<Eigen::Vector3d> gradients_at(const PointEvaluator& field, const Points& x, double h) {
     std::vector<Eigen::Vector3d> g(std::size_t(x.rows()));
     if (x.rows() == 0) return g;
-    if (field.has_gradient()) {
+    if (field.has_gradient) {
         const FieldValues v = field.evaluate(x, true);
         for (std::size_t i = 0; i < g.size(); ++i) g[i] = {v.gradient[3 * i], v.gradient[3 * i + 1], v.gradient[3 * i + 2]};
         return g;
@@ -47,7 +47,7 @@ std::vector<Eigen::Vector3d> gradients_at(const Field& field, const Points& x, d
     for (Eigen::Index i = 0; i < x.rows(); ++i)
         for (int a = 0; a < 3; ++a)
             for (int s = 0; s < 2; ++s) p.row(6 * i + 2 * a + s) = x.row(i) + (s ? -h : h) * Eigen::RowVector3d::Unit(a);
-    const FieldValues v = field.evaluate(p);
+    const FieldValues v = field.evaluate(p, false);
     for (std::size_t i = 0; i < g.size(); ++i)
         for (int a = 0; a < 3; ++a) g[i][a] = (double(v.phi[6 * i + 2 * std::size_t(a)]) - v.phi[6 * i + 2 * std::size_t(a) + 1]) / (2 * h);
     return g;
@@ -55,7 +55,7 @@ std::vector<Eigen::Vector3d> gradients_at(const Field& field, const Points& x, d
 
 }  // namespace
 
-std::vector<float> march_wavefront(const Field& field, const Camera& cam, const March& m, std::string& device,
+std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& cam, const March& m, std::string& device,
                                    const ProgressFn& progress) {
     const long n = long(cam.width) * cam.height;
     std::vector<float> hits(std::size_t(4 * n), 0.0f);
