@@ -310,10 +310,18 @@ PYBIND11_MODULE(_gsd, m) {
         return shared(field_opening(held(a), r, grid_from(n, bounds, Box{})));
     }, py::arg("a"), py::arg("r"), py::arg("n"), py::arg("bounds"),
        "Erosion by r, re-distancing, dilation by r, on the n³ grid of bounds: what is thinner than 2r goes.");
+    m.def("opening", [=](const std::shared_ptr<Field>& a, double r, const DoubleArray& seeds) {
+        return shared(field_opening(held(a), r, points_from(seeds, "seeds")));
+    }, py::arg("a"), py::arg("r"), py::arg("seeds"),
+       "The same without a grid: seeds (points on the zero set, a cloud's own) resampled onto the erosion and re-distanced to.");
     m.def("closing", [=](const std::shared_ptr<Field>& a, double r, int n, std::array<double, 6> bounds) {
         return shared(field_closing(held(a), r, grid_from(n, bounds, Box{})));
     }, py::arg("a"), py::arg("r"), py::arg("n"), py::arg("bounds"),
        "Dilation by r, re-distancing, erosion by r, on the n³ grid of bounds: gaps narrower than 2r fill.");
+    m.def("closing", [=](const std::shared_ptr<Field>& a, double r, const DoubleArray& seeds) {
+        return shared(field_closing(held(a), r, points_from(seeds, "seeds")));
+    }, py::arg("a"), py::arg("r"), py::arg("seeds"),
+       "The same without a grid: seeds (points on the zero set, a cloud's own) resampled onto the dilation and re-distanced to.");
     py::class_<GridField, Field, std::shared_ptr<GridField>>(m, "GridField",
         "A grid's values as a field: trilinear inside its box, the nearest value plus the distance outside.")
         .def(py::init([](const py::array_t<float, py::array::c_style | py::array::forcecast>& values, std::array<double, 6> bounds) {

@@ -69,6 +69,20 @@ GSD_EXPORT FieldPtr field_shell(FieldPtr a, double r);
 GSD_EXPORT FieldPtr field_opening(FieldPtr a, double r, const GridSpec& grid);
 GSD_EXPORT FieldPtr field_closing(FieldPtr a, double r, const GridSpec& grid);
 
+/// Opening and closing without a grid or a mesh, for a field whose zero set has sample points
+/// (a cloud's own: `seeds`). The first offset's zero set is sampled: each seed moves by r along
+/// ∓∇φ (an opening's erosion: inward) and is projected onto φ = ∓r by Newton steps, and is kept
+/// where it lands on it about r from the nearest seed (where that surface does not exist — a fin
+/// thinner than 2r, a slot narrower than 2r — it crosses over and lands near the other side's
+/// seeds). The offset field is then re-distanced at each query without a grid: sign(φ ± r) times
+/// the distance to those samples (each a disk of half the seeds' spacing, normal to ∇φ), and the
+/// second offset applied on top. Sign from the field, distance from the samples: the error it
+/// adds is the samples' (docs/field.md: morphology). Sampled at the first evaluation and kept;
+/// evaluated on the CPU (a kd-tree per query) after the field itself. Throws gsd::Error for a
+/// null field, a field without ∇φ, r ≤ 0 or non-finite, or no seeds.
+GSD_EXPORT FieldPtr field_opening(FieldPtr a, double r, Points seeds);
+GSD_EXPORT FieldPtr field_closing(FieldPtr a, double r, Points seeds);
+
 /// A grid's values re-distanced: the exact distance from each node to the zero set of the
 /// values (marching cubes' mesh of it, gsd::contour), with each node's sign kept. Where the
 /// values never change sign, ± the grid's diagonal.

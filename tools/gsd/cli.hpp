@@ -176,9 +176,15 @@ struct ParsedField {
 };
 /// Nodes per axis of the grids opening and closing re-distance on, unless --morphology-grid.
 constexpr int kMorphologyGrid = 128;
+/// How opening and closing re-distance: a cloud's or .tori's by resampling its points (no grid)
+/// unless `by_grid`; anything else on a grid of `grid` nodes per axis.
+struct MorphologyArgs {
+    int grid = kMorphologyGrid;
+    bool by_grid = false;
+};
 ParsedField parse_field_expression(const std::string& expression, const std::string& device,
-                                   int morphology_grid = kMorphologyGrid);
-/// --morphology-grid N, for the commands that read expressions.
-void add_morphology_grid(CLI::App& app, int& nodes);
+                                   const MorphologyArgs& morphology = {});
+/// --morphology-grid N and --morphology-by-grid, for the commands that read expressions.
+void add_morphology_grid(CLI::App& app, MorphologyArgs& morphology);
 
 }  // namespace gsd::cli

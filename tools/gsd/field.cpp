@@ -34,12 +34,14 @@ namespace {
 struct Parsed {
     FieldPtr field;
     Box box;
+    Points seeds;  ///< points on the zero set, for a PAT leaf (a cloud or .tori): opening by resampling
 };
 
 /// How leaves become fields.
 struct LeafOptions {
     std::string device;
     int morphology_grid = kMorphologyGrid;  ///< nodes per axis of opening's and closing's grids
+    bool morphology_by_grid = false;        ///< a grid even for a cloud's opening (not resampling)
 };
 
 Box merged(const Box& a, const Box& b) { return {a.lo.cwiseMin(b.lo), a.hi.cwiseMax(b.hi)}; }
@@ -54,9 +56,10 @@ Parsed load_leaf(const std::string& path, const LeafOptions& o) {
     if (ext == ".tori") {
         FittedTori t = load_tori(path);
         const Box box = bounding_box(t.points);
+        Points seeds = t.points;
         BlendOptions b;
         b.device = o.device;
-        return {std::make_shared<TorusField>(std::move(t), b), box};
+        return {std::make_shared<TorusField>(std::move(t), b), box, std::move(seeds)};
     }
     if (ext == ".npy") {
         const io::NpyArray a = io::read_grid(path);
@@ -87,9 +90,10 @@ Parsed load_leaf(const std::string& path, const LeafOptions& o) {
     FittedTori t = JetFitter().fit(cloud, progress.fn());
     progress.finish();
     const Box box = bounding_box(t.points);
+    Points seeds = t.points;
     BlendOptions b;
     b.device = o.device;
-    return {std::make_shared<TorusField>(std::move(t), b), box};
+    return {std::make_shared<TorusField>(std::move(t), b), box, std::move(seeds)};
 }
 
 /// A recursive-descent parser of EXPR; errors name the character (1-based) where it went wrong
@@ -263,10 +267,15 @@ private:
                 arity(2, 2);
                 const Parsed& a = field_at(0);
                 const double r = number_at(1);
-                // The grid covers what the first offset can reach (a closing grows by r first) and
-                // room for the distances beyond it.
-                const GridSpec g = GridSpec::cube(options_.morphology_grid, padded_cube(grown(a.box, 2 * std::abs(r))));
-                out = {name == "opening" ? field_opening(a.field, r, g) : field_closing(a.field, r, g), a.box};
+                if (a.seeds.rows() > 0 && !options_.morphology_by_grid) {
+                    // A cloud's (or .tori's) own points sample its zero set: no grid, no mesh.
+                    out = {name == "opening" ? field_opening(a.field, r, a.seeds) : field_closing(a.field, r, a.seeds), a.box};
+                } else {
+                    // The grid covers what the first offset can reach (a closing grows by r first) and
+                    // room for the distances beyond it.
+                    const GridSpec g = GridSpec::cube(options_.morphology_grid, padded_cube(grown(a.box, 2 * std::abs(r))));
+                    out = {name == "opening" ? field_opening(a.field, r, g) : field_closing(a.field, r, g), a.box};
+                }
             } else {  // offset, shell, erosion, dilation
                 arity(2, 2);
                 const Parsed& a = field_at(0);
@@ -295,17 +304,20 @@ private:
 
 }  // namespace
 
-void add_morphology_grid(CLI::App& app, int& nodes) {
-    app.add_option("--morphology-grid", nodes,
-                   "Nodes per axis of the grid an opening or closing re-distances on (the leaves' cube, grown by 2r, + 10 %)")
+void add_morphology_grid(CLI::App& app, MorphologyArgs& m) {
+    app.add_option("--morphology-grid", m.grid,
+                   "Nodes per axis of the grid an opening or closing re-distances on (the leaves' cube, grown by 2r, + 10 %), "
+                   "where its operand is not a cloud or .tori (those are resampled: no grid)")
         ->check(CLI::Range(8, 1024))
         ->capture_default_str();
+    app.add_flag("--morphology-by-grid", m.by_grid, "Re-distance on the grid even for a cloud's or .tori's opening and closing");
 }
 
-ParsedField parse_field_expression(const std::string& expression, const std::string& device, int morphology_grid) {
+ParsedField parse_field_expression(const std::string& expression, const std::string& device, const MorphologyArgs& morphology) {
     LeafOptions leaves;
     leaves.device = device;
-    leaves.morphology_grid = morphology_grid;
+    leaves.morphology_grid = morphology.grid;
+    leaves.morphology_by_grid = morphology.by_grid;
     const Parsed p = ExpressionParser(expression, leaves).parse();
     return {p.field, p.box};
 }
@@ -316,7 +328,7 @@ void add_field(CLI::App& app) {
                  "or at queries (docs/field.md)");
     struct Args {
         std::string expression, output, gradient, device;
-        int morphology_grid = kMorphologyGrid;
+        MorphologyArgs morphology;
         Domain domain;
     };
     auto a = std::make_shared<Args>();
@@ -334,12 +346,12 @@ void add_field(CLI::App& app) {
     cmd->add_option("--device", a->device,
                     "Where the leaves evaluate: auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE "
                     "or auto); the operators combine on the CPU");
-    add_morphology_grid(*cmd, a->morphology_grid);
+    add_morphology_grid(*cmd, a->morphology);
     a->domain.add_to(*cmd, true);
     cmd->callback([a] {
         if (!a->domain.is_grid() && a->domain.queries.empty()) throw CLI::RequiredError("--grid or --queries");
         if (!a->domain.bounds.empty()) bounds_from(a->domain.bounds, "--bounds");  // before any costly fit
-        const ParsedField p = parse_field_expression(a->expression, a->device, a->morphology_grid);
+        const ParsedField p = parse_field_expression(a->expression, a->device, a->morphology);
         const bool want_gradient = !a->gradient.empty();
         if (want_gradient && !p.field->has_gradient())
             throw Error("--gradient", "a field of this expression offers no gradient");

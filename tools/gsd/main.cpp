@@ -587,11 +587,11 @@ void add_render(CLI::App& app) {
     auto* tin = r->add_option("--tori", *tori, "Fitted tori from `gsd pat fit`");
     auto* ein = r->add_option("--expr", *expr,
                               "Or a field made of fields, as `gsd field` reads it: \"union(a.tori, offset(b.obj, 0.05))\" "
-                              "(docs/field.md); marched on the CPU, its leaves where --device says");
+                              "(docs/field.md); marched through its device program where --device finds a device, else on the CPU");
     in->excludes(tin);
     ein->excludes(in)->excludes(tin);
-    auto morphology_grid = std::make_shared<int>(kMorphologyGrid);
-    add_morphology_grid(*r, *morphology_grid);
+    auto morphology = std::make_shared<MorphologyArgs>();
+    add_morphology_grid(*r, *morphology);
     r->add_option("-o,--output", *output, "Output .png")->required()->check(output_file({".png"}));
     r->add_option("--size", *size, "Image width and height in pixels")->expected(2)->check(CLI::Range(1, 16384))->capture_default_str();
     r->add_option("--view-from", *view, "Direction the camera looks from, toward the center (default 1 0.8 1.6)")->expected(3);
@@ -640,7 +640,7 @@ void add_render(CLI::App& app) {
         auto start = [&] { return progress.emplace("render " + std::filesystem::path(*output).filename().string()).fn(); };
         const std::string source = !tori->empty() ? *tori : *input;
         if (!expr->empty()) {
-            const ParsedField p = parse_field_expression(*expr, blend->device, *morphology_grid);
+            const ParsedField p = parse_field_expression(*expr, blend->device, *morphology);
             if (!box) box = default_bounds(p.box);
             picture = render_field(*p.field, *box, *opt, start());
         } else if (io::extension(source) == ".npy") {
