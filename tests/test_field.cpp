@@ -148,7 +148,8 @@ bool closed_manifold(const PolygonMesh& m) {
 
 }  // namespace
 
-TEST_CASE("Booleans of two PAT fields err no more than 1.2× their worse leaf; offsets contour to closed manifolds near the exact offset") {
+TEST_CASE("Booleans of two PAT fields err no more than 1.2× their worse leaf; offsets contour to closed manifolds near the exact offset" *
+          doctest::test_suite("slow")) {
     // Two overlapping spheres, sampled (5,000 points each, with position and normal noise) and
     // fitted: PAT leaves with an error of their own. φ_true of a Boolean: the same Boolean of the
     // exact distances.
