@@ -772,6 +772,26 @@ TEST_CASE("a composite on a device: its leaves into device buffers, one pass com
     CHECK_THROWS_WITH_AS(gpu::evaluate_points(*field_union(m.pat, flat), ctx, x, true), doctest::Contains("gradient"), Error);
 }
 
+TEST_CASE("gsd field --device gpu combines a composite on the device: the CPU's values") {
+    REQUIRE(gpu::select("gpu").context);
+    ScratchDir dir("field-device");
+    const std::string cloud = dir.file("torus.ply"), tori = dir.file("torus.tori");
+    REQUIRE(run_cli("sample torus -n 3000 -o " + cloud).exit_code == 0);
+    REQUIRE(run_cli("pat fit " + cloud + " -o " + tori).exit_code == 0);
+    const std::string expr = " \"smooth_union(offset(" + tori + ", 0.02), shell(" + tori + ", 0.05), 0.1)\" --grid 16 ";
+    const auto cpu = run_cli("-v field" + expr + "--device cpu -o " + dir.file("cpu.npy"));
+    const auto dev = run_cli("-v field" + expr + "--device gpu -o " + dir.file("gpu.npy"));
+    REQUIRE_MESSAGE(cpu.exit_code == 0, cpu.output);
+    REQUIRE_MESSAGE(dev.exit_code == 0, dev.output);
+    CHECK(dev.output.find("points on cpu") == std::string::npos);  // "-v": where it was evaluated
+    const auto a = io::read_npy(dir.file("cpu.npy")), b = io::read_npy(dir.file("gpu.npy"));
+    REQUIRE(a.size() == b.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, double(std::abs(a.data[i] - b.data[i])));
+    MESSAGE("largest |φ_gpu − φ_cpu| over 16³: " << worst);
+    CHECK(worst < 1e-5);
+}
+
 TEST_CASE("render_field of a composite draws the same picture on the device as on the CPU") {
     REQUIRE(gpu::select("gpu").context);
     const MixedComposite m;

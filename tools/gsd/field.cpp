@@ -10,6 +10,8 @@
 // variants with a radius last, offset and shell with a distance. A path with parentheses,
 // commas or spaces at its ends goes in quotes.
 #include "cli.hpp"
+#include "gpu/field_device.hpp"
+#include "gpu/on_device.hpp"
 
 #include <gsd/field_algebra.hpp>
 #include <gsd/io.hpp>
@@ -19,6 +21,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <map>
 #include <memory>
 #include <optional>
@@ -304,6 +307,24 @@ private:
 
 }  // namespace
 
+// φ (and ∇φ) at points through a field's device program, 2²⁰ points a submission.
+template <class Context>
+FieldValues on_device_in_chunks(const Field& field, const std::shared_ptr<Context>& ctx, const Points& x, bool gradient,
+                                const ProgressFn& progress) {
+    constexpr Eigen::Index kChunk = Eigen::Index(1) << 20;
+    FieldValues out;
+    out.phi.reserve(std::size_t(x.rows()));
+    for (Eigen::Index first = 0; first < x.rows(); first += kChunk) {
+        const Eigen::Index n = std::min(kChunk, x.rows() - first);
+        FieldValues v = gpu::evaluate_points(field, ctx, x.middleRows(first, n), gradient);
+        out.phi.insert(out.phi.end(), v.phi.begin(), v.phi.end());
+        out.gradient.insert(out.gradient.end(), v.gradient.begin(), v.gradient.end());
+        out.device = v.device;
+        if (progress) progress("evaluate", double(first + n) / double(x.rows()));
+    }
+    return out;
+}
+
 void add_morphology_grid(CLI::App& app, MorphologyArgs& m) {
     app.add_option("--morphology-grid", m.grid,
                    "Nodes per axis of the grid an opening or closing re-distances on (the leaves' cube, grown by 2r, + 10 %), "
@@ -345,7 +366,7 @@ void add_field(CLI::App& app) {
     cmd->add_option("--gradient", a->gradient, "Also write ∇φ: (N,N,N,3) or (M,3) .npy")->check(output_file({".npy"}));
     cmd->add_option("--device", a->device,
                     "Where the leaves evaluate: auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE "
-                    "or auto); the operators combine on the CPU");
+                    "or auto); a composite whose leaves include one with a device program is combined there too");
     add_morphology_grid(*cmd, a->morphology);
     a->domain.add_to(*cmd, true);
     cmd->callback([a] {
@@ -355,11 +376,24 @@ void add_field(CLI::App& app) {
         const bool want_gradient = !a->gradient.empty();
         if (want_gradient && !p.field->has_gradient())
             throw Error("--gradient", "a field of this expression offers no gradient");
-        evaluate_and_write(
-            a->domain, p.box, a->output, a->gradient,
-            [&](const Points& q, const ProgressFn& pr) { return p.field->evaluate(q, want_gradient, pr); },
-            [&](const GridSpec& g, const ProgressFn& pr) { return p.field->evaluate(g, want_gradient, pr); }, "field",
-            "field", kSdfGridBytesPerNode);
+        // A composite with a device program evaluates there in one pass per chunk (its leaves
+        // into device buffers, field_combine over them); otherwise each leaf where --device says
+        // and the operators on the CPU.
+        std::function<FieldValues(const Points&, const ProgressFn&)> at_points = [&](const Points& q, const ProgressFn& pr) {
+            return p.field->evaluate(q, want_gradient, pr);
+        };
+        std::function<FieldValues(const GridSpec&, const ProgressFn&)> on_grid = [&](const GridSpec& g, const ProgressFn& pr) {
+            return p.field->evaluate(g, want_gradient, pr);
+        };
+        gpu::on_device(a->device, [&](const auto& ctx, std::string&) {
+            if (!p.field->device_program()) return false;
+            at_points = [&, ctx](const Points& q, const ProgressFn& pr) { return on_device_in_chunks(*p.field, ctx, q, want_gradient, pr); };
+            on_grid = [&, ctx](const GridSpec& g, const ProgressFn& pr) {
+                return on_device_in_chunks(*p.field, ctx, g.nodes(), want_gradient, pr);
+            };
+            return true;
+        });
+        evaluate_and_write(a->domain, p.box, a->output, a->gradient, at_points, on_grid, "field", "field", kSdfGridBytesPerNode);
     });
 }
 
