@@ -517,12 +517,30 @@ bool in_box(const Eigen::Vector3d& x, const Eigen::Vector3d& lo, const Eigen::Ve
     return (x.array() > lo.array()).all() && (x.array() < hi.array()).all();
 }
 
+// The morphology tests' shapes, sampled every `spacing` on their faces: the block [−0.6, 0.6]³
+// with a fin of half thickness `half` standing out of its +x face (the points of each box's faces
+// outside the other box), or with a slot of half width `half` cut into it from above (the block's
+// faces outside the slot, the slot's walls and floor inside the block, normals into the slot).
+PointCloud block_with_fin(double half, double spacing, std::mt19937_64& rng) {
+    const Eigen::Vector3d blo(-0.6, -0.6, -0.6), bhi(0.6, 0.6, 0.6), flo(0.6, -half, -0.3), fhi(0.95, half, 0.3);
+    std::vector<Eigen::Vector3d> p, n;
+    sample_box(blo, bhi, spacing, false, [&](const Eigen::Vector3d& x) { return !in_box(x, flo - Eigen::Vector3d(0.01, 0, 0), fhi); }, p, n, rng);
+    sample_box(flo, fhi, spacing, false, [&](const Eigen::Vector3d& x) { return x.x() > 0.6 + 1e-9; }, p, n, rng);
+    return cloud_of(p, n);
+}
+PointCloud block_with_slot(double half, double spacing, std::mt19937_64& rng) {
+    const Eigen::Vector3d blo(-0.6, -0.6, -0.6), bhi(0.6, 0.6, 0.6), slo(-half, -0.7, 0.1), shi(half, 0.7, 0.7);
+    std::vector<Eigen::Vector3d> p, n;
+    sample_box(blo, bhi, spacing, false, [&](const Eigen::Vector3d& x) { return !in_box(x, slo, shi + Eigen::Vector3d(0, 0, 0.01)); }, p, n, rng);
+    sample_box(slo, shi, spacing, true, [&](const Eigen::Vector3d& x) { return in_box(x, blo, bhi); }, p, n, rng);
+    return cloud_of(p, n);
+}
+
 }  // namespace
 
 TEST_CASE("Opening and closing on point clouds (PAT), without a mesh in between") {
     std::mt19937_64 rng(12);
     const double r = 0.06, spacing = 0.02;
-    const Eigen::Vector3d blo(-0.6, -0.6, -0.6), bhi(0.6, 0.6, 0.6);
     const GridSpec grid = GridSpec::cube(test::sized(81, 49), {{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}});
     Points at(3, 3);
     at.row(0) << 0.8, 0, 0;  // in the fin (opening) 
@@ -530,13 +548,10 @@ TEST_CASE("Opening and closing on point clouds (PAT), without a mesh in between"
     at.row(2) << 0, 0, 0.4;  // in the slot (closing)
     {
         // A block with a fin 0.08 thick: the points of each box's faces outside the other box.
-        const Eigen::Vector3d flo(0.6, -0.04, -0.3), fhi(0.95, 0.04, 0.3);
-        std::vector<Eigen::Vector3d> p, n;
-        sample_box(blo, bhi, spacing, false, [&](const Eigen::Vector3d& x) { return !in_box(x, flo - Eigen::Vector3d(0.01, 0, 0), fhi); }, p, n, rng);
-        sample_box(flo, fhi, spacing, false, [&](const Eigen::Vector3d& x) { return x.x() > 0.6 + 1e-9; }, p, n, rng);
-        const auto pat = std::make_shared<TorusField>(JetFitter().fit(cloud_of(p, n)));
+        const PointCloud cloud = block_with_fin(0.04, spacing, rng);
+        const auto pat = std::make_shared<TorusField>(JetFitter().fit(cloud));
         const FieldValues before = pat->evaluate(at), after = field_opening(pat, r, grid)->evaluate(at);
-        MESSAGE("opening on a cloud of " << p.size() << " points: fin " << before.phi[0] << " → " << after.phi[0]);
+        MESSAGE("opening on a cloud of " << cloud.size() << " points: fin " << before.phi[0] << " → " << after.phi[0]);
         CHECK(before.phi[0] < 0);
         CHECK(after.phi[0] > 0);
         CHECK(after.phi[1] < -0.4);
@@ -544,13 +559,10 @@ TEST_CASE("Opening and closing on point clouds (PAT), without a mesh in between"
     {
         // A block with a slot 0.08 wide from above: the block's faces outside the slot, the
         // slot's walls and floor inside the block (normals into the slot).
-        const Eigen::Vector3d slo(-0.04, -0.7, 0.1), shi(0.04, 0.7, 0.7);
-        std::vector<Eigen::Vector3d> p, n;
-        sample_box(blo, bhi, spacing, false, [&](const Eigen::Vector3d& x) { return !in_box(x, slo, shi + Eigen::Vector3d(0, 0, 0.01)); }, p, n, rng);
-        sample_box(slo, shi, spacing, true, [&](const Eigen::Vector3d& x) { return in_box(x, blo, bhi); }, p, n, rng);
-        const auto pat = std::make_shared<TorusField>(JetFitter().fit(cloud_of(p, n)));
+        const PointCloud cloud = block_with_slot(0.04, spacing, rng);
+        const auto pat = std::make_shared<TorusField>(JetFitter().fit(cloud));
         const FieldValues before = pat->evaluate(at), after = field_closing(pat, r, grid)->evaluate(at);
-        MESSAGE("closing on a cloud of " << p.size() << " points: slot " << before.phi[2] << " → " << after.phi[2]);
+        MESSAGE("closing on a cloud of " << cloud.size() << " points: slot " << before.phi[2] << " → " << after.phi[2]);
         CHECK(before.phi[2] > 0);
         CHECK(after.phi[2] < 0);
         CHECK(after.phi[1] < -0.4);
@@ -560,7 +572,6 @@ TEST_CASE("Opening and closing on point clouds (PAT), without a mesh in between"
 TEST_CASE("Opening and closing of a cloud by resampling: no grid, no mesh; the block's volume kept") {
     std::mt19937_64 rng(5);
     const double r = 0.06, spacing = 0.02;
-    const Eigen::Vector3d blo(-0.6, -0.6, -0.6), bhi(0.6, 0.6, 0.6);
     Points at(3, 3);
     at.row(0) << 0.8, 0, 0;  // in the fin (opening)
     at.row(1) << 0, 0, 0;    // deep in the block
@@ -578,11 +589,7 @@ TEST_CASE("Opening and closing of a cloud by resampling: no grid, no mesh; the b
     };
     {
         // A block with a fin 0.05 thick (< 2r): the opening removes the fin, keeps the block.
-        const Eigen::Vector3d flo(0.6, -0.025, -0.3), fhi(0.95, 0.025, 0.3);
-        std::vector<Eigen::Vector3d> p, n;
-        sample_box(blo, bhi, spacing, false, [&](const Eigen::Vector3d& x) { return !in_box(x, flo - Eigen::Vector3d(0.01, 0, 0), fhi); }, p, n, rng);
-        sample_box(flo, fhi, spacing, false, [&](const Eigen::Vector3d& x) { return x.x() > 0.6 + 1e-9; }, p, n, rng);
-        const PointCloud cloud = cloud_of(p, n);
+        const PointCloud cloud = block_with_fin(0.025, spacing, rng);
         const auto pat = std::make_shared<TorusField>(JetFitter().fit(cloud));
         const FieldPtr opened = field_opening(pat, r, cloud.points);
         const FieldValues before = pat->evaluate(at), after = opened->evaluate(at);
@@ -597,11 +604,7 @@ TEST_CASE("Opening and closing of a cloud by resampling: no grid, no mesh; the b
     }
     {
         // A block with a slot 0.08 wide (< 2r) from above: the closing fills it.
-        const Eigen::Vector3d slo(-0.04, -0.7, 0.1), shi(0.04, 0.7, 0.7);
-        std::vector<Eigen::Vector3d> p, n;
-        sample_box(blo, bhi, spacing, false, [&](const Eigen::Vector3d& x) { return !in_box(x, slo, shi + Eigen::Vector3d(0, 0, 0.01)); }, p, n, rng);
-        sample_box(slo, shi, spacing, true, [&](const Eigen::Vector3d& x) { return in_box(x, blo, bhi); }, p, n, rng);
-        const PointCloud cloud = cloud_of(p, n);
+        const PointCloud cloud = block_with_slot(0.04, spacing, rng);
         const auto pat = std::make_shared<TorusField>(JetFitter().fit(cloud));
         const FieldPtr closed = field_closing(pat, r, cloud.points);
         const FieldValues before = pat->evaluate(at), after = closed->evaluate(at);

@@ -7,6 +7,7 @@
 #include "spatial/morton.hpp"
 #include "blend/blend.hpp"
 #include "gpu/device_tree.hpp"
+#include "gpu/field_device.hpp"
 #include "gpu/runtime.hpp"
 #include "gpu/stream.hpp"
 #include "push_constants.h"
@@ -153,7 +154,6 @@ private:
         return (chunk + wg - 1) / wg * wg;
     }
 
-    void check_span(const gpu::BufferSpan& span, const char* field) const;
 
     std::shared_ptr<gpu::Context> ctx_;
     Kind kind_;
@@ -215,17 +215,9 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     gpu::stream(c, job, progress);
 }
 
-void GpuField::check_span(const gpu::BufferSpan& span, const char* field) const {
-    if (span.buffer == VK_NULL_HANDLE) throw Error(field, "no buffer given");
-    const VkDeviceSize align = ctx_->limits().minStorageBufferOffsetAlignment;
-    if (align && span.offset % align)
-        throw Error(field, "offset " + std::to_string(span.offset) + " is not a multiple of " + ctx_->info().name +
-                               "'s minStorageBufferOffsetAlignment (" + std::to_string(align) + ")");
-}
-
 void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, const gpu::SubmitSync& sync) {
-    check_span(job.queries, "DeviceQueries::queries");
-    check_span(job.results, "DeviceQueries::results");
+    gpu::check_span(*ctx_, job.queries, "DeviceQueries::queries");  // as gpu::evaluate_into does: direct callers too
+    gpu::check_span(*ctx_, job.results, "DeviceQueries::results");
     if (job.count >= (1ull << 31)) throw Error("DeviceQueries::count", "at most 2^31 − 1 queries per call");
     gpu::Context& c = *ctx_;
     const VkDeviceSize out_bytes = p.gradient ? 16 : 4;

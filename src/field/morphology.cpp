@@ -105,13 +105,13 @@ public:
     }
     bool has_gradient() const override { return true; }
 
-    /// The offset surface's samples (for tests and pictures).
-    const PointCloud& samples(const ProgressFn& progress = {}) const {
+private:
+    // The offset surface's samples, made at the first evaluation.
+    const PointCloud& samples(const ProgressFn& progress) const {
         std::call_once(once_, [&] { build(progress); });
         return samples_;
     }
 
-private:
     // The side of the first offset: −1 for an opening (inward), +1 for a closing.
     double side() const { return opening_ ? -1.0 : 1.0; }
 

@@ -10,8 +10,6 @@
 
 namespace gsd::gpu {
 
-namespace {
-
 void check_span(const Context& c, const BufferSpan& span, const char* what) {
     if (span.buffer == VK_NULL_HANDLE) throw Error(what, "no buffer given");
     const VkDeviceSize align = c.limits().minStorageBufferOffsetAlignment;
@@ -19,6 +17,8 @@ void check_span(const Context& c, const BufferSpan& span, const char* what) {
         throw Error(what, "offset " + std::to_string(span.offset) + " is not a multiple of " + c.info().name +
                               "'s minStorageBufferOffsetAlignment (" + std::to_string(align) + ")");
 }
+
+namespace {
 
 // Records copy_words over `words` words from one range to another, in dispatches that fit the
 // device's binding range (whole multiples of 256 bytes, so every offset stays aligned).

@@ -11,6 +11,11 @@
 namespace gsd::gpu {
 
 class Context;
+struct BufferSpan;
+
+/// Throws gsd::Error (`what`) for a span without a buffer or at an offset that is not a multiple
+/// of the device's minStorageBufferOffsetAlignment.
+void check_span(const Context& ctx, const BufferSpan& span, const char* what);
 
 /// φ (and ∇φ) at host points, through `field`'s device program on `ctx` (the queries uploaded,
 /// gpu::evaluate_into, the results read back); FieldValues::device names the device.

@@ -70,7 +70,8 @@ struct SharpenState {
 void sharpen_cpu(const SharpenProblem& problem, bool keep_sign, SharpenState& state, int iterations,
                  const ProgressFn& progress);
 
-/// The same on a device; false (with why_not) when it cannot hold the problem.
+/// The same on a device; false (with why_not) when it cannot hold the problem. Only `state.phi`
+/// comes back.
 bool sharpen_gpu(const std::shared_ptr<gpu::Context>& ctx, const SharpenProblem& problem, bool keep_sign,
                  SharpenState& state, int iterations, const ProgressFn& progress, std::string& why_not);
 

@@ -66,7 +66,7 @@ bool sharpen_gpu(const std::shared_ptr<gpu::Context>& ctx, const SharpenProblem&
         return std::uint32_t((items + k.workgroup - 1) / k.workgroup);
     };
     gpu::Recorder rec(c);
-    int summed = S.summed;
+    int summed = S.summed;  // iterations since the last restart, as the CPU loop counts them
     for (int done = 0; done < iterations;) {
         const int batch = std::min(kIterationsPerSubmit, iterations - done);
         rec.begin();
@@ -89,14 +89,7 @@ bool sharpen_gpu(const std::shared_ptr<gpu::Context>& ctx, const SharpenProblem&
         done += batch;
         if (progress) progress("sharpen", double(done) / iterations);
     }
-    S.summed = summed;
-    gpu::download(c, phi, S.phi.data(), nodes * 4);
-    gpu::download(c, phi_bar, S.phi_bar.data(), nodes * 4);
-    gpu::download(c, p, S.p.data(), nodes * 12);
-    gpu::download(c, q, S.q.data(), rows * 4);
-    gpu::download(c, phi_sum, S.phi_sum.data(), nodes * 4);
-    gpu::download(c, p_sum, S.p_sum.data(), nodes * 12);
-    gpu::download(c, q_sum, S.q_sum.data(), rows * 4);
+    gpu::download(c, phi, S.phi.data(), nodes * 4);  // the rest of the state stays on the device: nothing resumes it
     return true;
 }
 
