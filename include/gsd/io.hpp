@@ -150,6 +150,24 @@ GSD_EXPORT void require_vdb(const std::string& path);
 /// non-finite values, non-cubic voxels for a level set, or when vdb_available() is false.
 GSD_EXPORT void write_vdb(const std::string& path, const GridSpec& grid, const std::vector<float>& values,
                           const VdbOptions& options = {});
+/// A narrow band on a lattice — a sparse level set: point (i, j, k) at lo + (i, j, k)·voxel
+/// holds φ, and |φ| < half_width·voxel at every point given (OctreeField::narrow_band makes one).
+struct SparseLevelSet {
+    Eigen::Vector3d lo{0, 0, 0};
+    double voxel = 0;
+    double half_width = 3;  ///< voxels
+    std::vector<std::array<std::int32_t, 3>> ijk;
+    std::vector<float> phi;
+};
+/// Writes a sparse level set as an OpenVDB FloatGrid (GRID_LEVEL_SET, voxel (i, j, k) at the
+/// lattice point): the band active, everything else inactive at ±half_width voxels by
+/// OpenVDB's signed flood fill. `options.level_set` and `half_width` are the band's. Atomic;
+/// throws Error as write_vdb does.
+GSD_EXPORT void write_vdb_sparse(const std::string& path, const SparseLevelSet& band, const VdbOptions& options = {});
+/// The zero level set of a sparse level set as a closed triangle mesh, by OpenVDB's
+/// volumeToMesh (its quads split in two). Needs the OpenVDB plugin, as write_vdb does.
+GSD_EXPORT PolygonMesh mesh_level_set(const SparseLevelSet& band);
+
 /// Reads a .vdb file's float grid (the one named "surface", else the first) as a dense grid over
 /// its active voxels' box — for a level set grown by one voxel, where the inactive outside and
 /// inside read ± the background. Its transform must be an axis-aligned scale and translation.

@@ -42,6 +42,8 @@ std::vector<std::string> plugin_candidates() {
 struct Plugin {
     GsdVdbEncode encode = nullptr;
     GsdVdbDecode decode = nullptr;
+    GsdVdbEncodeSparse encode_sparse = nullptr;
+    GsdVdbMeshSparse mesh_sparse = nullptr;
 };
 
 const Plugin& plugin_functions() {
@@ -52,6 +54,8 @@ const Plugin& plugin_functions() {
             if (void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL)) {  // kept for the process's life
                 plugin.encode = reinterpret_cast<GsdVdbEncode>(dlsym(handle, GSD_VDB_ENCODE_SYMBOL));
                 plugin.decode = reinterpret_cast<GsdVdbDecode>(dlsym(handle, GSD_VDB_DECODE_SYMBOL));
+                plugin.encode_sparse = reinterpret_cast<GsdVdbEncodeSparse>(dlsym(handle, GSD_VDB_ENCODE_SPARSE_SYMBOL));
+                plugin.mesh_sparse = reinterpret_cast<GsdVdbMeshSparse>(dlsym(handle, GSD_VDB_MESH_SPARSE_SYMBOL));
                 if (plugin.encode) return;
                 dlclose(handle);
             }
@@ -137,6 +141,60 @@ void write_vdb(const std::string& path, const GridSpec& g, const std::vector<flo
     char error[512] = "";
     if (encode(&grid, append, &bytes, error, sizeof error) != 0) throw Error(path, error);
     write_file_atomic(path, bytes);
+}
+
+namespace {
+
+// The checks both sparse functions make; the C view of the band.
+GsdVdbSparse sparse_view(const std::string& where, const SparseLevelSet& b, const std::string& name, const std::string& method,
+                         const std::string& creator) {
+    if (b.ijk.size() != b.phi.size())
+        throw Error(where, std::to_string(b.ijk.size()) + " lattice points for " + std::to_string(b.phi.size()) + " values");
+    if (b.phi.empty()) throw Error(where, "the level set's band is empty");
+    if (!(b.voxel > 0) || !std::isfinite(b.voxel) || !b.lo.allFinite()) throw Error(where, "the lattice needs a finite origin and voxel > 0");
+    if (!(b.half_width >= 1 && b.half_width <= 1000)) throw Error("SparseLevelSet::half_width", "must be in [1, 1000] voxels");
+    for (float v : b.phi)
+        if (!std::isfinite(v)) throw Error(where, "a level set needs finite values");
+    if (name.empty()) throw Error("VdbOptions::name", "must not be empty");
+    return GsdVdbSparse{{b.lo[0], b.lo[1], b.lo[2]}, b.voxel, b.half_width, b.phi.size(), b.ijk.front().data(), b.phi.data(),
+                        name.c_str(), method.c_str(), creator.c_str()};
+}
+
+struct MeshOut {
+    PolygonMesh mesh;
+};
+
+void receive_mesh(void* context, const double* points, size_t point_count, const unsigned* triangles, size_t triangle_count) {
+    PolygonMesh& m = static_cast<MeshOut*>(context)->mesh;
+    m.vertices.resize(Eigen::Index(point_count), 3);
+    for (size_t i = 0; i < point_count; ++i)
+        for (int a = 0; a < 3; ++a) m.vertices(Eigen::Index(i), a) = points[3 * i + size_t(a)];
+    m.indices.assign(triangles, triangles + 3 * triangle_count);
+    m.offsets.resize(triangle_count + 1);
+    for (size_t t = 0; t <= triangle_count; ++t) m.offsets[t] = std::uint32_t(3 * t);
+}
+
+}  // namespace
+
+void write_vdb_sparse(const std::string& path, const SparseLevelSet& band, const VdbOptions& o) {
+    require_vdb(path);
+    const std::string creator = std::string("gsd ").append(version());
+    const GsdVdbSparse view = sparse_view(path, band, o.name, o.method, creator);
+    if (!plugin_functions().encode_sparse) throw Error(path, "the OpenVDB plugin found is older than this gsd (no sparse level sets)");
+    std::string bytes;
+    char error[512] = "";
+    if (plugin_functions().encode_sparse(&view, append, &bytes, error, sizeof error) != 0) throw Error(path, error);
+    write_file_atomic(path, bytes);
+}
+
+PolygonMesh mesh_level_set(const SparseLevelSet& band) {
+    require_vdb("contour");
+    const GsdVdbSparse view = sparse_view("contour", band, "surface", "", "gsd");
+    if (!plugin_functions().mesh_sparse) throw Error("contour", "the OpenVDB plugin found is older than this gsd (no sparse level sets)");
+    MeshOut out;
+    char error[512] = "";
+    if (plugin_functions().mesh_sparse(&view, receive_mesh, &out, error, sizeof error) != 0) throw Error("contour", error);
+    return std::move(out.mesh);
 }
 
 }  // namespace gsd::io

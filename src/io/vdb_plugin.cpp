@@ -9,6 +9,8 @@
 #include <openvdb/io/File.h>
 #include <openvdb/io/Stream.h>
 #include <openvdb/openvdb.h>
+#include <openvdb/tools/SignedFloodFill.h>
+#include <openvdb/tools/VolumeToMesh.h>
 #pragma GCC visibility pop
 
 #include <cmath>
@@ -99,7 +101,77 @@ void decode(const char* path, GsdVdbAllocate allocate, void* context) {
             for (int k = box.min().z(); k <= box.max().z(); ++k) values[n++] = acc.getValue(openvdb::Coord(i, j, k));
 }
 
+// A sparse level set as a FloatGrid: the band's points active, the inactive rest signed by a
+// flood fill from the band (the band closes around every inside region it bounds).
+openvdb::FloatGrid::Ptr sparse_grid(const GsdVdbSparse& b) {
+    initialize_once();
+    const float background = float(b.half_width * b.voxel);
+    openvdb::FloatGrid::Ptr grid = openvdb::FloatGrid::create(background);
+    grid->setTransform(openvdb::math::Transform::createLinearTransform(b.voxel));
+    grid->transform().postTranslate(openvdb::Vec3d(b.lo[0], b.lo[1], b.lo[2]));
+    grid->setGridClass(openvdb::GRID_LEVEL_SET);
+    openvdb::FloatGrid::Accessor acc = grid->getAccessor();
+    for (size_t n = 0; n < b.count; ++n)
+        acc.setValue(openvdb::Coord(b.ijk[3 * n], b.ijk[3 * n + 1], b.ijk[3 * n + 2]), b.values[n]);
+    openvdb::tools::signedFloodFill(grid->tree());
+    return grid;
+}
+
+std::string encode_sparse(const GsdVdbSparse& b) {
+    openvdb::FloatGrid::Ptr grid = sparse_grid(b);
+    grid->setName(b.name);
+    grid->setCreator(b.creator);
+    if (b.method[0] != '\0') grid->insertMeta("gsd_method", openvdb::StringMetadata(b.method));
+    std::ostringstream bytes(std::ios_base::binary);
+    openvdb::io::Stream(bytes).write(openvdb::GridCPtrVec{grid});
+    return bytes.str();
+}
+
+void mesh_sparse(const GsdVdbSparse& b, GsdVdbMeshSink sink, void* context) {
+    const openvdb::FloatGrid::Ptr grid = sparse_grid(b);
+    std::vector<openvdb::Vec3s> points;
+    std::vector<openvdb::Vec3I> triangles;
+    std::vector<openvdb::Vec4I> quads;
+    openvdb::tools::volumeToMesh(*grid, points, triangles, quads, 0.0, 0.0);
+    std::vector<double> xyz(3 * points.size());
+    for (size_t i = 0; i < points.size(); ++i)
+        for (int a = 0; a < 3; ++a) xyz[3 * i + size_t(a)] = double(points[i][a]);
+    std::vector<unsigned> tris;
+    tris.reserve(3 * triangles.size() + 6 * quads.size());
+    // volumeToMesh faces the negative side (inside); gsd's meshes face outward: reversed.
+    for (const openvdb::Vec3I& t : triangles) tris.insert(tris.end(), {t[0], t[2], t[1]});
+    for (const openvdb::Vec4I& q : quads) tris.insert(tris.end(), {q[0], q[2], q[1], q[0], q[3], q[2]});
+    sink(context, xyz.data(), points.size(), tris.data(), tris.size() / 3);
+}
+
 }  // namespace
+
+extern "C" __attribute__((visibility("default"))) int gsd_vdb_encode_sparse(const GsdVdbSparse* band, GsdVdbSink sink,
+                                                                             void* context, char* error, size_t error_size) {
+    try {
+        const std::string bytes = encode_sparse(*band);
+        sink(context, bytes.data(), bytes.size());
+        return 0;
+    } catch (const std::exception& e) {  // nothing may cross the C boundary
+        std::snprintf(error, error_size, "OpenVDB could not encode the level set: %s", e.what());
+    } catch (...) {
+        std::snprintf(error, error_size, "OpenVDB could not encode the level set");
+    }
+    return 1;
+}
+
+extern "C" __attribute__((visibility("default"))) int gsd_vdb_mesh_sparse(const GsdVdbSparse* band, GsdVdbMeshSink sink,
+                                                                           void* context, char* error, size_t error_size) {
+    try {
+        mesh_sparse(*band, sink, context);
+        return 0;
+    } catch (const std::exception& e) {  // nothing may cross the C boundary
+        std::snprintf(error, error_size, "OpenVDB could not mesh the level set: %s", e.what());
+    } catch (...) {
+        std::snprintf(error, error_size, "OpenVDB could not mesh the level set");
+    }
+    return 1;
+}
 
 extern "C" __attribute__((visibility("default"))) int gsd_vdb_decode(const char* path, GsdVdbAllocate allocate, void* context,
                                                                       char* error, size_t error_size) {

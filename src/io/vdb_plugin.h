@@ -47,7 +47,33 @@ typedef float* (*GsdVdbAllocate)(void* context, const struct GsdVdbDense* dense)
    a message in error. */
 typedef int (*GsdVdbDecode)(const char* path, GsdVdbAllocate allocate, void* context, char* error, size_t error_size);
 
+/* A narrow band on a lattice (a sparse level set): point (i, j, k) at lo + (i, j, k)·voxel. */
+struct GsdVdbSparse {
+    double lo[3];
+    double voxel;
+    double half_width; /* in voxels: the background */
+    size_t count;
+    const int* ijk;      /* 3 per point */
+    const float* values; /* 1 per point */
+    const char* name;
+    const char* method;
+    const char* creator;
+};
+
+/* Encodes a sparse level set as a .vdb stream: the points active, the rest inactive at
+   ±half_width voxels by OpenVDB's signed flood fill. 0 on success. */
+typedef int (*GsdVdbEncodeSparse)(const struct GsdVdbSparse* band, GsdVdbSink sink, void* context, char* error, size_t error_size);
+
+/* Receives a triangle mesh: 3 doubles a point, 3 indices a triangle. */
+typedef void (*GsdVdbMeshSink)(void* context, const double* points, size_t point_count, const unsigned* triangles,
+                               size_t triangle_count);
+
+/* The zero level set of a sparse level set, by OpenVDB's volumeToMesh (quads split in two). */
+typedef int (*GsdVdbMeshSparse)(const struct GsdVdbSparse* band, GsdVdbMeshSink sink, void* context, char* error, size_t error_size);
+
 #define GSD_VDB_ENCODE_SYMBOL "gsd_vdb_encode"
+#define GSD_VDB_ENCODE_SPARSE_SYMBOL "gsd_vdb_encode_sparse"
+#define GSD_VDB_MESH_SPARSE_SYMBOL "gsd_vdb_mesh_sparse"
 #define GSD_VDB_DECODE_SYMBOL "gsd_vdb_decode"
 #define GSD_VDB_PLUGIN_NAME "libgsd_vdb.so"
 

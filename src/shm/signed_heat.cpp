@@ -4,6 +4,7 @@
 #include <gsd/shm.hpp>
 
 #include "shm/diffuse.hpp"
+#include "shm/veto.hpp"
 #include "sums/sum_tree.hpp"
 
 #include <algorithm>
@@ -200,53 +201,14 @@ struct SignedHeatGrid::Impl {
                 }
     }
 
-    // The outside veto (ShmOptions::veto_winding). Where holes are large, SHM's completion can
-    // bulge out over them: nodes there get φ < 0 with no face nearby to say so. Such a node is
-    // (1) far from every element for its |φ| — deep inside, |φ| is about the distance to the
-    // surface — and (2) at a low winding number of the source, which a hole lowers only so
-    // far (docs/shm.md). φ → φ(1 − 2κ), κ ∈ [0, 1] the lesser of two ramps, each ½ where its
-    // condition starts to hold: the sign flips exactly where both hold, and φ stays continuous
-    // in its inputs (so that the GPU's φ and the CPU's stay as close after the veto as before).
-    // Returns the number of nodes turned outside.
+    // The outside veto (ShmOptions::veto_winding, shm/veto.hpp) at every node.
     std::size_t veto_outside(std::vector<double>& phi) const {
-        const Box extent_box = bounding_box(source.elements.corners);
-        const double margin = opt.veto_margin * extent_box.extent().maxCoeff();
-        if (!(margin > 0)) return 0;  // every element at one point: no hole to complete
-        // The ramps' widths: half the margin in distance, so that a node closer than 0.75
-        // margins to an element is never touched, however low its winding number (nor, so,
-        // any part thinner than 1.5 margins); 0.1 in winding number.
-        const double distance_band = 0.5 * margin, winding_band = 0.1;
-        const sums::SumTree tree(source.elements);
-        const WindingOptions criterion;  // the default accuracy: far below the band
         const Eigen::Vector3d step = grid.box.extent().cwiseQuotient(Eigen::Vector3d(grid.nx - 1, grid.ny - 1, grid.nz - 1));
-        const std::ptrdiff_t count = std::ptrdiff_t(phi.size());
-        std::size_t turned = 0;
-#pragma omp parallel reduction(+ : turned)
-        {
-            std::uint32_t nearest = std::uint32_t(-1);  // the last node's nearest element: a good start
-#pragma omp for schedule(dynamic, 4096)
-            for (std::ptrdiff_t i = 0; i < count; ++i) {
-                double& value = phi[std::size_t(i)];
-                if (!(value < 0)) continue;
-                const std::ptrdiff_t iz = i % grid.nz, iy = (i / grid.nz) % grid.ny, ix = i / (std::ptrdiff_t(grid.nz) * grid.ny);
-                const Eigen::Vector3d x = grid.box.lo + step.cwiseProduct(Eigen::Vector3d(double(ix), double(iy), double(iz)));
-                const double threshold = opt.veto_slope * -value + margin;
-                auto far_ramp = [&](double d) { return std::clamp(0.5 + (d - threshold) / distance_band, 0.0, 1.0); };
-                // Most nodes are near an element for their |φ|, and the last node's nearest
-                // element says so without a search: its distance bounds the nearest one from
-                // above and the ramp is monotone, so the node would stay as it is.
-                if (nearest < tree.size() && far_ramp(tree.element_distance(x, nearest)) <= 0) continue;
-                // Exact up to where the ramp ends; that bound prunes the search.
-                const double far = far_ramp(tree.nearest_distance(x, threshold + 0.5 * distance_band, &nearest));
-                if (far <= 0) continue;
-                std::size_t terms = 0;
-                const double w = tree.winding(x, criterion.beta, criterion.tolerance, terms);
-                const double kappa = std::min(far, std::clamp(0.5 + (opt.veto_winding - w) / winding_band, 0.0, 1.0));
-                value *= 1 - 2 * kappa;
-                turned += kappa > 0.5;
-            }
-        }
-        return turned;
+        return shm::veto_outside(source, {opt.veto_winding, opt.veto_slope, opt.veto_margin}, phi, [&](std::size_t i) {
+            const std::size_t iz = i % std::size_t(grid.nz), iy = (i / std::size_t(grid.nz)) % std::size_t(grid.ny),
+                              ix = i / (std::size_t(grid.nz) * std::size_t(grid.ny));
+            return Eigen::Vector3d(grid.box.lo + step.cwiseProduct(Eigen::Vector3d(double(ix), double(iy), double(iz))));
+        });
     }
 };
 

@@ -4,6 +4,7 @@
 #include <gsd/core.hpp>
 #include <gsd/field.hpp>
 #include <gsd/gpu.hpp>
+#include <gsd/shm.hpp>
 
 #include <CLI/CLI.hpp>
 
@@ -158,6 +159,16 @@ private:
 /// A mesh file format that cannot hold curves (.ply .off .stl): curves must come from --curves.
 bool is_curveless_mesh_format(const std::string& path);
 
+/// The SHM's source from input files (meshes by their faces, clouds by their points and
+/// normals; several combined), and the inputs' bounding box. `read(box)`, if given, runs once
+/// the files are read and before the sources are built (a memory check that needs the extent).
+struct LoadedShmSource {
+    ShmSource source;
+    Box box;
+};
+LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const std::function<void(const Box&)>& read = {});
+/// `gsd shm adaptive` (tools/gsd/shm_adaptive.cpp), added under the `shm` command.
+void add_shm_adaptive(CLI::App& shm);
 /// `gsd shm surface` (tools/gsd/surface.cpp), added under the `shm` command.
 void add_shm_surface(CLI::App& shm);
 /// `gsd curve` (tools/gsd/surface.cpp): curves on meshes for demos and tests.

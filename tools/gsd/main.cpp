@@ -380,54 +380,14 @@ void add_shm(CLI::App& app) {
     grid->callback([=] {
         check_grid_output(*output, true);
         const DevicePrefetch prefetch(opt->device);
-        // Sources: each input by its kind (a mesh's triangles, a cloud's points).
-        ShmSource src;
-        std::vector<std::pair<std::string, bool>> kinds;
-        for (const std::string& in : *inputs) kinds.push_back({in, io::file_has_faces(in)});
-        std::vector<PolygonMesh> meshes;
-        std::vector<PointCloud> clouds;
-        Box box0;
-        bool have_box = false;
-        auto grow = [&](const Points& p) {
-            const Box b = bounding_box(p);
-            box0 = have_box ? Box{box0.lo.cwiseMin(b.lo), box0.hi.cwiseMax(b.hi)} : b;
-            have_box = true;
-        };
-        for (const auto& [in, is_mesh] : kinds) {
-            if (is_mesh) {
-                meshes.push_back(io::read_mesh(in));
-                grow(meshes.back().vertices);
-            } else {
-                clouds.push_back(io::read_point_cloud(in));
-                grow(clouds.back().points);
-            }
-        }
-        const GridSpec g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
-        g.validate();
-        check_grid_memory(g, kShmGridBytesPerNode);
-        if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
-        bool first = true;
-        std::size_t which = 0;
-        for (const auto& m : meshes) {
-            ShmSource s;
-            try {
-                s = shm_source(m);
-            } catch (const Error& e) {
-                // Name the file: sources don't know where their mesh came from.
-                std::size_t k = 0;
-                for (const auto& [in, is_mesh] : kinds)
-                    if (is_mesh && k++ == which) throw Error(in, e.what());
-                throw;
-            }
-            src = first ? s : combine(src, s);
-            first = false;
-            ++which;
-        }
-        for (const auto& c : clouds) {
-            const ShmSource s = shm_source(c);
-            src = first ? s : combine(src, s);
-            first = false;
-        }
+        GridSpec g;
+        const LoadedShmSource loaded = load_shm_source(*inputs, [&](const Box& box0) {
+            g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
+            g.validate();
+            check_grid_memory(g, kShmGridBytesPerNode);
+            if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
+        });
+        const ShmSource& src = loaded.source;
         opt->solver = poisson_solver_from_name(*solver);
         Progress progress("shm grid");
         const SignedHeatGrid shm(src, g, *opt);
@@ -484,6 +444,7 @@ void add_shm(CLI::App& app) {
         }
         note("wrote " + *output + (contour_out->empty() ? "" : " and " + *contour_out));
     });
+    add_shm_adaptive(*shm);
     add_shm_surface(*shm);
 }
 

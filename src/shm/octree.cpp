@@ -1,0 +1,296 @@
+// The balanced octree and its node graphs (shm/octree.hpp).
+#include "shm/octree.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace gsd::shm {
+
+namespace {
+
+std::uint64_t spread(std::uint32_t v) {
+    std::uint64_t x = v & 0x1fffffu;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    x = (x | x << 2) & 0x1249249249249249ULL;
+    return x;
+}
+
+std::uint32_t compact(std::uint64_t x) {
+    x &= 0x1249249249249249ULL;
+    x = (x ^ (x >> 2)) & 0x10c30c30c30c30c3ULL;
+    x = (x ^ (x >> 4)) & 0x100f00f00f00f00fULL;
+    x = (x ^ (x >> 8)) & 0x1f0000ff0000ffULL;
+    x = (x ^ (x >> 16)) & 0x1f00000000ffffULL;
+    x = (x ^ (x >> 32)) & 0x1fffffULL;
+    return std::uint32_t(x);
+}
+
+void sort_unique(std::vector<std::uint64_t>& v) {
+    std::sort(v.begin(), v.end());
+    v.erase(std::unique(v.begin(), v.end()), v.end());
+}
+
+}  // namespace
+
+std::uint64_t morton3(std::uint32_t x, std::uint32_t y, std::uint32_t z) { return spread(x) | spread(y) << 1 | spread(z) << 2; }
+
+std::array<std::uint32_t, 3> unmorton3(std::uint64_t code) { return {compact(code), compact(code >> 1), compact(code >> 2)}; }
+
+Octree::Octree(const Box& cube, int depth, const SplitRule& rule) : box_(cube), depth_(depth) {
+    cells_.assign(std::size_t(depth) + 1, {});
+    cells_[0] = {0};
+    for (int l = 0; l < depth; ++l) {
+        const std::vector<std::uint64_t>& parents = cells_[std::size_t(l)];
+        std::vector<char> split(parents.size(), 0);
+        rule(l, parents, split);
+        std::vector<std::uint64_t>& children = cells_[std::size_t(l) + 1];
+        // Children of sorted parents come out sorted: a child's code is its parent's shifted.
+        for (std::size_t i = 0; i < parents.size(); ++i)
+            if (split[i])
+                for (std::uint64_t o = 0; o < 8; ++o) children.push_back(parents[i] << 3 | o);
+        if (children.empty()) break;
+    }
+    balance();
+    mark_internal();
+}
+
+// 2:1 balance across faces, edges and corners: for every cell of level m, the 27 cells of level
+// m − 1 around (and including) its parent must exist. A missing one is made by splitting its
+// parent (level m − 2), which may require more at m − 2: hence the sweep from the finest level
+// up. Then no two touching leaves differ by more than one level, so a leaf's edge holds at
+// most one hanging node, at its midpoint.
+void Octree::balance() {
+    for (int m = depth_; m >= 2; --m) {
+        std::vector<std::uint64_t> parents(cells_[std::size_t(m)].size());
+        std::transform(cells_[std::size_t(m)].begin(), cells_[std::size_t(m)].end(), parents.begin(),
+                       [](std::uint64_t c) { return c >> 3; });
+        parents.erase(std::unique(parents.begin(), parents.end()), parents.end());  // sorted already
+        const std::int64_t n = std::int64_t(1) << (m - 1);
+        std::vector<std::uint64_t> missing;
+#pragma omp parallel
+        {
+            std::vector<std::uint64_t> mine;
+#pragma omp for schedule(static)
+            for (std::size_t i = 0; i < parents.size(); ++i) {
+                const auto p = unmorton3(parents[i]);
+                for (int dx = -1; dx <= 1; ++dx)
+                    for (int dy = -1; dy <= 1; ++dy)
+                        for (int dz = -1; dz <= 1; ++dz) {
+                            const std::int64_t q[3] = {std::int64_t(p[0]) + dx, std::int64_t(p[1]) + dy, std::int64_t(p[2]) + dz};
+                            if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= n || q[1] >= n || q[2] >= n) continue;
+                            const std::uint64_t code = morton3(std::uint32_t(q[0]), std::uint32_t(q[1]), std::uint32_t(q[2]));
+                            if (find(m - 1, code) < 0) mine.push_back(code >> 3);
+                        }
+            }
+#pragma omp critical
+            missing.insert(missing.end(), mine.begin(), mine.end());
+        }
+        if (missing.empty()) continue;
+        sort_unique(missing);
+        std::vector<std::uint64_t>& level = cells_[std::size_t(m) - 1];
+        for (const std::uint64_t q : missing)
+            for (std::uint64_t o = 0; o < 8; ++o) level.push_back(q << 3 | o);
+        sort_unique(level);
+    }
+}
+
+void Octree::mark_internal() {
+    internal_.assign(cells_.size(), {});
+    for (std::size_t l = 0; l < cells_.size(); ++l) {
+        internal_[l].assign(cells_[l].size(), 0);
+        if (l + 1 == cells_.size() || cells_[l + 1].empty()) continue;
+        const auto count = std::ptrdiff_t(cells_[l].size());
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < count; ++i)
+            internal_[l][std::size_t(i)] = find(int(l) + 1, cells_[l][std::size_t(i)] << 3) >= 0;
+    }
+}
+
+std::ptrdiff_t Octree::find(int level, std::uint64_t code) const {
+    const std::vector<std::uint64_t>& v = cells_[std::size_t(level)];
+    const auto it = std::lower_bound(v.begin(), v.end(), code);
+    return it != v.end() && *it == code ? it - v.begin() : -1;
+}
+
+std::size_t Octree::cell_count() const {
+    std::size_t n = 0;
+    for (const auto& v : cells_) n += v.size();
+    return n;
+}
+
+std::size_t Octree::leaf_count(int level) const {
+    std::size_t n = cells_[std::size_t(level)].size();
+    for (int l = 0; l < level; ++l)
+        n += std::size_t(std::count(internal_[std::size_t(l)].begin(), internal_[std::size_t(l)].end(), 0));
+    return n;
+}
+
+std::pair<int, std::uint64_t> Octree::leaf_at(int level, const std::array<std::uint32_t, 3>& p) const {
+    for (int l = 0;; ++l) {
+        const std::uint32_t last = (std::uint32_t(1) << l) - 1;
+        const int shift = depth_ - l;
+        const std::uint64_t code = morton3(std::min(p[0] >> shift, last), std::min(p[1] >> shift, last), std::min(p[2] >> shift, last));
+        if (l == level) return {l, code};
+        const std::ptrdiff_t i = find(l, code);
+        if (i < 0 || !internal_[std::size_t(l)][std::size_t(i)]) return {l, code};
+    }
+}
+
+Eigen::Vector3d Octree::to_lattice(const Eigen::Vector3d& x) const {
+    const double n = double(std::uint64_t(1) << depth_);
+    Eigen::Vector3d u = (x - box_.lo) / lattice_step();
+    for (int a = 0; a < 3; ++a) u[a] = std::clamp(u[a], 0.0, n);
+    return u;
+}
+
+Eigen::Vector3d Octree::to_world(const std::array<std::uint32_t, 3>& p) const {
+    return box_.lo + lattice_step() * Eigen::Vector3d(double(p[0]), double(p[1]), double(p[2]));
+}
+
+void Octree::for_each_leaf(int level, const std::function<void(int, std::uint64_t)>& f) const {
+    for (int l = 0; l <= level && l < int(cells_.size()); ++l)
+        for (std::size_t i = 0; i < cells_[std::size_t(l)].size(); ++i)
+            if (l == level || !internal_[std::size_t(l)][i]) f(l, cells_[std::size_t(l)][i]);
+}
+
+std::vector<std::pair<int, std::uint64_t>> Octree::leaves(int level) const {
+    std::vector<std::pair<int, std::uint64_t>> out;
+    out.reserve(leaf_count(level));
+    for_each_leaf(level, [&](int l, std::uint64_t c) { out.emplace_back(l, c); });
+    return out;
+}
+
+std::ptrdiff_t NodeGraph::find(std::uint64_t key) const {
+    const auto it = std::lower_bound(keys.begin(), keys.end(), key);
+    return it != keys.end() && *it == key ? it - keys.begin() : -1;
+}
+
+NodeGraph build_node_graph(const Octree& tree, int level) {
+    NodeGraph g;
+    g.level = level;
+    const std::vector<std::pair<int, std::uint64_t>> leaves = tree.leaves(level);
+    const int D = tree.depth();
+    const auto count = std::ptrdiff_t(leaves.size());
+    g.keys.resize(8 * leaves.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < count; ++i) {
+        const auto [l, code] = leaves[std::size_t(i)];
+        const std::uint32_t s = std::uint32_t(1) << (D - l);
+        const auto c = unmorton3(code);
+        for (std::uint32_t o = 0; o < 8; ++o)
+            g.keys[8 * std::size_t(i) + o] = morton3(c[0] * s + (o & 1) * s, c[1] * s + (o >> 1 & 1) * s, c[2] * s + (o >> 2 & 1) * s);
+    }
+    sort_unique(g.keys);
+    g.next.assign(g.keys.size(), {-1, -1, -1});
+    g.volume.assign(g.keys.size(), {0.0, 0.0, 0.0});
+    const double h = tree.lattice_step();
+    // Each leaf's twelve edges: a quarter of the leaf's volume to each edge of an axis (the four
+    // together hold the volume once per axis), split evenly where a hanging node sits at the
+    // edge's midpoint (the neighbour across it is finer).
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < count; ++i) {
+        const auto [l, code] = leaves[std::size_t(i)];
+        const std::uint32_t s = std::uint32_t(1) << (D - l);
+        const auto c = unmorton3(code);
+        const double share = std::pow(double(s) * h, 3) / 4;
+        for (int a = 0; a < 3; ++a) {
+            const int b = (a + 1) % 3, d = (a + 2) % 3;
+            for (int ob = 0; ob < 2; ++ob)
+                for (int od = 0; od < 2; ++od) {
+                    std::array<std::uint32_t, 3> p{c[0] * s, c[1] * s, c[2] * s};
+                    p[std::size_t(b)] += std::uint32_t(ob) * s;
+                    p[std::size_t(d)] += std::uint32_t(od) * s;
+                    std::array<std::uint32_t, 3> end = p, mid = p;
+                    end[std::size_t(a)] += s;
+                    mid[std::size_t(a)] += s / 2;
+                    const auto from = std::int32_t(g.find(p)), to = std::int32_t(g.find(end));
+                    const std::int32_t middle = s >= 2 ? std::int32_t(g.find(mid)) : -1;
+                    auto add = [&](std::int32_t x, std::int32_t y, double v) {
+#pragma omp atomic write
+                        g.next[std::size_t(x)][std::size_t(a)] = y;
+#pragma omp atomic
+                        g.volume[std::size_t(x)][std::size_t(a)] += v;
+                    };
+                    if (middle >= 0) {
+                        add(from, middle, share / 2);
+                        add(middle, to, share / 2);
+                    } else {
+                        add(from, to, share);
+                    }
+                }
+        }
+    }
+    return g;
+}
+
+int interpolation_weights(const Octree& tree, const NodeGraph& graph, const Eigen::Vector3d& u, std::int32_t (&node)[27],
+                          double (&w)[27], double (*dw)[3]) {
+    const int D = tree.depth();
+    const double top = double(std::uint64_t(1) << D);
+    std::array<std::uint32_t, 3> p;
+    for (int a = 0; a < 3; ++a) p[std::size_t(a)] = std::uint32_t(std::clamp(std::floor(u[a]), 0.0, top));
+    const auto [l, code] = tree.leaf_at(graph.level, p);
+    const std::uint32_t s = std::uint32_t(1) << (D - l);
+    const auto c = unmorton3(code);
+    const std::uint32_t base[3] = {c[0] * s, c[1] * s, c[2] * s};
+    // A leaf of the finest level: its corners. A larger one: the octant (half the leaf) that
+    // holds the point, whose corners are the leaf's corners, edge midpoints, face centers and
+    // center — a node where a finer neighbour put a hanging node there, else the mean of the
+    // leaf corners around it. So the field meets the finer side's exactly across every face.
+    const std::uint32_t half = s >= 2 ? s / 2 : s;
+    std::uint32_t sub[3];
+    double t[3];
+    for (int a = 0; a < 3; ++a) {
+        const double local = (u[a] - double(base[a])) / half;
+        sub[a] = s >= 2 && local >= 1 ? 1 : 0;
+        t[a] = std::clamp(local - sub[a], 0.0, 1.0);
+    }
+    int count = 0;
+    auto add = [&](std::int32_t n, double weight, const double* grad) {
+        for (int k = 0; k < count; ++k)
+            if (node[k] == n) {
+                w[k] += weight;
+                if (dw)
+                    for (int a = 0; a < 3; ++a) dw[k][a] += grad[a];
+                return;
+            }
+        node[count] = n;
+        w[count] = weight;
+        if (dw)
+            for (int a = 0; a < 3; ++a) dw[count][a] = grad[a];
+        ++count;
+    };
+    for (int k = 0; k < 8; ++k) {
+        const int o[3] = {k & 1, k >> 1 & 1, k >> 2 & 1};
+        double f[3], grad[3];
+        for (int a = 0; a < 3; ++a) f[a] = o[a] ? t[a] : 1 - t[a];
+        const double weight = f[0] * f[1] * f[2];
+        for (int a = 0; a < 3; ++a) grad[a] = (o[a] ? 1.0 : -1.0) / half * f[(a + 1) % 3] * f[(a + 2) % 3];
+        // The octant corner in halves of the leaf: 0, 1 (a midpoint) or 2 along each axis.
+        const std::uint32_t h[3] = {sub[0] + std::uint32_t(o[0]), sub[1] + std::uint32_t(o[1]), sub[2] + std::uint32_t(o[2])};
+        const std::uint32_t step = s >= 2 ? half : s;
+        const std::ptrdiff_t n = graph.find(morton3(base[0] + h[0] * step, base[1] + h[1] * step, base[2] + h[2] * step));
+        if (n >= 0 || s < 2) {
+            add(std::int32_t(n), weight, grad);
+            continue;
+        }
+        // Not a node: the mean of the leaf corners it lies between.
+        int mids = 0;
+        for (int a = 0; a < 3; ++a) mids += h[a] == 1;
+        const double share = 1.0 / double(1 << mids);
+        double g2[3];
+        for (int a = 0; a < 3; ++a) g2[a] = grad[a] * share;
+        for (int m = 0; m < (1 << mids); ++m) {
+            std::uint32_t q[3];
+            int bit = 0;
+            for (int a = 0; a < 3; ++a) q[a] = h[a] == 1 ? ((m >> bit++) & 1) * s : (h[a] / 2) * s;
+            add(std::int32_t(graph.find(morton3(base[0] + q[0], base[1] + q[1], base[2] + q[2]))), weight * share, g2);
+        }
+    }
+    return count;
+}
+
+}  // namespace gsd::shm

@@ -1,0 +1,102 @@
+// The adaptive grid of the adaptive SHM: a 2:1-balanced octree over a cube, and the node graph
+// of the octree cut off at any level (its multigrid levels).
+//
+// Cells are addressed per level by the Morton code of their integer coordinates (i, j, k) ∈
+// [0, 2^l)³; each level keeps its cells as a sorted vector of codes (parents sorted ⇒ children
+// sorted), so the tree costs 8 bytes a cell and a lookup is a binary search. Nodes (cell
+// corners) live on the finest lattice, coordinates in [0, 2^D]³, also keyed by Morton code.
+#pragma once
+
+#include <gsd/core.hpp>
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <span>
+#include <vector>
+
+namespace gsd::shm {
+
+/// Morton code of three coordinates of up to 21 bits each (x in the lowest bit).
+std::uint64_t morton3(std::uint32_t x, std::uint32_t y, std::uint32_t z);
+/// Its inverse.
+std::array<std::uint32_t, 3> unmorton3(std::uint64_t code);
+
+class Octree {
+public:
+    /// Deepest level: node coordinates 2^D must fit 21 bits.
+    static constexpr int kMaxDepth = 20;
+
+    /// Which cells of a level to split: `split[i]` for cell `codes[i]` of `level`. Called once a
+    /// level, top down; the callee may run in parallel.
+    using SplitRule = std::function<void(int level, std::span<const std::uint64_t> codes, std::vector<char>& split)>;
+
+    /// Refines the cube `cube` (equal extents) by `rule` down to `depth`, then balances it 2:1
+    /// across faces, edges and corners (cells are added, never removed).
+    Octree(const Box& cube, int depth, const SplitRule& rule);
+
+    int depth() const { return depth_; }
+    const Box& box() const { return box_; }
+    /// World size of a cell of `level`; of the finest lattice's step at depth().
+    double cell_size(int level) const { return box_.extent().x() / double(std::uint64_t(1) << level); }
+    double lattice_step() const { return cell_size(depth_); }
+    /// Cells of `level` (sorted Morton codes) and whether each has children.
+    const std::vector<std::uint64_t>& cells(int level) const { return cells_[std::size_t(level)]; }
+    bool has_children(int level, std::size_t index) const { return internal_[std::size_t(level)][index] != 0; }
+    /// Index of a cell in its level, or -1.
+    std::ptrdiff_t find(int level, std::uint64_t code) const;
+    std::size_t cell_count() const;
+    /// Leaves of the tree cut at `level` (cells of `level` count as leaves).
+    std::size_t leaf_count(int level) const;
+
+    /// The leaf of the tree cut at `level` that holds lattice point p (coordinates in
+    /// [0, 2^D]; points on a face go to the cell above them, the box's far faces to the last
+    /// cell): its level and code.
+    std::pair<int, std::uint64_t> leaf_at(int level, const std::array<std::uint32_t, 3>& p) const;
+    /// Lattice coordinates (continuous) of a world point, clamped to the box.
+    Eigen::Vector3d to_lattice(const Eigen::Vector3d& x) const;
+    Eigen::Vector3d to_world(const std::array<std::uint32_t, 3>& p) const;
+
+    /// Visits every leaf of the tree cut at `level`: f(leaf level, code). Serial.
+    void for_each_leaf(int level, const std::function<void(int, std::uint64_t)>& f) const;
+    /// Every leaf of the tree cut at `level` as (level, code) pairs.
+    std::vector<std::pair<int, std::uint64_t>> leaves(int level) const;
+
+private:
+    void balance();
+    void mark_internal();
+
+    Box box_;
+    int depth_ = 0;
+    std::vector<std::vector<std::uint64_t>> cells_;
+    std::vector<std::vector<char>> internal_;
+};
+
+/// The nodes of the octree cut at a level, and the least-squares gradient graph on them: each
+/// axis-parallel segment between adjacent nodes along a leaf's edge, with the volume it stands
+/// for (a quarter of each leaf it borders per edge, halved where a hanging node splits the
+/// edge). Σ_segments V (Δφ/ℓ − Ȳ·e)² is then a quadrature of ∫|∇φ − Y|² over the box.
+struct NodeGraph {
+    int level = 0;
+    std::vector<std::uint64_t> keys;               ///< sorted Morton codes of lattice points
+    std::vector<std::array<std::int32_t, 3>> next;  ///< the node along +axis (a segment), or -1
+    std::vector<std::array<double, 3>> volume;      ///< the segment's volume (world units)
+
+    std::size_t size() const { return keys.size(); }
+    /// Index of a node, or -1.
+    std::ptrdiff_t find(std::uint64_t key) const;
+    std::ptrdiff_t find(const std::array<std::uint32_t, 3>& p) const { return find(morton3(p[0], p[1], p[2])); }
+};
+
+NodeGraph build_node_graph(const Octree& tree, int level);
+
+/// Interpolation weights of a point (continuous lattice coordinates, inside the box) in the
+/// leaf of the tree cut at `graph.level` that holds it: trilinear from the leaf's corners in a
+/// leaf of the finest level; in a larger one, trilinear in the octant that holds the point,
+/// whose corners are nodes where finer neighbours made hanging nodes and otherwise means of the
+/// leaf's corners — so the field is continuous across changes of level. Up to 27 (node,
+/// weight) pairs, and with `dw` the weights' derivatives along the lattice axes. Returns the count.
+int interpolation_weights(const Octree& tree, const NodeGraph& graph, const Eigen::Vector3d& lattice, std::int32_t (&node)[27],
+                          double (&w)[27], double (*dw)[3] = nullptr);
+
+}  // namespace gsd::shm

@@ -1,0 +1,376 @@
+// The adaptive SHM: the octree (balance, the band, the node graph's volumes), step 3's least
+// squares (exact for linear fields on any octree; the multigrid-preconditioned CG converging),
+// the field it returns, accuracy against exact distances beside the uniform grid, the sign on
+// broken meshes, redistancing, bad input, the device's step 1 against the CPU's, and the CLI
+// (queries, the sparse .vdb, the contour).
+#include <doctest/doctest.h>
+
+#include <gsd/adaptive_shm.hpp>
+#include <gsd/gpu.hpp>
+#include <gsd/io.hpp>
+#include <gsd/shapes.hpp>
+#include <gsd/shm.hpp>
+
+#include "shm/octree.hpp"
+#include "shm/octree_poisson.hpp"
+#include "support.hpp"
+
+#include <Eigen/Geometry>
+
+#include <chrono>
+#include <cmath>
+#include <map>
+#include <random>
+
+using namespace gsd;
+
+namespace {
+
+const Box kCube{{-1, -1, -1}, {1, 1, 1}};
+
+// An octree over kCube refined toward one point (a deep corner of detail), balanced.
+shm::Octree point_octree(int depth, const Eigen::Vector3d& target) {
+    return shm::Octree(kCube, depth, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
+        const double s = 2.0 / double(1 << level);
+        for (std::size_t i = 0; i < codes.size(); ++i) {
+            const auto c = shm::unmorton3(codes[i]);
+            const Eigen::Vector3d center = kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5);
+            split[i] = (center - target).norm() < s;
+        }
+    });
+}
+
+struct Corrupted {
+    std::unique_ptr<shapes::Shape> shape;
+    ShmSource source;
+};
+
+Corrupted corrupted_cloud(const std::string& name, int kind, std::size_t n = 2048) {
+    Corrupted c{shapes::by_name(name), {}};
+    shapes::Corruption k;
+    if (kind == 0) k.position_noise = 0.002;
+    if (kind == 1) k.flip_fraction = 0.1;
+    if (kind == 2) k.holes = 3;
+    c.source = shm_source(shapes::corrupt(c.shape->sample(n, 7), k, 8));
+    return c;
+}
+
+// Mean |φ − sdf| over the nodes of a 64³ grid on kCube: near the surface (|sdf| < 0.05) and all.
+std::pair<double, double> errors(const shapes::Shape& shape, const std::vector<float>& phi) {
+    const Points q = GridSpec::cube(64, kCube).nodes();
+    double near = 0, all = 0;
+    long n_near = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double t = shape.sdf(q.row(i).transpose()), e = std::abs(phi[std::size_t(i)] - t);
+        all += e;
+        if (std::abs(t) < 0.05) {
+            near += e;
+            ++n_near;
+        }
+    }
+    return {near / double(n_near), all / double(q.rows())};
+}
+
+}  // namespace
+
+TEST_CASE("octree: 2:1 balance across faces, edges and corners; leaves tile the cube") {
+    const shm::Octree tree = point_octree(7, Eigen::Vector3d(0.31, -0.52, 0.77));
+    const int D = tree.depth();
+    const auto leaves = tree.leaves(D);
+    // Leaves tile the cube: their volumes add up to it.
+    double volume = 0;
+    for (const auto& [l, code] : leaves) volume += std::pow(tree.cell_size(l), 3);
+    CHECK(volume == doctest::Approx(8.0).epsilon(1e-12));
+    // Balance: the leaf at each lattice point just outside a leaf's corners, edges and faces is
+    // at most one level coarser.
+    std::size_t checked = 0;
+    for (const auto& [l, code] : leaves) {
+        const std::uint32_t s = 1u << (D - l);
+        const auto c = shm::unmorton3(code);
+        for (int dx = -1; dx <= 1; ++dx)
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dz = -1; dz <= 1; ++dz) {
+                    const std::int64_t p[3] = {std::int64_t(c[0] * s) + (dx < 0 ? -1 : dx > 0 ? s : 0),
+                                               std::int64_t(c[1] * s) + (dy < 0 ? -1 : dy > 0 ? s : 0),
+                                               std::int64_t(c[2] * s) + (dz < 0 ? -1 : dz > 0 ? s : 0)};
+                    const std::int64_t top = std::int64_t(1) << D;
+                    if (p[0] < 0 || p[1] < 0 || p[2] < 0 || p[0] >= top || p[1] >= top || p[2] >= top) continue;
+                    const auto [ln, cn] = tree.leaf_at(D, {std::uint32_t(p[0]), std::uint32_t(p[1]), std::uint32_t(p[2])});
+                    CHECK(ln >= l - 1);
+                    ++checked;
+                }
+    }
+    CHECK(checked > 1000);
+    CHECK(tree.leaves(D).size() < std::size_t(1) << (3 * D));  // adaptive: far fewer than a full grid
+}
+
+TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's volume") {
+    const shm::Octree tree = point_octree(6, Eigen::Vector3d(-0.2, 0.4, 0.1));
+    const shm::NodeGraph g = shm::build_node_graph(tree, tree.depth());
+    for (int a = 0; a < 3; ++a) {
+        double v = 0;
+        for (std::size_t i = 0; i < g.size(); ++i) v += g.volume[i][std::size_t(a)];
+        CHECK(v == doctest::Approx(8.0).epsilon(1e-12));
+    }
+    // Every segment joins two nodes along its axis, and hanging nodes exist (levels differ).
+    std::map<std::uint32_t, int> lengths;
+    for (std::size_t i = 0; i < g.size(); ++i)
+        for (int a = 0; a < 3; ++a) {
+            const std::int32_t j = g.next[i][std::size_t(a)];
+            if (j < 0) continue;
+            const auto p = shm::unmorton3(g.keys[i]), q = shm::unmorton3(g.keys[std::size_t(j)]);
+            for (int b = 0; b < 3; ++b)
+                if (b != a) CHECK(p[std::size_t(b)] == q[std::size_t(b)]);
+            CHECK(q[std::size_t(a)] > p[std::size_t(a)]);
+            ++lengths[q[std::size_t(a)] - p[std::size_t(a)]];
+        }
+    CHECK(lengths.size() >= 4);
+}
+
+TEST_CASE("octree Poisson: a constant field gives the linear function on any octree; CG converges") {
+    // Refined toward a sphere: more nodes than one factorization takes, so the multigrid runs.
+    const shm::Octree tree(kCube, 7, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
+        const double s = 2.0 / double(1 << level);
+        for (std::size_t i = 0; i < codes.size(); ++i) {
+            const auto c = shm::unmorton3(codes[i]);
+            const Eigen::Vector3d center = kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5);
+            split[i] = std::abs(center.norm() - 0.6) < s;
+        }
+    });
+    // φ = a·(x − x₀), and samples on its zero plane: both the fit of ∇φ to a and the penalty
+    // vanish there, so it is the minimizer exactly (the float32 Y the only error).
+    const Eigen::Vector3d a = Eigen::Vector3d(0.6, -0.7, 0.3).normalized(), x0(0.05, 0.1, -0.1);
+    const Eigen::Vector3d t1 = a.unitOrthogonal(), t2 = a.cross(t1);
+    std::vector<shm::ZeroSample> samples;
+    for (int i = -10; i <= 10; ++i)
+        for (int j = -10; j <= 10; ++j) {
+            const Eigen::Vector3d y = x0 + 0.09 * i * t1 + 0.09 * j * t2;
+            if (y.cwiseAbs().maxCoeff() < 1) samples.push_back({y, 0.01});
+        }
+    const shm::OctreePoisson poisson(tree, samples, 1.0 / tree.lattice_step());
+    const shm::NodeGraph& g = poisson.nodes();
+    std::vector<float> Y(3 * g.size());
+    for (std::size_t i = 0; i < g.size(); ++i)
+        for (int k = 0; k < 3; ++k) Y[3 * i + std::size_t(k)] = float(a[k]);
+    shm::OctreePoissonStats stats;
+    const std::vector<double> phi = poisson.solve(poisson.divergence(Y), 1e-10, 200, stats);
+    CHECK(stats.level_nodes.size() >= 2);        // a multigrid, not a direct solve
+    CHECK(stats.residual_history.size() <= 30);  // the V-cycle preconditions well
+    CHECK(stats.residual_history.back() <= 1e-10);
+    double worst = 0;
+    for (std::size_t i = 0; i < g.size(); ++i) {
+        const Eigen::Vector3d x = tree.to_world(shm::unmorton3(g.keys[i]));
+        worst = std::max(worst, std::abs(phi[i] - a.dot(x - x0)));
+    }
+    CHECK(worst < 1e-5);
+}
+
+TEST_CASE("OctreeField: node values at nodes, the distance outside the cube, gradients by finite differences") {
+    const Corrupted c = corrupted_cloud("capsule", -1, 1024);
+    AdaptiveShmOptions o;
+    o.depth = test::sized(6, 5);
+    o.bounds = kCube;
+    o.device = Device::cpu();
+    const AdaptiveShmResult r = SignedHeatOctree(c.source, o).solve();
+    const OctreeField& f = r.field;
+    CHECK(f.node_count() == r.nodes);
+    const Points nodes = f.node_positions();
+    const FieldValues at_nodes = f.evaluate(nodes);
+    for (Eigen::Index i = 0; i < nodes.rows(); i += 97) CHECK(at_nodes.phi[std::size_t(i)] == doctest::Approx(f.node_values()[std::size_t(i)]).epsilon(1e-6));
+    // Outside: φ at the cube's nearest point plus the distance.
+    Points out(2, 3), in(2, 3);
+    out << 1.5, 0.2, 0.1, -1.0, -3.0, 0.4;
+    in << 1.0, 0.2, 0.1, -1.0, -1.0, 0.4;
+    const FieldValues vo = f.evaluate(out), vi = f.evaluate(in);
+    CHECK(vo.phi[0] == doctest::Approx(vi.phi[0] + 0.5).epsilon(1e-6));
+    CHECK(vo.phi[1] == doctest::Approx(vi.phi[1] + 2.0).epsilon(1e-6));
+    // Gradients inside a leaf against central differences.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-0.8, 0.8);
+    Points q(40, 3);
+    for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << u(rng), u(rng), u(rng);
+    const FieldValues g = f.evaluate(q, true);
+    const double e = 1e-6;
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) {
+            Points p = q.row(i), m = q.row(i);
+            p(0, a) += e;
+            m(0, a) -= e;
+            const double fd = (double(f.evaluate(p).phi[0]) - double(f.evaluate(m).phi[0])) / (2 * e);
+            CHECK(g.gradient[3 * std::size_t(i) + std::size_t(a)] == doctest::Approx(fd).epsilon(2e-2).scale(1.0));
+        }
+}
+
+TEST_CASE("adaptive SHM: near the surface as good as the uniform 64³ grid with a fraction of its nodes; redistanced, the whole box better" *
+          doctest::test_suite("slow")) {
+    for (const std::string name : {"torus", "rounded-box"})
+        for (int kind : {0, 1, 2}) {
+            CAPTURE(name);
+            CAPTURE(kind);
+            const Corrupted c = corrupted_cloud(name, kind);
+            ShmOptions uo;
+            uo.device = Device::cpu();
+            const ShmResult ur = SignedHeatGrid(c.source, GridSpec::cube(64, kCube), uo).solve();
+            const auto [u_near, u_all] = errors(*c.shape, ur.phi);
+            AdaptiveShmOptions o;
+            o.depth = 7;
+            o.bounds = kCube;
+            o.device = Device::cpu();
+            const AdaptiveShmResult r = SignedHeatOctree(c.source, o).solve();
+            CHECK(r.residual_history.back() <= o.tolerance);
+            const auto [a_near, a_all] = errors(*c.shape, r.field.evaluate(GridSpec::cube(64, kCube).nodes()).phi);
+            o.redistance = true;
+            const AdaptiveShmResult rd = SignedHeatOctree(c.source, o).solve();
+            const auto [d_near, d_all] = errors(*c.shape, rd.field.evaluate(GridSpec::cube(64, kCube).nodes()).phi);
+            MESSAGE(name << " kind " << kind << ": uniform 64³ near " << u_near << " all " << u_all << "; depth 7 (" << r.nodes
+                         << " nodes) near " << a_near << " all " << a_all << "; redistanced near " << d_near << " all " << d_all);
+            CHECK(r.nodes < GridSpec::cube(128, kCube).node_count() / 4);
+            CHECK(a_near < 1.15 * u_near);
+            CHECK(d_near < 1.1 * u_near);
+            CHECK(d_all < 1.0 * u_all);
+        }
+}
+
+TEST_CASE("adaptive SHM: broken meshes signed right away from the surface" * doctest::test_suite("slow")) {
+    const auto shape = shapes::by_name("torus");
+    const PolygonMesh broken = shapes::corrupt(shapes::mesh(*shape, 40), shapes::MeshCorruption{4, 0.2, 0.1, 0}, 5);
+    AdaptiveShmOptions o;
+    o.depth = 7;
+    o.bounds = kCube;
+    o.device = Device::cpu();
+    const AdaptiveShmResult r = SignedHeatOctree(shm_source(broken), o).solve();
+    const GridSpec g = GridSpec::cube(64, kCube);
+    const Points q = g.nodes();
+    const std::vector<float> phi = r.field.evaluate(q).phi;
+    const double cell = 2.0 / 63;
+    long inside = 0, inside_right = 0, outside = 0, outside_right = 0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+        const double t = shape->sdf(q.row(i).transpose());
+        if (std::abs(t) < 2 * cell) continue;
+        (t < 0 ? inside : outside)++;
+        if (t < 0 && phi[std::size_t(i)] < 0) ++inside_right;
+        if (t > 0 && phi[std::size_t(i)] > 0) ++outside_right;
+    }
+    MESSAGE("inside " << double(inside_right) / double(inside) << ", outside " << double(outside_right) / double(outside));
+    CHECK(double(inside_right) >= 0.95 * double(inside));
+    CHECK(double(outside_right) >= 0.99 * double(outside));
+}
+
+TEST_CASE("adaptive SHM: bad input ends quickly with a result or a clear error") {
+    // One triangle with a vertex at 1e30: the cube is 1e30 wide; the octree stays small.
+    PolygonMesh m;
+    m.vertices.resize(3, 3);
+    m.vertices << 0, 0, 0, 1, 0, 0, 0, 1, 1e30;
+    m.add_face({0, 1, 2});
+    AdaptiveShmOptions o;
+    o.depth = 8;
+    o.device = Device::cpu();
+    const auto t0 = std::chrono::steady_clock::now();
+    try {
+        const AdaptiveShmResult r = SignedHeatOctree(shm_source(m), o).solve();
+        CHECK(r.nodes > 0);
+        for (float v : r.field.node_values()) CHECK(std::isfinite(v));
+    } catch (const Error& e) {
+        MESSAGE(std::string(e.what()));
+    }
+    CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() < 20);
+    // Bounds much smaller than the faces.
+    PolygonMesh big;
+    big.vertices.resize(3, 3);
+    big.vertices << -1e3, -1e3, 0, 1e3, -1e3, 0, 0, 1e3, 0;
+    big.add_face({0, 1, 2});
+    o.bounds = Box{{-1e-3, -1e-3, -1e-3}, {1e-3, 1e-3, 1e-3}};
+    o.depth = 6;
+    const auto t1 = std::chrono::steady_clock::now();
+    const AdaptiveShmResult r = SignedHeatOctree(shm_source(big), o).solve();
+    Points above(1, 3), below(1, 3);
+    above << 0, 0, 5e-4;
+    below << 0, 0, -5e-4;
+    CHECK(r.field.evaluate(above).phi[0] > 0);
+    CHECK(r.field.evaluate(below).phi[0] < 0);
+    CHECK(std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count() < 20);
+    // Options out of range and an empty source.
+    AdaptiveShmOptions bad;
+    bad.depth = 21;
+    CHECK_THROWS_AS(SignedHeatOctree(shm_source(big), bad), Error);
+    bad.depth = 5;
+    bad.band = std::nan("");
+    CHECK_THROWS_AS(SignedHeatOctree(shm_source(big), bad), Error);
+    CHECK_THROWS_AS(SignedHeatOctree(ShmSource{}, AdaptiveShmOptions{}), Error);
+    // A budget the estimate exceeds: refused before anything is built (a sheet at 2^20 cells a side).
+    PolygonMesh square;
+    square.vertices.resize(4, 3);
+    square.vertices << -0.5, -0.5, 0, 0.5, -0.5, 0, 0.5, 0.5, 0, -0.5, 0.5, 0;
+    square.add_face({0, 1, 2, 3});
+    AdaptiveShmOptions deep;
+    deep.depth = 20;
+    deep.device = Device::cpu();
+    CHECK_THROWS_WITH_AS(SignedHeatOctree(shm_source(square), deep).solve(), doctest::Contains("memory budget"), Error);
+}
+
+TEST_CASE("adaptive SHM on a device: step 1 agrees with the CPU's") {
+    const gpu::Selection sel = gpu::select("gpu");
+    REQUIRE(sel.context);
+    const Corrupted c = corrupted_cloud("torus", 1, 1024);
+    AdaptiveShmOptions o;
+    o.depth = test::sized(6, 5);
+    o.bounds = kCube;
+    o.device = Device::cpu();
+    const AdaptiveShmResult cpu = SignedHeatOctree(c.source, o).solve();
+    o.device = "gpu";
+    const AdaptiveShmResult dev = SignedHeatOctree(c.source, o).solve();
+    CHECK(dev.device != "cpu");
+    REQUIRE(dev.nodes == cpu.nodes);
+    double worst = 0;
+    for (std::size_t i = 0; i < cpu.nodes; ++i)
+        worst = std::max(worst, double(std::abs(dev.field.node_values()[i] - cpu.field.node_values()[i])));
+    MESSAGE("device vs CPU: max |Δφ| " << worst);
+    CHECK(worst <= 1e-4 * kCube.diagonal());
+}
+
+TEST_CASE("gsd shm adaptive: queries, the sparse .vdb and a closed contour") {
+    const test::ScratchDir dir("shm_adaptive");
+    REQUIRE(test::run_cli("sample torus -n 1500 -o " + dir.file("t.ply")).exit_code == 0);
+    // Queries: the CLI's φ is the library's.
+    Points q(5, 3);
+    q << 0.5, 0, 0, 0.75, 0, 0, 0, 0, 0, 0.875, 0.875, 0.25, 0.25, 0.375, 0.0625;  // exact in float32
+    std::vector<float> qf;
+    for (Eigen::Index i = 0; i < q.rows(); ++i)
+        for (int a = 0; a < 3; ++a) qf.push_back(float(q(i, a)));
+    io::write_npy(dir.file("q.npy"), {5, 3}, qf);
+    const std::string common = " --depth 6 --device cpu --bounds -1 -1 -1 1 1 1";
+    const test::RunResult rq = test::run_cli("shm adaptive " + dir.file("t.ply") + common + " --queries " + dir.file("q.npy") +
+                                             " -o " + dir.file("phi.npy"));
+    REQUIRE_MESSAGE(rq.exit_code == 0, rq.output);
+    const io::NpyArray phi = io::read_npy(dir.file("phi.npy"));
+    AdaptiveShmOptions o;
+    o.depth = 6;
+    o.device = Device::cpu();
+    o.bounds = kCube;
+    const FieldValues lib = SignedHeatOctree(shm_source(io::read_point_cloud(dir.file("t.ply"))), o).solve().field.evaluate(q);
+    REQUIRE(phi.data.size() == 5);
+    for (int i = 0; i < 5; ++i) CHECK(phi.data[std::size_t(i)] == doctest::Approx(lib.phi[std::size_t(i)]).epsilon(1e-6));
+    CHECK(phi.data[0] < -0.15);  // on the torus's core circle
+    CHECK(phi.data[2] > 0.2);    // in its hole
+    // A .vdb without --queries needs no --grid; with the contour, closed and facing outward.
+    const test::RunResult rv = test::run_cli("shm adaptive " + dir.file("t.ply") + common + " -o " + dir.file("t.vdb") +
+                                             " --contour " + dir.file("t.obj"));
+    REQUIRE_MESSAGE(rv.exit_code == 0, rv.output);
+    const PolygonMesh mesh = io::read_mesh(dir.file("t.obj"));
+    std::map<std::pair<std::uint32_t, std::uint32_t>, int> edges;
+    double volume = 0;
+    for_each_triangle(mesh, [&](std::size_t, std::uint32_t a, std::uint32_t b, std::uint32_t c) {
+        for (auto [u, v] : {std::pair{a, b}, std::pair{b, c}, std::pair{c, a}}) ++edges[{std::min(u, v), std::max(u, v)}];
+        volume += mesh.vertices.row(a).dot(mesh.vertices.row(b).cross(mesh.vertices.row(c))) / 6;
+    });
+    for (const auto& [e, n] : edges) CHECK(n == 2);
+    CHECK(volume == doctest::Approx(2 * M_PI * M_PI * 0.5 * 0.2 * 0.2).epsilon(0.1));
+    // The .vdb: a level set whose voxels sit on the octree's finest lattice.
+    const auto [grid, values] = io::read_vdb(dir.file("t.vdb"));
+    const double step = grid.box.extent().x() / (grid.nx - 1);
+    CHECK(step == doctest::Approx(2.0 / 64).epsilon(1e-9));
+    // Bad uses: a .npy with nothing to sample, and queries into a .vdb.
+    CHECK(test::run_cli("shm adaptive " + dir.file("t.ply") + common + " -o " + dir.file("x.npy")).exit_code == 2);
+    CHECK(test::run_cli("shm adaptive " + dir.file("t.ply") + common + " --queries " + dir.file("q.npy") + " -o " + dir.file("x.vdb")).exit_code == 2);
+    CHECK_FALSE(test::file_exists(dir.file("x.npy")));
+}
