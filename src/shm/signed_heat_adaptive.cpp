@@ -347,6 +347,42 @@ std::size_t redistance(const shm::Octree& tree, const shm::NodeGraph& nodes, con
     return triangles;
 }
 
+// The zero-set fit's samples, one per finest cell: the pieces of the source inside a cell
+// merged into their area-weighted centroid with their total area. The fit is soft and a cell
+// wide at its finest, so what it loses is how the pieces spread inside one cell; what it gains
+// is a penalty whose size is the surface's cells, not the source's pieces (a mesh split to the
+// finest cell gives a few pieces a cell, each touching up to 27 nodes on every level).
+template <class Produce>
+std::vector<shm::ZeroSample> merged_by_cell(const shm::Octree& tree, Produce&& produce) {
+    struct Piece {
+        std::uint64_t cell;
+        Eigen::Vector3d position;
+        double area;
+    };
+    std::vector<Piece> pieces;
+    const double top = double(std::uint64_t(1) << tree.depth()) - 1;
+    produce([&](const Eigen::Vector3d& p, double area) {
+        const Eigen::Vector3d u = tree.to_lattice(p);
+        const auto cell = [&](int a) { return std::uint32_t(std::clamp(std::floor(u[a]), 0.0, top)); };
+        pieces.push_back({shm::morton3(cell(0), cell(1), cell(2)), p, area});
+    });
+    std::sort(pieces.begin(), pieces.end(), [](const Piece& a, const Piece& b) { return a.cell < b.cell; });
+    std::vector<shm::ZeroSample> out;
+    for (std::size_t i = 0; i < pieces.size();) {
+        std::size_t j = i;
+        Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+        double area = 0;
+        for (; j < pieces.size() && pieces[j].cell == pieces[i].cell; ++j) {
+            moment += pieces[j].area * pieces[j].position;
+            area += pieces[j].area;
+        }
+        // Pieces of no area (a cloud's point with a zero estimate) keep their first position.
+        out.push_back({area > 0 ? Eigen::Vector3d(moment / area) : pieces[i].position, area});
+        i = j;
+    }
+    return out;
+}
+
 Box cube_of(const Box& b) {
     const double side = b.extent().maxCoeff();
     return {b.lo, b.lo + Eigen::Vector3d::Constant(side)};
@@ -422,8 +458,8 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     // Step 3's operators first: they fix the nodes step 1 is evaluated at.
     t0 = std::chrono::steady_clock::now();
     const double h = tree.lattice_step();
-    std::vector<shm::ZeroSample> samples;
-    shm::for_each_sample(m.source, h, tree.box(), [&](const Eigen::Vector3d& p, double area) { samples.push_back({p, area}); });
+    std::vector<shm::ZeroSample> samples =
+        merged_by_cell(tree, [&](const auto& emit) { shm::for_each_sample(m.source, h, tree.box(), emit); });
     // With no fit asked for, a vanishing penalty only pins the constant; φ is shifted after.
     const double penalty = (m.opt.fit_zero_set > 0 ? m.opt.fit_zero_set : 1e-8) / h;
     if (progress) progress("operators", 0.0);
