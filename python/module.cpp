@@ -3,6 +3,7 @@
 // Arrays come in as any (N, 3) float array and are converted once to gsd's row-major double
 // matrices; results (std::vector) are handed to NumPy without a copy (the array owns them).
 // gsd::Error becomes gsd.Error, a ValueError. python/gsd/__init__.py documents the API.
+#include <gsd/adaptive_shm.hpp>
 #include <gsd/baselines.hpp>
 #include <gsd/field_algebra.hpp>
 #include <gsd/gpu.hpp>
@@ -444,6 +445,58 @@ PYBIND11_MODULE(_gsd, m) {
        "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both. fit_zero_set: weight of the "
        "soft fit of φ = 0 on the source (0: the mean shift alone); veto_winding, veto_margin: the outside veto "
        "(veto_winding 0: none), as the CLI's --fit-zero-set, --veto-winding, --veto-margin.");
+
+    py::class_<OctreeField, Field, std::shared_ptr<OctreeField>>(m, "OctreeField",
+        "φ on an adaptive octree (signed_heat_adaptive): trilinear in each leaf, continuous across levels.")
+        .def_property_readonly("depth", &OctreeField::depth)
+        .def_property_readonly("finest_cell", &OctreeField::finest_cell)
+        .def_property_readonly("bounds", [](const OctreeField& f) { return bounds_tuple(f.box()); })
+        .def_property_readonly("node_count", &OctreeField::node_count)
+        .def_property_readonly("leaf_count", &OctreeField::leaf_count)
+        .def("nodes", [](const OctreeField& f) {
+            const Points p = f.node_positions();
+            std::vector<double> flat(p.data(), p.data() + p.size());
+            return to_numpy(std::move(flat), {py::ssize_t(p.rows()), 3});
+        }, "The nodes' positions (n, 3).")
+        .def("node_values", [](const OctreeField& f) {
+            std::vector<float> v = f.node_values();
+            const auto n = py::ssize_t(v.size());
+            return to_numpy(std::move(v), {n});
+        }, "φ at the nodes (n,).");
+    m.def("signed_heat_adaptive", [](int depth, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,
+                                     std::optional<DoubleArray> vertices, py::object faces,
+                                     std::optional<std::array<double, 6>> bounds, double band, double grading, double t_coef,
+                                     double fit_zero_set, double veto_winding, bool redistance, const std::string& device) {
+        if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
+        if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
+        if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
+        std::optional<PointCloud> cloud;
+        std::optional<PolygonMesh> mesh;
+        if (points) cloud = cloud_from(*points, *normals);
+        if (vertices) mesh = mesh_from(*vertices, faces);
+        AdaptiveShmOptions o;  // checked by the solver, whose errors name the option
+        o.depth = depth;
+        o.band = band;
+        o.grading = grading;
+        o.t_coef = t_coef;
+        o.fit_zero_set = fit_zero_set;
+        o.veto_winding = veto_winding;
+        o.redistance = redistance;
+        o.device = device;
+        if (bounds) o.bounds = Box{{(*bounds)[0], (*bounds)[1], (*bounds)[2]}, {(*bounds)[3], (*bounds)[4], (*bounds)[5]}};
+        py::gil_scoped_release nogil;
+        ShmSource src;
+        if (mesh) src = shm_source(*mesh);
+        if (cloud) src = mesh ? combine(src, shm_source(*cloud)) : shm_source(*cloud);
+        return std::make_shared<OctreeField>(SignedHeatOctree(std::move(src), o).solve().field);
+    }, py::arg("depth"), py::arg("points") = py::none(), py::arg("normals") = py::none(), py::arg("vertices") = py::none(),
+       py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("band") = AdaptiveShmOptions{}.band,
+       py::arg("grading") = AdaptiveShmOptions{}.grading, py::arg("t_coef") = AdaptiveShmOptions{}.t_coef,
+       py::arg("fit_zero_set") = AdaptiveShmOptions{}.fit_zero_set, py::arg("veto_winding") = AdaptiveShmOptions{}.veto_winding,
+       py::arg("redistance") = false, py::arg("device") = "",
+       "The Signed Heat Method on an adaptive octree (gsd shm adaptive): an OctreeField, a Field to evaluate anywhere. "
+       "depth: finest cell = the cube's side / 2^depth; bounds: the cube's low corner and, by the longest side, its size "
+       "(default: the source's cube + 10%); redistance: |φ| made the exact distance to SHM's zero set.");
 
     // ---- winding numbers ----
     m.def("winding_numbers", [](const DoubleArray& queries, std::optional<DoubleArray> vertices, py::object faces,

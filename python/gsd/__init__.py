@@ -11,6 +11,7 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     phi, grad = field.evaluate(queries, gradient=True)
     grid, bounds = field.evaluate_grid(64)            # (64, 64, 64) on the cloud's cube + 10%
     grid, bounds = gsd.signed_heat_grid(64, vertices=v, faces=f)   # broken meshes, clouds, both
+    octree = gsd.signed_heat_adaptive(9, points=p, normals=n)      # …on an adaptive octree: a Field
     w = gsd.winding_numbers(queries, vertices=v, faces=f)
     phi = gsd.mesh_sdf(v, f, queries)                 # exact distance to a broken mesh, signed by w
     samples, center, radius = gsd.sample_sdf(v, f, 500000)         # (N,4) x y z sdf, for training
@@ -29,6 +30,7 @@ from ._gsd import (  # noqa: F401
     Field,
     GridField,
     MeshSdfField,
+    OctreeField,
     OutlierOptions,
     Tori,
     TorusField,
@@ -46,6 +48,7 @@ from ._gsd import (  # noqa: F401
     read_point_cloud,
     sample_sdf,
     render_grid,
+    signed_heat_adaptive,
     signed_heat_grid,
     signed_heat_surface,
     surface_winding_numbers,

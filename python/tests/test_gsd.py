@@ -244,6 +244,26 @@ def test_signed_heat_grid_options_match_cli(tmp_path):
         gsd.signed_heat_grid(20, vertices=v, faces=f, fit_zero_set=-1)
 
 
+def test_signed_heat_adaptive_matches_cli(tmp_path):
+    mesh = tmp_path / "b.obj"
+    cli("mesh", "sphere", "-r", 16, "--holes", 2, "--hole-area", 0.1, "-o", mesh)
+    q = np.array([[0.0, 0.0, 0.0], [0.9, 0.9, 0.9], [0.5, 0.125, -0.25]], dtype=np.float32)
+    np.save(tmp_path / "q.npy", q)
+    cli("shm", "adaptive", mesh, "--depth", 5, *bounds_args(), "--device", "cpu", "--queries", tmp_path / "q.npy",
+        "-o", tmp_path / "phi.npy")
+    v, f = gsd.read_mesh(str(mesh))
+    field = gsd.signed_heat_adaptive(5, vertices=v, faces=f, bounds=BOUNDS, device="cpu")
+    assert isinstance(field, gsd.Field) and field.depth == 5
+    phi = field.evaluate(q.astype(np.float64))
+    np.testing.assert_allclose(phi, np.load(tmp_path / "phi.npy"), atol=1e-6)
+    assert phi[0] < 0 < phi[1]  # inside the broken sphere, outside at the corner
+    nodes, values = field.nodes(), field.node_values()
+    assert nodes.shape == (field.node_count, 3) and values.shape == (field.node_count,)
+    np.testing.assert_allclose(field.evaluate(nodes[:50]), values[:50], atol=1e-6)
+    with pytest.raises(gsd.Error, match="depth"):
+        gsd.signed_heat_adaptive(0, vertices=v, faces=f)
+
+
 def test_surface_methods_match_cli(tmp_path):
     mesh = tmp_path / "s.obj"
     curves = tmp_path / "c.txt"

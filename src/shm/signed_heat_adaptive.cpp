@@ -25,11 +25,11 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/// Bytes a node of the finest level costs through the solve: its key, segments and volumes
-/// on two levels at most (the coarser ones add a third), Y, the operator's rows (about 15
-/// entries with the zero-set penalty) and the transfer's, CG's vectors, φ; measured peak
-/// resident memory over nodes on spheres and tori at depths 7–9 (docs/shm.md), rounded up.
-constexpr double kBytesPerNode = 700;
+/// Bytes a node costs through the solve, with its share of the coarser levels: its key and
+/// segments with their weights on each level, the transfers, Y, the CG vectors, φ; measured
+/// peak resident memory over nodes, 450–490 B on clouds and meshes at depths 7–8
+/// (docs/shm-adaptive.md), rounded up.
+constexpr double kBytesPerNode = 500;
 
 // φ on a leaf's lattice of halves, in GridSpec order: 3 points an axis (corners, midpoints,
 // center) for a leaf larger than the finest, 2 (its corners) for a finest one. A node gives its
@@ -227,36 +227,51 @@ struct SignedHeatOctree::Impl {
 
     double finest() const { return cube.extent().x() / double(std::uint64_t(1) << opt.depth); }
 
-    // Finest cells the octree will have, from each element's area inside the cube: a shell of
-    // 2(band + 2) cells around an element of area A holds 2(band + 2)·A/h² of them, and an
-    // isolated point or small triangle a ball of (2 band + 4)³ at most.
+    // Finest cells the octree will have, from the cells of a coarser level the source occupies:
+    // a cell of side c = 8h (three levels up) that the source passes through holds at most
+    // (c/h)³ = 512 finest cells, and the band of 2(band + 2) finest cells around a sheet fills
+    // about that many per occupied cell (a plane meets ~1.5 cells per c²); an isolated point's
+    // ball of (2 band + 4)³ = 1000 cells is two such cells. So 2·512 per occupied cell, for
+    // band ≤ 3; more band, proportionally more. The count sorts the codes of the source's
+    // pieces (triangles split to c, points as they are): it grows with the source's area, not
+    // with the box.
     double estimated_finest_cells() const {
-        const double h = finest(), thickness = 2 * (opt.band + 2), ball = std::pow(2 * opt.band + 4, 3);
+        const int coarse = std::max(0, opt.depth - 3);
+        const double c = cube.extent().x() / double(std::uint64_t(1) << coarse);
+        const double top = double(std::uint64_t(1) << coarse) - 1;
+        const double per_cell = 2 * std::pow(double(std::uint64_t(1) << (opt.depth - coarse)), 3) * std::max(1.0, (opt.band + 2) / 5);
+        // The triangles' pieces at side c number about their area inside the cube over c²;
+        // where that alone is past what any machine holds, it is the estimate (the count is not
+        // made: it would take that long).
         const OrientedElements& e = source.elements;
-        double cells = 0;
+        double pieces = 0;
         std::array<Eigen::Vector3d, 9> poly;
         for (Eigen::Index j = 0; j < e.vectors.rows(); ++j) {
             const Eigen::Vector3d a = e.corners.row(3 * j).transpose(), b = e.corners.row(3 * j + 1).transpose(),
-                                  c = e.corners.row(3 * j + 2).transpose();
-            if (a == b && a == c) {  // a point
-                if ((a.array() < cube.lo.array()).any() || (a.array() > cube.hi.array()).any()) continue;
-                cells += std::min(ball, thickness * e.vectors.row(j).norm() / (h * h) + thickness * thickness);
+                                  d = e.corners.row(3 * j + 2).transpose();
+            if (a == b && a == d) {
+                pieces += 1;
                 continue;
             }
-            const int n = detail::clip_triangle_to_box(a, b, c, cube.lo, cube.hi, poly);
-            if (n < 3) continue;
+            const int n = detail::clip_triangle_to_box(a, b, d, cube.lo, cube.hi, poly);
             Eigen::Vector3d sum = Eigen::Vector3d::Zero();
             for (int i = 1; i + 1 < n; ++i) sum += (poly[std::size_t(i)] - poly[0]).cross(poly[std::size_t(i + 1)] - poly[0]);
-            const double area = 0.5 * sum.norm();
-            // A sheet; a triangle smaller than the band, on its own, a ball at most.
-            const double sheet = thickness * area / (h * h);
-            cells += std::max(sheet, std::min(ball, sheet + thickness * thickness));
+            pieces += 0.5 * sum.norm() / (c * c) + 1;
         }
-        return std::min(cells, std::pow(8.0, opt.depth));
+        if (pieces > 1e8) return std::min(1.5 * pieces * per_cell, std::pow(8.0, opt.depth));
+        std::vector<std::uint64_t> codes;
+        shm::for_each_sample(source, c, cube, [&](const Eigen::Vector3d& p, double) {
+            const Eigen::Vector3d u = (p - cube.lo) / c;
+            const auto cell = [&](int a) { return std::uint32_t(std::clamp(std::floor(u[a]), 0.0, top)); };
+            codes.push_back(shm::morton3(cell(0), cell(1), cell(2)));
+        });
+        std::sort(codes.begin(), codes.end());
+        const double occupied = double(std::unique(codes.begin(), codes.end()) - codes.begin());
+        return std::min(occupied * per_cell, std::pow(8.0, opt.depth));
     }
 
-    // The multigrid's coarser levels and the graded cells add about half the finest level's.
-    double estimated_bytes() const { return 1.5 * estimated_finest_cells() * kBytesPerNode; }
+    // The graded cells add about a third of the finest level's.
+    double estimated_bytes() const { return 1.3 * estimated_finest_cells() * kBytesPerNode; }
 
     shm::Octree build_octree(const sums::SumTree& tree) const {
         const double h = finest();
@@ -451,7 +466,7 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
         out.leaves_per_level.push_back(n);
     }
     // The estimate again, now from the leaves themselves (about a node each).
-    check_memory(double(out.leaves) * 1.2 * kBytesPerNode, "AdaptiveShmOptions::depth",
+    check_memory(double(out.leaves) * 1.15 * kBytesPerNode, "AdaptiveShmOptions::depth",
                  "an adaptive grid of " + std::to_string(out.leaves) + " leaves");
     out.seconds_octree = seconds_since(t0);
 
