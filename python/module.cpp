@@ -466,7 +466,8 @@ PYBIND11_MODULE(_gsd, m) {
     m.def("signed_heat_adaptive", [](int depth, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,
                                      std::optional<DoubleArray> vertices, py::object faces,
                                      std::optional<std::array<double, 6>> bounds, double band, double grading, double t_coef,
-                                     double fit_zero_set, double veto_winding, bool redistance, const std::string& device) {
+                                     double fit_zero_set, double veto_winding, bool redistance, bool drop_outliers,
+                                     const std::string& device) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -474,6 +475,10 @@ PYBIND11_MODULE(_gsd, m) {
         std::optional<PolygonMesh> mesh;
         if (points) cloud = cloud_from(*points, *normals);
         if (vertices) mesh = mesh_from(*vertices, faces);
+        if (cloud && drop_outliers) {
+            py::gil_scoped_release nogil;
+            cloud = without_outliers(*cloud);
+        }
         AdaptiveShmOptions o;  // checked by the solver, whose errors name the option
         o.depth = depth;
         o.band = band;
@@ -493,8 +498,9 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("band") = AdaptiveShmOptions{}.band,
        py::arg("grading") = AdaptiveShmOptions{}.grading, py::arg("t_coef") = AdaptiveShmOptions{}.t_coef,
        py::arg("fit_zero_set") = AdaptiveShmOptions{}.fit_zero_set, py::arg("veto_winding") = AdaptiveShmOptions{}.veto_winding,
-       py::arg("redistance") = false, py::arg("device") = "",
+       py::arg("redistance") = false, py::arg("drop_outliers") = true, py::arg("device") = "",
        "The Signed Heat Method on an adaptive octree (gsd shm adaptive): an OctreeField, a Field to evaluate anywhere. "
+       "drop_outliers: a cloud's points that PAT's outlier scores reject are left out first (the CLI's default). "
        "depth: finest cell = the cube's side / 2^depth; bounds: the cube's low corner and, by the longest side, its size "
        "(default: the source's cube + 10%); redistance: |φ| made the exact distance to SHM's zero set.");
 

@@ -8,6 +8,7 @@
 #include <gsd/adaptive_shm.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
+#include <gsd/pat.hpp>
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
 
@@ -229,6 +230,29 @@ TEST_CASE("adaptive SHM: near the surface as good as the uniform 64³ grid with 
             CHECK(d_near < 1.1 * u_near);
             CHECK(d_all < 1.0 * u_all);
         }
+}
+
+TEST_CASE("adaptive SHM: a cloud's outliers left out first (the CLI's default) keep their bubbles out of φ") {
+    const auto shape = shapes::by_name("capsule");
+    shapes::Corruption k;
+    k.outlier_fraction = 0.02;
+    const PointCloud cloud = shapes::corrupt(shape->sample(2048, 7), k, 8);
+    std::size_t dropped = 0;
+    const PointCloud kept = without_outliers(cloud, {}, &dropped);
+    CHECK(dropped >= 20);  // of the 41 made, some land on the surface
+    CHECK(dropped <= 60);
+    std::size_t clean_dropped = 1;
+    without_outliers(shape->sample(2048, 7), {}, &clean_dropped);
+    CHECK(clean_dropped == 0);
+    AdaptiveShmOptions o;
+    o.depth = test::sized(6, 5);
+    o.bounds = kCube;
+    o.device = Device::cpu();
+    const auto [with_near, with_all] = errors(*shape, SignedHeatOctree(shm_source(cloud), o).solve().field.evaluate(GridSpec::cube(64, kCube).nodes()).phi);
+    const auto [without_near, without_all] = errors(*shape, SignedHeatOctree(shm_source(kept), o).solve().field.evaluate(GridSpec::cube(64, kCube).nodes()).phi);
+    MESSAGE("outliers kept: near " << with_near << " all " << with_all << "; left out: near " << without_near << " all " << without_all);
+    CHECK(without_near < 0.5 * with_near);
+    CHECK(without_all < 0.5 * with_all);
 }
 
 TEST_CASE("adaptive SHM: broken meshes signed right away from the surface" * doctest::test_suite("slow")) {

@@ -196,6 +196,13 @@ struct PointConfidence {
 /// trusted (confidence 1). Throws gsd::Error naming the option field on bad options.
 GSD_EXPORT PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& options = {});
 
+/// The cloud without its outliers: jets fitted (JetFitter's defaults), scored by
+/// point_confidence, the outliers left out. For methods that
+/// take a cloud as it is (the SHM's sources): PAT's blend leaves them out by itself.
+/// `dropped`, if given, receives how many went.
+GSD_EXPORT PointCloud without_outliers(const PointCloud& cloud, const OutlierOptions& options = {},
+                                       std::size_t* dropped = nullptr);
+
 // ---- evaluation ---------------------------------------------------------------------------
 
 /// The PAT signed distance field of a set of fitted tori.

@@ -127,4 +127,21 @@ PointConfidence point_confidence(const FittedTori& tori, const OutlierOptions& o
     return pat::score_points(tori, tori.tori(), options);
 }
 
+PointCloud without_outliers(const PointCloud& cloud, const OutlierOptions& options, std::size_t* dropped) {
+    const PointConfidence c = point_confidence(JetFitter().fit(cloud), options);
+    std::vector<Eigen::Index> keep;
+    keep.reserve(std::size_t(cloud.size()));
+    for (Eigen::Index i = 0; i < cloud.size(); ++i)
+        if (!c.is_outlier(std::size_t(i))) keep.push_back(i);
+    if (dropped) *dropped = std::size_t(cloud.size()) - keep.size();
+    PointCloud out;
+    out.points.resize(Eigen::Index(keep.size()), 3);
+    out.normals.resize(Eigen::Index(keep.size()), 3);
+    for (std::size_t k = 0; k < keep.size(); ++k) {
+        out.points.row(Eigen::Index(k)) = cloud.points.row(keep[k]);
+        out.normals.row(Eigen::Index(k)) = cloud.normals.row(keep[k]);
+    }
+    return out;
+}
+
 }  // namespace gsd

@@ -3,11 +3,13 @@
 
 #include <gsd/adaptive_shm.hpp>
 #include <gsd/io.hpp>
+#include <gsd/pat.hpp>
 #include <gsd/shm.hpp>
 
 namespace gsd::cli {
 
-LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const std::function<void(const Box&)>& read) {
+LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const std::function<void(const Box&)>& read,
+                                bool drop_outliers) {
     LoadedShmSource out;
     std::vector<std::pair<std::string, PolygonMesh>> meshes;
     std::vector<PointCloud> clouds;
@@ -40,7 +42,17 @@ LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const st
             throw Error(in, e.what());  // name the file: sources don't know where their mesh came from
         }
     }
-    for (const PointCloud& c : clouds) add(shm_source(c));
+    for (std::size_t k = 0; k < clouds.size(); ++k) {
+        if (!drop_outliers) {
+            add(shm_source(clouds[k]));
+            continue;
+        }
+        std::size_t dropped = 0;
+        add(shm_source(without_outliers(clouds[k], {}, &dropped)));
+        if (dropped > 0)
+            note(std::to_string(dropped) + " of " + std::to_string(clouds[k].size()) +
+                 " points left out as outliers (PAT's scores; --keep-outliers keeps them)");
+    }
     return out;
 }
 
@@ -54,6 +66,7 @@ void add_shm_adaptive(CLI::App& shm) {
     auto grid = std::make_shared<int>(0);
     auto bounds = std::make_shared<std::vector<double>>();
     auto opt = std::make_shared<AdaptiveShmOptions>();
+    auto keep_outliers = std::make_shared<bool>(false);
     a->add_option("INPUT", *inputs, "Mesh(es) and/or point cloud(s) with normals; several are combined into one source")->required();
     a->add_option("--depth", opt->depth, "Finest level D: finest cell = the cube's side / 2^D (D = 10: 1024³ near the input)")
         ->check(CLI::Range(1, 20))->capture_default_str();
@@ -77,6 +90,8 @@ void add_shm_adaptive(CLI::App& shm) {
         ->check(finite_number())->check(CLI::NonNegativeNumber)->capture_default_str();
     a->add_option("--veto-winding", opt->veto_winding, "Outside veto's winding number (0: no veto); as in `gsd shm grid`")
         ->check(CLI::Range(0.0, 0.999))->capture_default_str();
+    a->add_flag("--keep-outliers", *keep_outliers,
+                "Keep every point of a cloud (by default points that PAT's outlier scores reject are left out before step 1)");
     a->add_flag("--redistance", opt->redistance,
                 "Keep SHM's sign and zero set, and make |φ| the exact distance to that zero set (a true SDF)");
     a->add_option("--device", opt->device, "Step 1's device: auto | gpu | cpu | device index | name substring");
@@ -90,7 +105,7 @@ void add_shm_adaptive(CLI::App& shm) {
         if (!queries->empty()) query_points = io::read_queries(*queries);  // before the work
         if (!bounds->empty()) opt->bounds = bounds_from(*bounds, "--bounds");
         const DevicePrefetch prefetch(opt->device);
-        const LoadedShmSource loaded = load_shm_source(*inputs);
+        const LoadedShmSource loaded = load_shm_source(*inputs, {}, !*keep_outliers);
         const SignedHeatOctree solver(loaded.source, *opt);
         const Box cube = solver.cube();
         if (!opt->bounds) note("octree cube: " + bounds_text(cube));
