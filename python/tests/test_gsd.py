@@ -264,6 +264,38 @@ def test_signed_heat_adaptive_matches_cli(tmp_path):
         gsd.signed_heat_adaptive(0, vertices=v, faces=f)
 
 
+def test_adaptive_vdb_is_a_sparse_level_set_on_the_finest_lattice(tmp_path):
+    """`gsd shm adaptive -o X.vdb`: python3-openvdb reads a level set whose voxel (i, j, k) sits at
+    lo + (i, j, k)·h (h the finest cell), holding the field's φ in the band; inactive voxels inside
+    read −background (the signed flood fill), outside +background."""
+    import pyopenvdb as vdb
+
+    mesh = tmp_path / "s.obj"
+    cli("mesh", "sphere", "-r", 16, "-o", mesh)
+    cli("shm", "adaptive", mesh, "--depth", 6, *bounds_args(), "--device", "cpu", "-o", tmp_path / "s.vdb")
+    grids, _ = vdb.readAll(str(tmp_path / "s.vdb"))
+    g = grids[0]
+    assert g.name == "surface" and g.gridClass == "level set" and g.metadata["gsd_method"] == "shm"
+    lo, side = np.array(BOUNDS[:3]), BOUNDS[3] - BOUNDS[0]
+    h = side / 64
+    np.testing.assert_allclose(g.transform.voxelSize(), [h, h, h], rtol=1e-12)
+    for ijk in [(0, 0, 0), (64, 64, 64), (3, 17, 9)]:
+        np.testing.assert_allclose(g.transform.indexToWorld(ijk), lo + np.array(ijk) * h, rtol=0, atol=1e-12)
+    assert g.activeVoxelCount() > 1000
+    v, f = gsd.read_mesh(str(mesh))
+    field = gsd.signed_heat_adaptive(6, vertices=v, faces=f, bounds=BOUNDS, device="cpu")
+    acc = g.getConstAccessor()
+    center, corner = (32, 32, 32), (1, 1, 1)  # the sphere's center, the cube's corner
+    assert acc.getValue(center) == pytest.approx(-g.background) and acc.getValue(corner) == pytest.approx(g.background)
+    # Active voxels hold the field's φ at their lattice point.
+    on_surface = [(32 + int(round(0.5 / h)), 32, 32), (32, 32 - int(round(0.5 / h)), 32)]
+    for ijk in on_surface:
+        value, active = acc.probeValue(ijk)
+        assert active
+        expect = field.evaluate(np.array([lo + np.array(ijk) * h]))[0]
+        assert value == pytest.approx(float(expect), abs=1e-6)
+
+
 def test_surface_methods_match_cli(tmp_path):
     mesh = tmp_path / "s.obj"
     curves = tmp_path / "c.txt"
