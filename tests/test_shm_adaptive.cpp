@@ -185,21 +185,28 @@ TEST_CASE("OctreeField: node values at nodes, the distance outside the cube, gra
     const FieldValues vo = f.evaluate(out), vi = f.evaluate(in);
     CHECK(vo.phi[0] == doctest::Approx(vi.phi[0] + 0.5).epsilon(1e-6));
     CHECK(vo.phi[1] == doctest::Approx(vi.phi[1] + 2.0).epsilon(1e-6));
-    // Gradients inside a leaf against central differences.
+    // Gradients against differences. φ is piecewise trilinear and continuous, so a difference
+    // across an octant's face averages two slopes: such queries (forward and backward
+    // differences disagree) are skipped, and most queries are not among them.
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> u(-0.8, 0.8);
     Points q(40, 3);
     for (Eigen::Index i = 0; i < q.rows(); ++i) q.row(i) << u(rng), u(rng), u(rng);
     const FieldValues g = f.evaluate(q, true);
-    const double e = 1e-6;
+    const double e = 1e-4;
+    int compared = 0;
     for (Eigen::Index i = 0; i < q.rows(); ++i)
         for (int a = 0; a < 3; ++a) {
             Points p = q.row(i), m = q.row(i);
             p(0, a) += e;
             m(0, a) -= e;
-            const double fd = (double(f.evaluate(p).phi[0]) - double(f.evaluate(m).phi[0])) / (2 * e);
-            CHECK(g.gradient[3 * std::size_t(i) + std::size_t(a)] == doctest::Approx(fd).epsilon(2e-2).scale(1.0));
+            const double here = f.evaluate(q.row(i)).phi[0], ahead = f.evaluate(p).phi[0], behind = f.evaluate(m).phi[0];
+            const double forward = (ahead - here) / e, backward = (here - behind) / e;
+            if (std::abs(forward - backward) > 1e-2) continue;
+            ++compared;
+            CHECK(std::abs(g.gradient[3 * std::size_t(i) + std::size_t(a)] - 0.5 * (forward + backward)) < 5e-3);
         }
+    CHECK(compared >= 100);
 }
 
 TEST_CASE("adaptive SHM: near the surface as good as the uniform 64³ grid with a fraction of its nodes; redistanced, the whole box better" *
