@@ -415,7 +415,7 @@ PYBIND11_MODULE(_gsd, m) {
     m.def("signed_heat_grid", [](int n, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,
                                  std::optional<DoubleArray> vertices, py::object faces,
                                  std::optional<std::array<double, 6>> bounds, double t_coef, double fit_zero_set,
-                                 double veto_winding, double veto_margin, const std::string& device) {
+                                 double veto_winding, double veto_margin, bool redistance, const std::string& device) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -428,6 +428,7 @@ PYBIND11_MODULE(_gsd, m) {
         o.fit_zero_set = fit_zero_set;
         o.veto_winding = veto_winding;
         o.veto_margin = veto_margin;
+        o.redistance = redistance;
         o.device = device;
         py::gil_scoped_release nogil;
         ShmSource src;
@@ -441,8 +442,9 @@ PYBIND11_MODULE(_gsd, m) {
     }, py::arg("n"), py::arg("points") = py::none(), py::arg("normals") = py::none(), py::arg("vertices") = py::none(),
        py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("t_coef") = ShmOptions{}.t_coef,
        py::arg("fit_zero_set") = ShmOptions{}.fit_zero_set, py::arg("veto_winding") = ShmOptions{}.veto_winding,
-       py::arg("veto_margin") = ShmOptions{}.veto_margin, py::arg("device") = "",
-       "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both. fit_zero_set: weight of the "
+       py::arg("veto_margin") = ShmOptions{}.veto_margin, py::arg("redistance") = false, py::arg("device") = "",
+       "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both. redistance: |φ| made the exact "
+       "distance to SHM's zero set (--redistance). fit_zero_set: weight of the "
        "soft fit of φ = 0 on the source (0: the mean shift alone); veto_winding, veto_margin: the outside veto "
        "(veto_winding 0: none), as the CLI's --fit-zero-set, --veto-winding, --veto-margin.");
 

@@ -394,6 +394,28 @@ TEST_CASE("analytic clouds: SHM is accurate on a sphere and a torus (2048 points
     }
 }
 
+TEST_CASE("--redistance: SHM's sign and zero set kept, |φ| the distance to that zero set") {
+    // A capsule cloud with 3 holes: SHM's generalized distance strays from the Euclidean one away
+    // from the surface; the distance to its own zero set does not.
+    const GridSpec g = GridSpec::cube(test::sized(48, 32), kCube);
+    auto s = shapes::by_name("capsule");
+    shapes::Corruption k;
+    k.holes = 3;
+    const ShmSource src = shm_source(shapes::corrupt(s->sample(2048, 1), k, 2));
+    ShmOptions o;
+    o.device = "cpu";
+    const ShmResult plain = SignedHeatGrid(src, g, o).solve();
+    o.redistance = true;
+    const ShmResult re = SignedHeatGrid(src, g, o).solve();
+    std::size_t flipped = 0;
+    for (std::size_t i = 0; i < plain.phi.size(); ++i) flipped += (plain.phi[i] < 0) != (re.phi[i] < 0);
+    CHECK(flipped == 0);
+    const double e_plain = mean_error(plain.phi, g, *s), e_re = mean_error(re.phi, g, *s);
+    MESSAGE("mean |φ − φ_true|: SHM " << e_plain << ", redistanced " << e_re);
+    CHECK(e_re < 0.8 * e_plain);
+    CHECK(re.seconds_redistance > 0);
+}
+
 TEST_CASE("broken meshes: 20% of the area in 3 holes and 10% of faces flipped — the sign is right" * doctest::test_suite("slow")) {
     struct Case { std::string name; PolygonMesh mesh; };
     std::vector<Case> cases;

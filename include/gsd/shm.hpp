@@ -95,6 +95,10 @@ struct ShmOptions : Execution {
     double veto_winding = 0.2;
     double veto_slope = 3.0;
     double veto_margin = 0.1;
+    /// Last: keep φ's sign and zero set and make |φ| the exact distance to that zero set (its
+    /// contour on this grid): a true signed distance function of the broken input, where SHM's
+    /// own φ is a generalized distance that strays from the Euclidean one away from the surface.
+    bool redistance = false;
 };
 
 /// What a solve produced, with its diagnostics.
@@ -108,7 +112,7 @@ struct ShmResult {
     double seconds_setup = 0, seconds_sums = 0;
     /// Parts of seconds_solve: the Poisson solve itself (with the divergence and the mean
     /// shift), the zero-set fit and the outside veto (both on the CPU).
-    double seconds_poisson = 0, seconds_fit = 0, seconds_veto = 0;
+    double seconds_poisson = 0, seconds_fit = 0, seconds_veto = 0, seconds_redistance = 0;
     std::size_t exact_nodes = 0;           ///< nodes where step 1 summed the kernel (the rest interpolated)
     std::size_t kernel_terms = 0;          ///< source terms summed in step 1 (its cost)
     std::size_t vetoed_nodes = 0;          ///< nodes the outside veto turned from inside to outside

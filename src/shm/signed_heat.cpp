@@ -2,8 +2,10 @@
 // and the outside veto.
 #include "gpu/on_device.hpp"
 #include <gsd/shm.hpp>
+#include <gsd/viz.hpp>
 
 #include "shm/diffuse.hpp"
+#include "shm/redistance.hpp"
 #include "shm/veto.hpp"
 #include "sums/sum_tree.hpp"
 
@@ -285,6 +287,18 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     t1 = std::chrono::steady_clock::now();
     if (m.opt.veto_winding > 0) out.vetoed_nodes = m.veto_outside(phi);      // on the CPU: a few nodes' sums
     out.seconds_veto = seconds_since(t1);
+    if (m.opt.redistance) {
+        t1 = std::chrono::steady_clock::now();
+        if (progress) progress("redistance", 0.0);
+        std::vector<float> values(phi.begin(), phi.end());
+        const Eigen::Vector3d step = m.grid.box.extent().cwiseQuotient(Eigen::Vector3d(m.grid.nx - 1, m.grid.ny - 1, m.grid.nz - 1));
+        shm::redistance(contour(m.grid, values, 0.0), phi, [&](std::size_t i) {
+            const std::size_t iz = i % std::size_t(m.grid.nz), iy = (i / std::size_t(m.grid.nz)) % std::size_t(m.grid.ny),
+                              ix = i / (std::size_t(m.grid.nz) * std::size_t(m.grid.ny));
+            return Eigen::Vector3d(m.grid.box.lo + step.cwiseProduct(Eigen::Vector3d(double(ix), double(iy), double(iz))));
+        });
+        out.seconds_redistance = seconds_since(t1);
+    }
     out.seconds_solve = seconds_since(t0);
     const std::string solve_device = poisson.device();
     out.device = diffuse_device == solve_device ? diffuse_device : diffuse_device + " (step 1), " + solve_device + " (step 3)";

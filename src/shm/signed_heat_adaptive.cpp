@@ -7,6 +7,7 @@
 #include "shm/diffuse.hpp"
 #include "shm/octree.hpp"
 #include "shm/octree_poisson.hpp"
+#include "shm/redistance.hpp"
 #include "shm/veto.hpp"
 #include "sums/sum_tree.hpp"
 
@@ -336,32 +337,6 @@ PolygonMesh zero_set_soup(const shm::Octree& tree, const shm::NodeGraph& nodes, 
     return soup;
 }
 
-// |φ| → the distance to φ's zero set, the sign kept. Returns the zero set's triangle count.
-std::size_t redistance(const shm::Octree& tree, const shm::NodeGraph& nodes, const Points& x, std::vector<double>& phi) {
-    const PolygonMesh soup = zero_set_soup(tree, nodes, phi);
-    std::size_t triangles = 0;
-    for (std::size_t f = 0; f < soup.face_count(); ++f) triangles += soup.face_size(f) - 2;
-    OrientedElements pieces;
-    try {
-        pieces = OrientedElements::from_mesh(soup);
-    } catch (const Error&) {
-        return 0;  // no zero crossing (or only degenerate pieces): nothing to measure from
-    }
-    const sums::SumTree zero_set(pieces);
-#pragma omp parallel
-    {
-        std::uint32_t hint = std::uint32_t(-1);
-#pragma omp for schedule(dynamic, 4096)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(phi.size()); ++i) {
-            double& v = phi[std::size_t(i)];
-            if (v == 0) continue;
-            const double d = zero_set.nearest_distance(x.row(i).transpose(), INFINITY, &hint);
-            v = v < 0 ? -d : d;
-        }
-    }
-    return triangles;
-}
-
 // The zero-set fit's samples, one per finest cell: the pieces of the source inside a cell
 // merged into their area-weighted centroid with their total area. The fit is soft and a cell
 // wide at its finest, so what it loses is how the pieces spread inside one cell; what it gains
@@ -525,7 +500,9 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     if (m.opt.redistance) {
         t0 = std::chrono::steady_clock::now();
         if (progress) progress("redistance", 0.0);
-        out.zero_set_triangles = redistance(tree, nodes, x, phi);
+        out.zero_set_triangles = shm::redistance(zero_set_soup(tree, nodes, phi), phi, [&](std::size_t i) {
+            return Eigen::Vector3d(x.row(Eigen::Index(i)).transpose());
+        });
         out.seconds_redistance = seconds_since(t0);
     }
 

@@ -369,6 +369,8 @@ void add_shm(CLI::App& app) {
     grid->add_option("--veto-margin", opt->veto_margin,
                      "Outside veto: a node is far when its distance to the input exceeds 3|φ| + this × the input's largest extent")
         ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
+    grid->add_flag("--redistance", opt->redistance,
+                   "Keep SHM's sign and zero set, and make |φ| the exact distance to that zero set (a true SDF)");
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     auto sharpen = std::make_shared<bool>(false);
