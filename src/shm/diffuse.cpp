@@ -115,6 +115,15 @@ sums::SumTree::Screened screened_params(const KernelParams& k) {
     return s;
 }
 
+KernelParams kernel_params(const ShmSource& source, double t_coef, double cutoff, double sum_tolerance) {
+    KernelParams k;
+    k.lambda = 1 / std::sqrt(t_coef * source.spacing * source.spacing);
+    k.cutoff = cutoff;
+    k.r_floor = 1e-3 * source.spacing;
+    k.sum_tolerance = sum_tolerance;
+    return k;
+}
+
 std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k) {
     return std::make_unique<CpuEvaluator>(src, k);
 }

@@ -41,6 +41,10 @@ public:
     virtual std::string device() const = 0;
 };
 
+/// Step 1's parameters for a source: λ = 1/√t with t = t_coef·h², the singularity floored at
+/// 1e-3 h (the uniform and the adaptive grid alike).
+KernelParams kernel_params(const ShmSource& source, double t_coef, double cutoff, double sum_tolerance);
+
 std::unique_ptr<DirectionEvaluator> make_cpu_evaluator(const ShmSource& src, const KernelParams& k);
 /// The same parameters as the tree's screened sum takes them (sums/sum_tree.hpp).
 sums::SumTree::Screened screened_params(const KernelParams& k);

@@ -50,13 +50,7 @@ struct SignedHeatGrid::Impl {
     ShmOptions opt;
 
     shm::KernelParams kernel() const {
-        shm::KernelParams k;
-        const double t = opt.t_coef * source.spacing * source.spacing;
-        k.lambda = 1 / std::sqrt(t);
-        k.cutoff = opt.cutoff;
-        k.r_floor = 1e-3 * source.spacing;
-        k.sum_tolerance = opt.sum_tolerance;
-        return k;
+        return shm::kernel_params(source, opt.t_coef, opt.cutoff, opt.sum_tolerance);
     }
 
     detail::UninitializedVector<float> directions(shm::DiffuseStats& stats, std::string& device, const ProgressFn& progress,

@@ -217,13 +217,7 @@ struct SignedHeatOctree::Impl {
     Box cube;
 
     shm::KernelParams kernel() const {
-        shm::KernelParams k;
-        const double t = opt.t_coef * source.spacing * source.spacing;
-        k.lambda = 1 / std::sqrt(t);
-        k.cutoff = opt.cutoff;
-        k.r_floor = 1e-3 * source.spacing;
-        k.sum_tolerance = opt.sum_tolerance;
-        return k;
+        return shm::kernel_params(source, opt.t_coef, opt.cutoff, opt.sum_tolerance);
     }
 
     double finest() const { return cube.extent().x() / double(std::uint64_t(1) << opt.depth); }
