@@ -4,6 +4,10 @@
 #   scripts/bench.sh pat        PAT fit/evaluation throughput (CPU vs GPU) and the accuracy table
 #   scripts/bench.sh shm        SHM time and peak memory vs resolution and vs source size,
 #                               step 1 / step 3, CPU vs GPU, multigrid vs CG vs direct
+#   scripts/bench.sh adaptive   the adaptive SHM: nodes, wall time and peak memory vs depth, beside the
+#                               uniform grid of the same finest spacing (as far as it fits), and step 1
+#                               on the device vs the CPU (GSD_BENCH_ADAPTIVE_MAX: deepest level, default 9;
+#                               GSD_BENCH_ADAPTIVE_POINTS: the torus cloud's size, default 150000)
 #   scripts/bench.sh net        TorusNet fit throughput (points/s), CPU reference vs GPU kernels
 #   scripts/bench.sh surface    SHM on surfaces: accuracy vs exact distances (and vs a reference
 #                               program when one is there), setup/solve times and memory vs mesh
@@ -108,6 +112,56 @@ if [ "$what" = all ] || [ "$what" = shm ]; then
     "$gsd" -q sample torus -n "$m" -o "$work/t$m.ply"
     shm_row "$m" "$work/t$m.ply" 128 cpu mg
   done
+fi
+
+# One whole run, timed; prints "seconds peak" from its --verbose report. Arguments: log, command...
+timed_run() {
+  local log=$1
+  shift
+  local t0 t1
+  t0=$(date +%s.%N)
+  if ! "$@" >"$log" 2>&1; then
+    echo "failed: $(grep -m1 error "$log")"
+    return
+  fi
+  t1=$(date +%s.%N)
+  printf "%.2f %s\n" "$(awk "BEGIN{print $t1 - $t0}")" "$(sed -n 's/.*peak \(memory: \)\{0,1\}\([0-9.]* [KMG]iB\).*/\2/p' "$log" | tail -1)"
+}
+
+if [ "$what" = all ] || [ "$what" = adaptive ]; then
+  maxd=${GSD_BENCH_ADAPTIVE_MAX:-9}
+  npts=${GSD_BENCH_ADAPTIVE_POINTS:-150000}
+  echo
+  echo "== Adaptive SHM (docs/shm-adaptive.md): a ${npts}-point torus cloud (noise 0.001, 3 holes), whole runs"
+  "$gsd" -q sample torus -n "$npts" --noise 0.001 --holes 3 -o "$work/ta.ply"
+  # The adaptive grid's cube, so that the uniform grid of 2^D + 1 nodes has the same spacing.
+  cube=$("$gsd" shm adaptive "$work/ta.ply" --depth 2 --grid 2 -o "$work/a.npy" --device cpu 2>&1 |
+         sed -n 's/.*octree cube: --bounds \(.*\)/\1/p')
+  printf "%-6s %11s %-8s %9s %11s | %-9s %9s %11s | %7s %7s\n" depth nodes device seconds "peak" "uniform" seconds "peak" time mem
+  for d in 7 8 9 10 11; do
+    [ "$d" -le "$maxd" ] || continue
+    read -r as am au < <(timed_run "$work/a.log" "$gsd" -v shm adaptive "$work/ta.ply" --depth "$d" --bounds $cube \
+                           --grid 8 -o "$work/a.npy" --device cpu)
+    nodes=$(sed -n 's/.*), \([0-9]*\) nodes; .*/\1/p' "$work/a.log")
+    n=$(( (1 << d) + 1 ))
+    us="—"; um=""; uu=""; rt="—"; rm="—"
+    if [ "$d" -le 8 ]; then  # 513^3 wants ~13 GB
+      read -r us um uu < <(timed_run "$work/u.log" "$gsd" -v shm grid "$work/ta.ply" --grid "$n" --bounds $cube \
+                             -o "$work/u.npy" --device cpu)
+      rt=$(awk "BEGIN{printf \"%.2f\", $as / $us}")
+      rm=$(awk "BEGIN{printf \"%.2f\", $am / $um}")
+    fi
+    printf "%-6s %11s %-8s %9s %11s | %-9s %9s %11s | %7s %7s\n" "$d" "$nodes" cpu "$as" "$am $au" "${n}^3" "$us" "$um $uu" "$rt" "$rm"
+    if [ "$d" -le 8 ]; then
+      read -r gs gm gu < <(timed_run "$work/g.log" "$gsd" -v shm adaptive "$work/ta.ply" --depth "$d" --bounds $cube \
+                             --grid 8 -o "$work/g.npy" --device gpu)
+      s1c=$(sed -n 's/.*step 1 (diffuse): \([0-9.]*\) s.*/\1/p' "$work/a.log")
+      s1g=$(sed -n 's/.*step 1 (diffuse): \([0-9.]*\) s.*/\1/p' "$work/g.log")
+      dev=$(sed -n 's/.*step 1 on \(.*\)/\1/p' "$work/g.log")
+      printf "%-6s %11s %-8s %9s %11s | step 1: device %s s, CPU %s s (%s)\n" "$d" "$nodes" gpu "$gs" "$gm $gu" "$s1g" "$s1c" "$dev"
+    fi
+  done
+  echo "(time, mem: adaptive over uniform; the accuracy at equal nodes is in docs/shm-adaptive.md, tests/test_shm_adaptive.cpp)"
 fi
 
 if [ "$what" = all ] || [ "$what" = surface ]; then

@@ -166,6 +166,53 @@ TEST_CASE("octree Poisson: a constant field gives the linear function on any oct
     CHECK(worst < 1e-5);
 }
 
+TEST_CASE("octree multigrid transfers: prolongation reproduces trilinear fields, restriction is its transpose") {
+    const shm::Octree tree(kCube, 6, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
+        const double s = 2.0 / double(1 << level);
+        for (std::size_t i = 0; i < codes.size(); ++i) {
+            const auto c = shm::unmorton3(codes[i]);
+            const Eigen::Vector3d center = kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5);
+            split[i] = std::abs(center.norm() - 0.5) < s;
+        }
+    });
+    // f = 1 + x + 2y − z + 0.5xy: trilinear, so every coarse cell's interpolation is exact.
+    const auto f = [](const Eigen::Vector3d& x) { return 1 + x.x() + 2 * x.y() - x.z() + 0.5 * x.x() * x.y(); };
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int level = 6; level >= 4; --level) {
+        const shm::NodeGraph fine = shm::build_node_graph(tree, level), coarse = shm::build_node_graph(tree, level - 1);
+        const shm::Prolongation P(tree, fine, coarse);
+        REQUIRE(P.fine_size() == fine.size());
+        std::vector<double> c(coarse.size()), x(fine.size(), 0.0);
+        for (std::size_t i = 0; i < coarse.size(); ++i) c[i] = f(tree.to_world(shm::unmorton3(coarse.keys[i])));
+        P.add_to(c, x);
+        double worst = 0;
+        for (std::size_t i = 0; i < fine.size(); ++i) worst = std::max(worst, std::abs(x[i] - f(tree.to_world(shm::unmorton3(fine.keys[i])))));
+        CHECK(worst < 1e-12);
+        // ⟨P c, r⟩ = ⟨c, Pᵀ r⟩ for random c and r.
+        std::vector<double> r(fine.size()), Ptr(coarse.size()), Pc(fine.size(), 0.0);
+        for (double& v : r) v = u(rng);
+        for (double& v : c) v = u(rng);
+        P.add_to(c, Pc);
+        P.restrict_to(r, Ptr);
+        double lhs = 0, rhs = 0;
+        for (std::size_t i = 0; i < fine.size(); ++i) lhs += Pc[i] * r[i];
+        for (std::size_t i = 0; i < coarse.size(); ++i) rhs += c[i] * Ptr[i];
+        CHECK(lhs == doctest::Approx(rhs).epsilon(1e-12));
+    }
+    // Samples merged per cell keep their total area and their area-weighted centroid.
+    std::vector<shm::ZeroSample> samples;
+    for (int i = 0; i < 2000; ++i) samples.push_back({Eigen::Vector3d(u(rng), u(rng), u(rng)) * 0.9, 0.5 + 0.5 * u(rng)});
+    const std::vector<shm::ZeroSample> merged = shm::merge_by_cell(tree, samples, 2);
+    CHECK(merged.size() <= 64);
+    Eigen::Vector3d m0 = Eigen::Vector3d::Zero(), m1 = Eigen::Vector3d::Zero();
+    double a0 = 0, a1 = 0;
+    for (const auto& s : samples) m0 += s.area * s.position, a0 += s.area;
+    for (const auto& s : merged) m1 += s.area * s.position, a1 += s.area;
+    CHECK(a1 == doctest::Approx(a0));
+    CHECK((m1 - m0).norm() < 1e-9 * a0);
+}
+
 TEST_CASE("OctreeField: node values at nodes, the distance outside the cube, gradients by finite differences") {
     const Corrupted c = corrupted_cloud("capsule", -1, 1024);
     AdaptiveShmOptions o;

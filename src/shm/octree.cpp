@@ -1,6 +1,8 @@
 // The balanced octree and its node graphs (shm/octree.hpp).
 #include "shm/octree.hpp"
 
+#include <parallel/algorithm>  // libstdc++'s parallel mode (OpenMP): __gnu_parallel::sort
+
 #include <algorithm>
 #include <cmath>
 
@@ -29,7 +31,7 @@ std::uint32_t compact(std::uint64_t x) {
 }
 
 void sort_unique(std::vector<std::uint64_t>& v) {
-    std::sort(v.begin(), v.end());
+    __gnu_parallel::sort(v.begin(), v.end());
     v.erase(std::unique(v.begin(), v.end()), v.end());
 }
 
@@ -173,41 +175,66 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
     g.level = level;
     const std::vector<std::pair<int, std::uint64_t>> leaves = tree.leaves(level);
     const int D = tree.depth();
-    const auto count = std::ptrdiff_t(leaves.size());
-    g.keys.resize(8 * leaves.size());
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < count; ++i) {
-        const auto [l, code] = leaves[std::size_t(i)];
+    const auto corner = [&](std::size_t leaf, int o) {
+        const auto [l, code] = leaves[leaf];
         const std::uint32_t s = std::uint32_t(1) << (D - l);
         const auto c = unmorton3(code);
-        for (std::uint32_t o = 0; o < 8; ++o)
-            g.keys[8 * std::size_t(i) + o] = morton3(c[0] * s + (o & 1) * s, c[1] * s + (o >> 1 & 1) * s, c[2] * s + (o >> 2 & 1) * s);
+        return morton3(c[0] * s + std::uint32_t(o & 1) * s, c[1] * s + std::uint32_t(o >> 1 & 1) * s,
+                       c[2] * s + std::uint32_t(o >> 2 & 1) * s);
+    };
+    // The leaves' corners: each run of leaves (neighbours in Morton order within a level) sorts
+    // and merges its own first, so the whole list is about a node per leaf instead of eight.
+    constexpr std::size_t kRun = 1 << 14;
+    const std::size_t runs = (leaves.size() + kRun - 1) / kRun;
+    std::vector<std::vector<std::uint64_t>> part(runs);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t r = 0; r < std::ptrdiff_t(runs); ++r) {
+        std::vector<std::uint64_t>& keys = part[std::size_t(r)];
+        const std::size_t first = std::size_t(r) * kRun, last = std::min(leaves.size(), first + kRun);
+        keys.reserve(8 * (last - first));
+        for (std::size_t i = first; i < last; ++i)
+            for (int o = 0; o < 8; ++o) keys.push_back(corner(i, o));
+        std::sort(keys.begin(), keys.end());
+        keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+        keys.shrink_to_fit();
+    }
+    std::size_t total = 0;
+    for (const auto& k : part) total += k.size();
+    g.keys.reserve(total);
+    for (auto& k : part) {
+        g.keys.insert(g.keys.end(), k.begin(), k.end());
+        std::vector<std::uint64_t>().swap(k);
     }
     sort_unique(g.keys);
+    g.keys.shrink_to_fit();
     g.next.assign(g.keys.size(), {-1, -1, -1});
     g.volume.assign(g.keys.size(), {0.0, 0.0, 0.0});
     const double h = tree.lattice_step();
     // Each leaf's twelve edges: a quarter of the leaf's volume to each edge of an axis (the four
     // together hold the volume once per axis), split evenly where a hanging node sits at the
-    // edge's midpoint (the neighbour across it is finer).
+    // edge's midpoint (the neighbour across it is finer). The leaf's corners are looked up once.
 #pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < count; ++i) {
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(leaves.size()); ++i) {
         const auto [l, code] = leaves[std::size_t(i)];
         const std::uint32_t s = std::uint32_t(1) << (D - l);
         const auto c = unmorton3(code);
         const double share = std::pow(double(s) * h, 3) / 4;
+        std::int32_t at[8];
+        for (int o = 0; o < 8; ++o) at[o] = std::int32_t(g.find(corner(std::size_t(i), o)));
         for (int a = 0; a < 3; ++a) {
             const int b = (a + 1) % 3, d = (a + 2) % 3;
             for (int ob = 0; ob < 2; ++ob)
                 for (int od = 0; od < 2; ++od) {
-                    std::array<std::uint32_t, 3> p{c[0] * s, c[1] * s, c[2] * s};
-                    p[std::size_t(b)] += std::uint32_t(ob) * s;
-                    p[std::size_t(d)] += std::uint32_t(od) * s;
-                    std::array<std::uint32_t, 3> end = p, mid = p;
-                    end[std::size_t(a)] += s;
-                    mid[std::size_t(a)] += s / 2;
-                    const auto from = std::int32_t(g.find(p)), to = std::int32_t(g.find(end));
-                    const std::int32_t middle = s >= 2 ? std::int32_t(g.find(mid)) : -1;
+                    const int o = ob << b | od << d;  // the edge's low corner; its high one adds 1 << a
+                    const std::int32_t from = at[o], to = at[o | 1 << a];
+                    std::int32_t middle = -1;
+                    if (s >= 2) {
+                        std::array<std::uint32_t, 3> mid{c[0] * s, c[1] * s, c[2] * s};
+                        mid[std::size_t(b)] += std::uint32_t(ob) * s;
+                        mid[std::size_t(d)] += std::uint32_t(od) * s;
+                        mid[std::size_t(a)] += s / 2;
+                        middle = std::int32_t(g.find(mid));
+                    }
                     auto add = [&](std::int32_t x, std::int32_t y, double v) {
 #pragma omp atomic write
                         g.next[std::size_t(x)][std::size_t(a)] = y;

@@ -94,53 +94,139 @@ SpMat sample_matrix(const Octree& tree, const NodeGraph& g, const std::vector<Ze
     });
 }
 
-// Prolongation from `coarse` to `fine` (fine nodes × coarse nodes): a node both levels share
-// keeps its value; a new one takes the coarse level's interpolated value there.
-SpMat prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse) {
-    return rows_to_matrix(fine.size(), coarse.size(), [&](std::size_t i, Entries& e) {
-        const std::ptrdiff_t same = coarse.find(fine.keys[i]);
-        if (same >= 0) {
-            e.emplace_back(std::int32_t(same), 1.0);
-            return;
+}  // namespace
+
+std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level) {
+    const int shift = tree.depth() - level;
+    const double top = double(std::uint64_t(1) << tree.depth()) - 1;
+    std::vector<std::pair<std::uint64_t, std::uint32_t>> order(samples.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t j = 0; j < std::ptrdiff_t(samples.size()); ++j) {
+        const Eigen::Vector3d u = tree.to_lattice(samples[std::size_t(j)].position);
+        const auto cell = [&](int a) { return std::uint32_t(std::clamp(std::floor(u[a]), 0.0, top)) >> shift; };
+        order[std::size_t(j)] = {morton3(cell(0), cell(1), cell(2)), std::uint32_t(j)};
+    }
+    std::sort(order.begin(), order.end());
+    std::vector<ZeroSample> out;
+    for (std::size_t i = 0; i < order.size();) {
+        Eigen::Vector3d moment = Eigen::Vector3d::Zero();
+        double area = 0;
+        std::size_t j = i;
+        for (; j < order.size() && order[j].first == order[i].first; ++j) {
+            const ZeroSample& s = samples[order[j].second];
+            moment += s.area * s.position;
+            area += s.area;
         }
-        const auto p = unmorton3(fine.keys[i]);
-        std::int32_t node[27];
-        double w[27];
-        const int n = interpolation_weights(tree, coarse, Eigen::Vector3d(double(p[0]), double(p[1]), double(p[2])), node, w);
-        for (int c = 0; c < n; ++c)
-            if (w[c] != 0) e.emplace_back(node[c], w[c]);
-    });
+        out.push_back({area > 0 ? Eigen::Vector3d(moment / area) : samples[order[i].second].position, area});
+        i = j;
+    }
+    return out;
 }
 
-}  // namespace
+Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse) {
+    if (coarse.level + 1 != fine.level) throw Error("Prolongation: the levels must be consecutive");
+    const std::uint32_t S = std::uint32_t(1) << (tree.depth() - coarse.level);  // a coarse finest cell, in lattice steps
+    const std::size_t n = fine.size();
+    // Each axis of a new node is on the coarse lattice or halfway between two of its planes: its
+    // sources are the corners of the coarse edge, face or cell it is the middle of.
+    auto sources = [&](std::size_t i, std::int32_t* out) {
+        const std::ptrdiff_t same = coarse.find(fine.keys[i]);
+        if (same >= 0) {
+            out[0] = std::int32_t(same);
+            return 1;
+        }
+        const auto p = unmorton3(fine.keys[i]);
+        std::uint32_t lo[3], hi[3];
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = p[std::size_t(a)] / S * S;
+            hi[a] = p[std::size_t(a)] % S ? lo[a] + S : lo[a];
+        }
+        int count = 0;
+        for (int k = 0; k < 8; ++k) {
+            const int o[3] = {k & 1, k >> 1 & 1, k >> 2 & 1};
+            if ((o[0] && hi[0] == lo[0]) || (o[1] && hi[1] == lo[1]) || (o[2] && hi[2] == lo[2])) continue;
+            const std::ptrdiff_t c = coarse.find(morton3(o[0] ? hi[0] : lo[0], o[1] ? hi[1] : lo[1], o[2] ? hi[2] : lo[2]));
+            if (c < 0) throw Error("Prolongation: a coarse corner is missing (the levels are not nested)");
+            out[count++] = std::int32_t(c);
+        }
+        return count;
+    };
+    offsets_.assign(n + 1, 0);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
+        std::int32_t scratch[8];
+        offsets_[std::size_t(i) + 1] = std::uint32_t(sources(std::size_t(i), scratch));
+    }
+    std::size_t total = 0;
+    for (std::size_t i = 1; i <= n; ++i) {
+        total += offsets_[i];
+        if (total > 0xffffffffu) throw Error("Prolongation: more than 2^32 sources (too many nodes)");
+        offsets_[i] = std::uint32_t(total);
+    }
+    sources_.resize(total);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) sources(std::size_t(i), sources_.data() + offsets_[std::size_t(i)]);
+}
+
+void Prolongation::add_to(std::span<const double> coarse, std::span<double> fine) const {
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(fine_size()); ++i) {
+        const std::uint32_t b = offsets_[std::size_t(i)], e = offsets_[std::size_t(i) + 1];
+        double sum = 0;
+        for (std::uint32_t k = b; k < e; ++k) sum += coarse[std::size_t(sources_[k])];
+        fine[std::size_t(i)] += sum / double(e - b);
+    }
+}
+
+void Prolongation::restrict_to(std::span<const double> fine, std::span<double> coarse) const {
+    restrict_from([&](std::size_t i) { return fine[i]; }, coarse);
+}
+
+void Prolongation::restrict_from(const std::function<double(std::size_t)>& fine_value, std::span<double> coarse) const {
+    std::fill(coarse.begin(), coarse.end(), 0.0);
+    constexpr std::size_t kBlock = std::size_t(1) << 16;
+    std::vector<double> f(std::min(kBlock, fine_size()));
+    for (std::size_t first = 0; first < fine_size(); first += kBlock) {
+        const std::size_t m = std::min(kBlock, fine_size() - first);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(m); ++i) f[std::size_t(i)] = fine_value(first + std::size_t(i));
+        for (std::size_t i = 0; i < m; ++i) {
+            const std::uint32_t b = offsets_[first + i], e = offsets_[first + i + 1];
+            const double v = f[i] / double(e - b);
+            for (std::uint32_t k = b; k < e; ++k) coarse[std::size_t(sources_[k])] += v;
+        }
+    }
+}
 
 struct OctreePoisson::Impl {
     // A multigrid level, matrix-free: the operator is applied from its node graph (segments
     // along ±axis, each with its weight V/ℓ²) and the samples' interpolation rows, so a node
-    // costs its graph and a share of the samples instead of a row of ~20 stored products.
+    // costs its graph and a share of the samples instead of a row of ~20 stored products. A
+    // coarser level fits its own samples, the finest level's merged per cell of its level: as
+    // many as the surface has cells there, not the finest level's count on every level.
     struct Level {
         NodeGraph graph;  // keys and next (the volumes are folded into `weight`)
         std::vector<std::array<std::int32_t, 3>> prev;  // the node whose next this one is, per axis
-        std::vector<std::array<double, 3>> weight;      // V/ℓ² of the segment (i, next[i][a])
+        std::vector<std::array<float, 3>> weight;       // V/ℓ² of the segment (i, next[i][a]) (float: it
+                                                        // defines the operator, rounded or not)
         SpMat S, St;                                    // samples × nodes and its transpose
-        Vec diagonal;
-        SpMat P;  // to the next (coarser) level; empty on the coarsest
+        Vec area;                                       // μ·A_j per sample
+        std::vector<float> inverse_diagonal;            // the smoother's
+        Prolongation P;  // from the next (coarser) level; empty on the coarsest
     };
     const Octree& tree;
-    std::vector<ZeroSample> samples;
-    Vec area;   // μ·A_j per sample
     double mu = 0;
     std::vector<Level> levels;
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> coarsest;
 
-    Level make_level(int level) const {
+    Level make_level(int level, const std::vector<ZeroSample>& samples) const {
         Level lv;
         lv.graph = build_node_graph(tree, level);
         const NodeGraph& g = lv.graph;
         const std::size_t n = g.size();
         const double h = tree.lattice_step();
         lv.prev.assign(n, {-1, -1, -1});
-        lv.weight.assign(n, {0.0, 0.0, 0.0});
+        lv.weight.assign(n, {0.0f, 0.0f, 0.0f});
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
             const auto p = unmorton3(g.keys[std::size_t(i)]);
@@ -149,24 +235,29 @@ struct OctreePoisson::Impl {
                 if (j < 0) continue;
                 lv.prev[std::size_t(j)][std::size_t(a)] = std::int32_t(i);
                 const double len = double(unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - p[std::size_t(a)]) * h;
-                lv.weight[std::size_t(i)][std::size_t(a)] = g.volume[std::size_t(i)][std::size_t(a)] / (len * len);
+                lv.weight[std::size_t(i)][std::size_t(a)] = float(g.volume[std::size_t(i)][std::size_t(a)] / (len * len));
             }
         }
         std::vector<std::array<double, 3>>().swap(lv.graph.volume);
         lv.S = sample_matrix(tree, g, samples);
         lv.St = lv.S.transpose();
-        lv.diagonal.resize(Eigen::Index(n));
+        lv.area.resize(Eigen::Index(samples.size()));
+        for (std::size_t j = 0; j < samples.size(); ++j) lv.area[Eigen::Index(j)] = mu * samples[j].area;
+        lv.inverse_diagonal.resize(n);
 #pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
-            double d = 0;
-            for (int a = 0; a < 3; ++a) {
-                d += lv.weight[std::size_t(i)][std::size_t(a)];
-                if (const std::int32_t j = lv.prev[std::size_t(i)][std::size_t(a)]; j >= 0) d += lv.weight[std::size_t(j)][std::size_t(a)];
-            }
-            for (SpMat::InnerIterator s(lv.St, i); s; ++s) d += area[s.col()] * s.value() * s.value();
-            lv.diagonal[i] = d;
-        }
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) lv.inverse_diagonal[std::size_t(i)] = float(1 / diagonal(lv, std::size_t(i)));
         return lv;
+    }
+
+    // A_ii: the segments' weights and the penalty's.
+    double diagonal(const Level& lv, std::size_t i) const {
+        double d = 0;
+        for (int a = 0; a < 3; ++a) {
+            d += lv.weight[i][std::size_t(a)];
+            if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) d += lv.weight[std::size_t(j)][std::size_t(a)];
+        }
+        for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) d += lv.area[s.col()] * s.value() * s.value();
+        return d;
     }
 
     // The level's operator assembled (the coarsest, for CHOLMOD): L + SᵀAS.
@@ -178,31 +269,32 @@ struct OctreePoisson::Impl {
                 if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.weight[std::size_t(j)][std::size_t(a)]);
             }
             for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) {
-                const double f = area[s.col()] * s.value();
+                const double f = lv.area[s.col()] * s.value();
                 for (SpMat::InnerIterator k(lv.S, s.col()); k; ++k)
                     if (k.col() != Eigen::Index(i)) e.emplace_back(std::int32_t(k.col()), f * k.value());
             }
-            e.emplace_back(std::int32_t(i), lv.diagonal[Eigen::Index(i)]);  // L's and the penalty's
+            e.emplace_back(std::int32_t(i), diagonal(lv, i));  // L's and the penalty's
         }));
+    }
+
+    // (A x)_i, given at = μA ∘ S x (the samples' weighted values).
+    double row(const Level& lv, const Vec& x, const Vec& at, std::size_t i) const {
+        const double xi = x[Eigen::Index(i)];
+        double v = 0;
+        for (int a = 0; a < 3; ++a) {
+            if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) v += lv.weight[i][std::size_t(a)] * (xi - x[j]);
+            if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) v += lv.weight[std::size_t(j)][std::size_t(a)] * (xi - x[j]);
+        }
+        for (SpMat::InnerIterator k(lv.St, Eigen::Index(i)); k; ++k) v += k.value() * at[k.col()];
+        return v;
     }
 
     void apply(const Level& lv, const Vec& x, Vec& y) const {
         const auto n = std::ptrdiff_t(lv.graph.size());
+        const Vec at = lv.area.cwiseProduct(lv.S * x);
         y.resize(n);
 #pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < n; ++i) {
-            const double xi = x[i];
-            double v = 0;
-            for (int a = 0; a < 3; ++a) {
-                if (const std::int32_t j = lv.graph.next[std::size_t(i)][std::size_t(a)]; j >= 0)
-                    v += lv.weight[std::size_t(i)][std::size_t(a)] * (xi - x[j]);
-                if (const std::int32_t j = lv.prev[std::size_t(i)][std::size_t(a)]; j >= 0)
-                    v += lv.weight[std::size_t(j)][std::size_t(a)] * (xi - x[j]);
-            }
-            y[i] = v;
-        }
-        const Vec t = area.cwiseProduct(lv.S * x);
-        y += lv.St * t;
+        for (std::ptrdiff_t i = 0; i < n; ++i) y[i] = row(lv, x, at, std::size_t(i));
     }
 
     // One Gauss–Seidel sweep. t = S x on entry and on return: the samples' values follow each
@@ -219,8 +311,8 @@ struct OctreePoisson::Impl {
                 if (const std::int32_t j = lv.prev[std::size_t(i)][std::size_t(a)]; j >= 0)
                     sum += lv.weight[std::size_t(j)][std::size_t(a)] * x[j];
             }
-            for (SpMat::InnerIterator k(lv.St, i); k; ++k) sum -= area[k.col()] * k.value() * (t[k.col()] - k.value() * xi);
-            const double updated = sum / lv.diagonal[i];
+            for (SpMat::InnerIterator k(lv.St, i); k; ++k) sum -= lv.area[k.col()] * k.value() * (t[k.col()] - k.value() * xi);
+            const double updated = sum * double(lv.inverse_diagonal[std::size_t(i)]);
             const double delta = updated - xi;
             x[i] = updated;
             for (SpMat::InnerIterator k(lv.St, i); k; ++k) t[k.col()] += k.value() * delta;
@@ -236,27 +328,30 @@ struct OctreePoisson::Impl {
         x.setZero(b.size());
         Vec t = Vec::Zero(lv.S.rows());
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, true);
-        Vec Ax;
-        apply(lv, x, Ax);
-        const Vec rc = lv.P.transpose() * (b - Ax);
+        // The coarse residual Pᵀ(b − A x), each fine residual made where it is restricted.
+        Vec rc(levels[k + 1].graph.size());
+        const Vec at = lv.area.cwiseProduct(t);
+        lv.P.restrict_from([&](std::size_t i) { return b[Eigen::Index(i)] - row(lv, x, at, i); }, {rc.data(), std::size_t(rc.size())});
         Vec ec;
         vcycle(k + 1, rc, ec);
-        x += lv.P * ec;
+        lv.P.add_to({ec.data(), std::size_t(ec.size())}, {x.data(), std::size_t(x.size())});
         t = lv.S * x;
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, false);
     }
 };
 
 OctreePoisson::OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples, double penalty)
-    : impl_(new Impl{tree, std::move(samples), {}, penalty, {}, {}}) {
+    : impl_(new Impl{tree, penalty, {}, {}}) {
     Impl& m = *impl_;
-    if (m.samples.empty()) throw Error("the source lies outside the adaptive grid's bounds");
+    if (samples.empty()) throw Error("the source lies outside the adaptive grid's bounds");
     if (!(penalty > 0)) throw Error("OctreePoisson: the penalty must be > 0");
-    m.area.resize(Eigen::Index(m.samples.size()));
-    for (std::size_t j = 0; j < m.samples.size(); ++j) m.area[Eigen::Index(j)] = penalty * m.samples[j].area;
+    // Reserved: a Level's copy constructor is what growth would use (Eigen's sparse matrices
+    // have no noexcept move), copying the finest level's arrays.
+    m.levels.reserve(std::size_t(tree.depth()) + 1);
     for (int level = tree.depth();; --level) {
-        Impl::Level lv = m.make_level(level);
-        if (!m.levels.empty()) m.levels.back().P = prolongation(tree, m.levels.back().graph, lv.graph);
+        if (level < tree.depth()) samples = merge_by_cell(tree, samples, level);
+        Impl::Level lv = m.make_level(level, samples);
+        if (!m.levels.empty()) m.levels.back().P = Prolongation(tree, m.levels.back().graph, lv.graph);
         const bool last = lv.graph.size() <= kDirectNodes || level == 0;
         m.levels.push_back(std::move(lv));
         if (last) break;
@@ -304,34 +399,39 @@ std::vector<double> OctreePoisson::apply(const std::vector<double>& x) const {
 
 double OctreePoisson::mean_on_samples(const std::vector<double>& phi) const {
     const Impl& m = *impl_;
-    const Vec v = m.levels.front().S * Eigen::Map<const Vec>(phi.data(), Eigen::Index(phi.size()));
-    return v.dot(m.area) / m.area.sum();
+    const Impl::Level& top = m.levels.front();
+    const Vec v = top.S * Eigen::Map<const Vec>(phi.data(), Eigen::Index(phi.size()));
+    return v.dot(top.area) / top.area.sum();
 }
 
-std::vector<double> OctreePoisson::solve(const std::vector<double>& b_in, double tolerance, int max_iterations,
-                                         OctreePoissonStats& stats, const ProgressFn& progress) const {
+std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolerance, int max_iterations, OctreePoissonStats& stats,
+                                         const ProgressFn& progress) const {
     const Impl& m = *impl_;
     for (const auto& lv : m.levels) stats.level_nodes.push_back(lv.graph.size());
     const auto t0 = std::chrono::steady_clock::now();
-    const Eigen::Map<const Vec> b(b_in.data(), Eigen::Index(b_in.size()));
+    const auto n = Eigen::Index(b_in.size());
     const Impl::Level& top = m.levels.front();
-    Vec x = Vec::Zero(b.size());
-    const double bn = b.norm();
+    std::vector<double> phi(b_in.size(), 0.0);
+    Eigen::Map<Vec> x(phi.data(), n);
+    // Four vectors of the nodes' size through the iterations (b is let go once copied into r;
+    // z holds A p, then the preconditioned residual).
+    Vec r = Eigen::Map<const Vec>(b_in.data(), n);
+    std::vector<double>().swap(b_in);
+    const double bn = r.norm();
+    Vec z;
     if (m.levels.size() == 1) {  // small enough to factor: exact
-        x = m.coarsest.solve(b);
-        Vec Ax;
-        m.apply(top, x, Ax);
-        stats.residual_history.push_back(bn > 0 ? (b - Ax).norm() / bn : 0.0);
+        x = m.coarsest.solve(r);
+        m.apply(top, x, z);
+        stats.residual_history.push_back(bn > 0 ? (r - z).norm() / bn : 0.0);
     } else {
-        Vec r = b, z, p, Ap;
         m.vcycle(0, r, z);
-        p = z;
+        Vec p = z;
         double rz = r.dot(z);
         for (int it = 0; it < max_iterations && bn > 0; ++it) {
-            m.apply(top, p, Ap);
-            const double alpha = rz / p.dot(Ap);
+            m.apply(top, p, z);
+            const double alpha = rz / p.dot(z);
             x += alpha * p;
-            r -= alpha * Ap;
+            r -= alpha * z;
             const double rel = r.norm() / bn;
             stats.residual_history.push_back(rel);
             if (progress) progress("solve", std::clamp(std::log(std::max(rel, 1e-300)) / std::log(tolerance), 0.0, 1.0));
@@ -343,7 +443,7 @@ std::vector<double> OctreePoisson::solve(const std::vector<double>& b_in, double
         }
     }
     stats.seconds_solve = seconds_since(t0);
-    return std::vector<double>(x.data(), x.data() + x.size());
+    return phi;
 }
 
 }  // namespace gsd::shm

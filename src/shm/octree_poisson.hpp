@@ -1,15 +1,17 @@
 // Step 3 of the adaptive SHM: the least-squares Poisson problem on the octree's node graph with
 // the zero set fitted softly, (L + μ SᵀAS) φ = b, solved by conjugate gradients preconditioned
 // with a multigrid V-cycle over the octree's levels (the tree cut at D, D − 1, …: nested node
-// sets, trilinear transfers, each level's operator assembled the same way), and CHOLMOD on the
-// coarsest level.
+// sets, trilinear transfers, each level's operator assembled the same way, its zero-set samples
+// merged per cell of that level), and CHOLMOD on the coarsest level.
 #pragma once
 
 #include "shm/octree.hpp"
 
 #include <gsd/core.hpp>
 
+#include <functional>
 #include <memory>
+#include <span>
 #include <vector>
 
 namespace gsd::shm {
@@ -18,6 +20,35 @@ namespace gsd::shm {
 struct ZeroSample {
     Eigen::Vector3d position;
     double area = 0;
+};
+
+/// The samples merged per cell of `level`: a cell's samples become one at their area-weighted
+/// centroid with their total area (samples of no area keep the first one's position). Order:
+/// by the cells' Morton codes.
+std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level);
+
+/// Prolongation P from the tree cut at level l − 1 (coarse) to the tree cut at l (fine): a node
+/// both share keeps its value; a new one is a corner of a cell of level l, so it lies at an edge
+/// midpoint, face center or center of that cell's parent, a leaf of the coarse cut, and takes
+/// the mean of that edge's, face's or cell's 2, 4 or 8 corners (the coarse field's trilinear
+/// value there). Kept as each fine node's sources (4 bytes each, the weight is 1/count), not as
+/// a matrix.
+class Prolongation {
+public:
+    Prolongation() = default;
+    Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse);
+    /// fine += P coarse.
+    void add_to(std::span<const double> coarse, std::span<double> fine) const;
+    /// coarse = Pᵀ fine.
+    void restrict_to(std::span<const double> fine, std::span<double> coarse) const;
+    /// coarse = Pᵀ f with f_i = fine_value(i), made as it is needed: in parallel blocks, then
+    /// gathered (no vector of the fine level's size).
+    void restrict_from(const std::function<double(std::size_t)>& fine_value, std::span<double> coarse) const;
+    std::size_t fine_size() const { return offsets_.empty() ? 0 : offsets_.size() - 1; }
+
+private:
+    std::vector<std::uint32_t> offsets_;  // fine node i's sources: sources_[offsets_[i] .. offsets_[i + 1])
+    std::vector<std::int32_t> sources_;
 };
 
 struct OctreePoissonStats {
@@ -36,8 +67,8 @@ public:
     const NodeGraph& nodes() const;
     /// b of the normal equations from Y (3 floats per finest node).
     std::vector<double> divergence(const std::vector<float>& Y) const;
-    /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations.
-    std::vector<double> solve(const std::vector<double>& b, double tolerance, int max_iterations, OctreePoissonStats& stats,
+    /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory is let go).
+    std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
                               const ProgressFn& progress = {}) const;
     /// y = A x on the finest level (tests).
     std::vector<double> apply(const std::vector<double>& x) const;

@@ -26,11 +26,12 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/// Bytes a node costs through the solve, with its share of the coarser levels: its key and
-/// segments with their weights on each level, the transfers, Y, the CG vectors, φ; measured
-/// peak resident memory over nodes, 450–490 B on clouds and meshes at depths 7–8
-/// (docs/shm-adaptive.md), rounded up.
-constexpr double kBytesPerNode = 500;
+/// Bytes a node costs at the peak (step 3's solve), with its share of the coarser levels and
+/// of the octree: on the finest level its key, segments and their float weights, the smoother's
+/// diagonal, the prolongation's sources; the CG's four vectors. Measured (peak resident memory
+/// less what the source held before, over nodes): 128–140 B on torus clouds of 1.1·10⁵ points
+/// at depths 9–10 (docs/shm-adaptive.md), rounded up.
+constexpr double kBytesPerNode = 150;
 
 // φ on a leaf's lattice of halves, in GridSpec order: 3 points an axis (corners, midpoints,
 // center) for a leaf larger than the finest, 2 (its corners) for a finest one. A node gives its
@@ -223,18 +224,19 @@ struct SignedHeatOctree::Impl {
     double finest() const { return cube.extent().x() / double(std::uint64_t(1) << opt.depth); }
 
     // Finest cells the octree will have, from the cells of a coarser level the source occupies:
-    // a cell of side c = 8h (three levels up) that the source passes through holds at most
-    // (c/h)³ = 512 finest cells, and the band of 2(band + 2) finest cells around a sheet fills
-    // about that many per occupied cell (a plane meets ~1.5 cells per c²); an isolated point's
-    // ball of (2 band + 4)³ = 1000 cells is two such cells. So 2·512 per occupied cell, for
-    // band ≤ 3; more band, proportionally more. The count sorts the codes of the source's
-    // pieces (triangles split to c, points as they are): it grows with the source's area, not
-    // with the box.
+    // a cell of side c = 8h (three levels up) that the source passes through stands for the
+    // finest cells of the shell the split rule makes around that much surface: the level
+    // D − 1 cells within 2h·√3/2 + max(band·h, grading·2h) of it are split. Measured: 520–600
+    // finest cells per occupied cell with the defaults (shells ±5.7h) on torus clouds at depths
+    // 9–10 and a 2·10⁶-point bunny scan at depth 11; 640 is taken, scaled with the shell's
+    // reach for other options. The count sorts the codes of the source's pieces (triangles split
+    // to c, points as they are): it grows with the source's area, not with the box.
     double estimated_finest_cells() const {
         const int coarse = std::max(0, opt.depth - 3);
         const double c = cube.extent().x() / double(std::uint64_t(1) << coarse);
         const double top = double(std::uint64_t(1) << coarse) - 1;
-        const double per_cell = 2 * std::pow(double(std::uint64_t(1) << (opt.depth - coarse)), 3) * std::max(1.0, (opt.band + 2) / 5);
+        const double reach = std::sqrt(3.0) + std::max(opt.band, 2 * opt.grading);  // in finest cells
+        const double per_cell = 640 * reach / (std::sqrt(3.0) + 4) * std::pow(8.0, opt.depth - coarse - 3);
         // The triangles' pieces at side c number about their area inside the cube over c²;
         // where that alone is past what any machine holds, it is the estimate (the count is not
         // made: it would take that long).
@@ -265,7 +267,8 @@ struct SignedHeatOctree::Impl {
         return std::min(occupied * per_cell, std::pow(8.0, opt.depth));
     }
 
-    // The graded cells add about a third of the finest level's.
+    // Nodes: about 1.3 a finest cell (the coarser levels' cells and the corners at the band's
+    // edge add 29–30 % on the inputs above).
     double estimated_bytes() const { return 1.3 * estimated_finest_cells() * kBytesPerNode; }
 
     shm::Octree build_octree(const sums::SumTree& tree) const {
@@ -331,42 +334,6 @@ PolygonMesh zero_set_soup(const shm::Octree& tree, const shm::NodeGraph& nodes, 
     return soup;
 }
 
-// The zero-set fit's samples, one per finest cell: the pieces of the source inside a cell
-// merged into their area-weighted centroid with their total area. The fit is soft and a cell
-// wide at its finest, so what it loses is how the pieces spread inside one cell; what it gains
-// is a penalty whose size is the surface's cells, not the source's pieces (a mesh split to the
-// finest cell gives a few pieces a cell, each touching up to 27 nodes on every level).
-template <class Produce>
-std::vector<shm::ZeroSample> merged_by_cell(const shm::Octree& tree, Produce&& produce) {
-    struct Piece {
-        std::uint64_t cell;
-        Eigen::Vector3d position;
-        double area;
-    };
-    std::vector<Piece> pieces;
-    const double top = double(std::uint64_t(1) << tree.depth()) - 1;
-    produce([&](const Eigen::Vector3d& p, double area) {
-        const Eigen::Vector3d u = tree.to_lattice(p);
-        const auto cell = [&](int a) { return std::uint32_t(std::clamp(std::floor(u[a]), 0.0, top)); };
-        pieces.push_back({shm::morton3(cell(0), cell(1), cell(2)), p, area});
-    });
-    std::sort(pieces.begin(), pieces.end(), [](const Piece& a, const Piece& b) { return a.cell < b.cell; });
-    std::vector<shm::ZeroSample> out;
-    for (std::size_t i = 0; i < pieces.size();) {
-        std::size_t j = i;
-        Eigen::Vector3d moment = Eigen::Vector3d::Zero();
-        double area = 0;
-        for (; j < pieces.size() && pieces[j].cell == pieces[i].cell; ++j) {
-            moment += pieces[j].area * pieces[j].position;
-            area += pieces[j].area;
-        }
-        // Pieces of no area (a cloud's point with a zero estimate) keep their first position.
-        out.push_back({area > 0 ? Eigen::Vector3d(moment / area) : pieces[i].position, area});
-        i = j;
-    }
-    return out;
-}
-
 Box cube_of(const Box& b) {
     const double side = b.extent().maxCoeff();
     return {b.lo, b.lo + Eigen::Vector3d::Constant(side)};
@@ -424,8 +391,9 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
 
     auto t0 = std::chrono::steady_clock::now();
     if (progress) progress("octree", 0.0);
-    const sums::SumTree elements(m.source.elements);
-    auto field = std::make_shared<OctreeField::Impl>(OctreeField::Impl{m.build_octree(elements), {}, {}});
+    // The split rule's nearest-element tree lives only while the octree is built (step 1's
+    // evaluator builds its own).
+    auto field = std::make_shared<OctreeField::Impl>(OctreeField::Impl{m.build_octree(sums::SumTree(m.source.elements)), {}, {}});
     const shm::Octree& tree = field->tree;
     out.cells = tree.cell_count();
     out.leaves = tree.leaf_count(tree.depth());
@@ -442,8 +410,13 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     // Step 3's operators first: they fix the nodes step 1 is evaluated at.
     t0 = std::chrono::steady_clock::now();
     const double h = tree.lattice_step();
-    std::vector<shm::ZeroSample> samples =
-        merged_by_cell(tree, [&](const auto& emit) { shm::for_each_sample(m.source, h, tree.box(), emit); });
+    // The zero-set fit's samples, one per finest cell: the source's pieces inside a cell merged
+    // into their area-weighted centroid with their total area. The fit is soft and a cell wide
+    // at its finest, so what it loses is how the pieces spread inside one cell; what it gains is
+    // a penalty whose size is the surface's cells, not the source's pieces.
+    std::vector<shm::ZeroSample> samples;
+    shm::for_each_sample(m.source, h, tree.box(), [&](const Eigen::Vector3d& p, double area) { samples.push_back({p, area}); });
+    samples = shm::merge_by_cell(tree, samples, tree.depth());
     // With no fit asked for, a vanishing penalty only pins the constant; φ is shifted after.
     const double penalty = (m.opt.fit_zero_set > 0 ? m.opt.fit_zero_set : 1e-8) / h;
     if (progress) progress("operators", 0.0);
@@ -452,12 +425,9 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     out.nodes = nodes.size();
     out.seconds_setup = seconds_since(t0);
 
-    // Step 1–2 at every node.
+    // Step 1–2 at every node, in chunks: a node's position is its key's, made when needed.
     t0 = std::chrono::steady_clock::now();
-    Points x(Eigen::Index(nodes.size()), 3);
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(nodes.size()); ++i)
-        x.row(i) = tree.to_world(shm::unmorton3(nodes.keys[std::size_t(i)])).transpose();
+    const auto position = [&](std::size_t i) { return tree.to_world(shm::unmorton3(nodes.keys[i])); };
     std::unique_ptr<shm::DirectionEvaluator> eval;
     gpu::on_device(m.opt.device, [&](const auto& ctx, std::string& why_not) {
         eval = shm::make_gpu_evaluator(ctx, m.source, m.kernel(), m.opt.chunk_size, why_not);
@@ -465,18 +435,35 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     });
     if (!eval) eval = shm::make_cpu_evaluator(m.source, m.kernel());
     out.device = eval->device();
-    std::vector<float> Y;
-    std::vector<double> r_min;
-    out.kernel_terms = eval->evaluate(x, Y, r_min, progress);
+    std::vector<float> Y(3 * nodes.size());
+    {
+        constexpr std::size_t kChunk = std::size_t(1) << 20;
+        const std::size_t n = nodes.size();
+        Points x;
+        std::vector<float> y;
+        std::vector<double> r_min;
+        for (std::size_t first = 0; first < n; first += kChunk) {
+            const std::size_t count = std::min(kChunk, n - first);
+            x.resize(Eigen::Index(count), 3);
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(count); ++i) x.row(i) = position(first + std::size_t(i)).transpose();
+            const ProgressFn part = progress ? ProgressFn([&](std::string_view stage, double f) {
+                progress(stage, (double(first) + f * double(count)) / double(n));
+            })
+                                             : ProgressFn();
+            out.kernel_terms += eval->evaluate(x, y, r_min, part);
+            std::copy(y.begin(), y.end(), Y.begin() + std::ptrdiff_t(3 * first));
+        }
+    }
     eval.reset();
     out.seconds_diffuse = seconds_since(t0);
 
     // Step 3.
     t0 = std::chrono::steady_clock::now();
-    const std::vector<double> b = poisson.divergence(Y);
+    std::vector<double> b = poisson.divergence(Y);
     std::vector<float>().swap(Y);
     shm::OctreePoissonStats stats;
-    std::vector<double> phi = poisson.solve(b, m.opt.tolerance, m.opt.max_iterations, stats, progress);
+    std::vector<double> phi = poisson.solve(std::move(b), m.opt.tolerance, m.opt.max_iterations, stats, progress);
     out.multigrid_nodes = stats.level_nodes;
     out.residual_history = stats.residual_history;
     if (!(m.opt.fit_zero_set > 0)) {
@@ -487,16 +474,13 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
 
     t0 = std::chrono::steady_clock::now();
     if (m.opt.veto_winding > 0)
-        out.vetoed_nodes = shm::veto_outside(m.source, {m.opt.veto_winding, m.opt.veto_slope, m.opt.veto_margin}, phi,
-                                             [&](std::size_t i) { return Eigen::Vector3d(x.row(Eigen::Index(i)).transpose()); });
+        out.vetoed_nodes = shm::veto_outside(m.source, {m.opt.veto_winding, m.opt.veto_slope, m.opt.veto_margin}, phi, position);
     out.seconds_veto = seconds_since(t0);
 
     if (m.opt.redistance) {
         t0 = std::chrono::steady_clock::now();
         if (progress) progress("redistance", 0.0);
-        out.zero_set_triangles = shm::redistance(zero_set_soup(tree, nodes, phi), phi, [&](std::size_t i) {
-            return Eigen::Vector3d(x.row(Eigen::Index(i)).transpose());
-        });
+        out.zero_set_triangles = shm::redistance(zero_set_soup(tree, nodes, phi), phi, position);
         out.seconds_redistance = seconds_since(t0);
     }
 
