@@ -34,6 +34,9 @@ struct AdaptiveShmOptions : Execution {
     /// input). 1 ≤ D ≤ 20.
     int depth = 8;
     /// Cells within this many finest cells of a source element are all of the finest level.
+    /// (The grading below makes more: a cell of side 2h is split within 2h·(√3/2 + grading) of
+    /// the source, so with grading 2 the finest shell reaches ~5.7h and a band below 4 adds
+    /// nothing.)
     double band = 3.0;
     /// Away from the band a cell of side s is split while its center is closer than
     /// s·(√3/2 + grading) to the source: the larger, the more gradual the coarsening.
