@@ -29,16 +29,27 @@ namespace {
 
 const Box kCube{{-1, -1, -1}, {1, 1, 1}};
 
-// An octree over kCube refined toward one point (a deep corner of detail), balanced.
-shm::Octree point_octree(int depth, const Eigen::Vector3d& target) {
+// An octree over kCube whose cells are split where `distance` (from a cell's center) is below
+// the cell's side, balanced.
+template <class Distance>
+shm::Octree refined_octree(int depth, Distance&& distance) {
     return shm::Octree(kCube, depth, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
         const double s = 2.0 / double(1 << level);
         for (std::size_t i = 0; i < codes.size(); ++i) {
             const auto c = shm::unmorton3(codes[i]);
-            const Eigen::Vector3d center = kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5);
-            split[i] = (center - target).norm() < s;
+            split[i] = distance(kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5)) < s;
         }
     });
+}
+
+// Refined toward one point (a deep corner of detail).
+shm::Octree point_octree(int depth, const Eigen::Vector3d& target) {
+    return refined_octree(depth, [&](const Eigen::Vector3d& x) { return (x - target).norm(); });
+}
+
+// Refined toward a sphere about the origin.
+shm::Octree sphere_octree(int depth, double radius) {
+    return refined_octree(depth, [&](const Eigen::Vector3d& x) { return std::abs(x.norm() - radius); });
 }
 
 struct Corrupted {
@@ -130,14 +141,7 @@ TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's v
 
 TEST_CASE("octree Poisson: a constant field gives the linear function on any octree; CG converges") {
     // Refined toward a sphere: more nodes than one factorization takes, so the multigrid runs.
-    const shm::Octree tree(kCube, 7, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
-        const double s = 2.0 / double(1 << level);
-        for (std::size_t i = 0; i < codes.size(); ++i) {
-            const auto c = shm::unmorton3(codes[i]);
-            const Eigen::Vector3d center = kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5);
-            split[i] = std::abs(center.norm() - 0.6) < s;
-        }
-    });
+    const shm::Octree tree = sphere_octree(7, 0.6);
     // φ = a·(x − x₀), and samples on its zero plane: both the fit of ∇φ to a and the penalty
     // vanish there, so it is the minimizer exactly (the float32 Y the only error).
     const Eigen::Vector3d a = Eigen::Vector3d(0.6, -0.7, 0.3).normalized(), x0(0.05, 0.1, -0.1);
@@ -167,14 +171,7 @@ TEST_CASE("octree Poisson: a constant field gives the linear function on any oct
 }
 
 TEST_CASE("octree multigrid transfers: prolongation reproduces trilinear fields, restriction is its transpose") {
-    const shm::Octree tree(kCube, 6, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
-        const double s = 2.0 / double(1 << level);
-        for (std::size_t i = 0; i < codes.size(); ++i) {
-            const auto c = shm::unmorton3(codes[i]);
-            const Eigen::Vector3d center = kCube.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5);
-            split[i] = std::abs(center.norm() - 0.5) < s;
-        }
-    });
+    const shm::Octree tree = sphere_octree(6, 0.5);
     // f = 1 + x + 2y − z + 0.5xy: trilinear, so every coarse cell's interpolation is exact.
     const auto f = [](const Eigen::Vector3d& x) { return 1 + x.x() + 2 * x.y() - x.z() + 0.5 * x.x() * x.y(); };
     std::mt19937 rng(5);

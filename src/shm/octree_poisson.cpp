@@ -151,6 +151,7 @@ Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const Node
         }
         return count;
     };
+    // Two passes (count, then fill) look the sources up twice rather than hold 8 per node.
     offsets_.assign(n + 1, 0);
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
