@@ -580,12 +580,38 @@ PYBIND11_MODULE(_gsd, m) {
        "`uniform` share in the sphere's cube; normalize: in the unit-sphere frame.");
 
     // ---- on surfaces ----
+    // A surface from (vertices, faces), or from a point cloud when faces is None (its fans for
+    // the SHM, its triangulation for SWN); curves on a cloud name points.
+    m.def("cloud_surface", [](const DoubleArray& points, std::optional<DoubleArray> normals, int neighbors) {
+        const Points p = points_from(points, "points");
+        const Points n = normals ? points_from(*normals, "normals") : Points();
+        CloudSurfaceOptions o;
+        o.neighbors = neighbors;
+        PolygonMesh tri;
+        Points fitted;
+        {
+            py::gil_scoped_release nogil;
+            CloudSurface s = cloud_surface(p, n, o, "points");
+            tri = std::move(s.triangulation);
+            fitted = std::move(s.normals);
+        }
+        return py::make_tuple(faces_of(tri), to_numpy(fitted));
+    }, py::arg("points"), py::arg("normals") = py::none(), py::arg("neighbors") = CloudSurfaceOptions{}.neighbors,
+       "(faces (F,3), normals (N,3)) of a point cloud as a surface: a manifold triangulation of the points and their "
+       "fitted normals, oriented consistently (normals given: their majority sign). As gsd.signed_heat_surface and "
+       "gsd.surface_winding_numbers use it with faces=None.");
     m.def("signed_heat_surface", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
-                                    double t_coef) {
-        PolygonMesh mesh = mesh_from(vertices, faces);
+                                    double t_coef, int neighbors) {
+        PolygonMesh mesh;
+        Points cloud;
+        if (faces.is_none()) cloud = points_from(vertices, "vertices");
+        else mesh = mesh_from(vertices, faces);
         py::gil_scoped_release nogil;
-        SurfaceMesh surface(std::move(mesh), "mesh");
+        CloudSurfaceOptions o;
+        o.neighbors = neighbors;
+        SurfaceMesh surface = faces.is_none() ? cloud_surface(cloud, {}, o, "points").mesh : SurfaceMesh(std::move(mesh), "mesh");
         const SurfaceSources sources = read_surface_curves(curves, surface);
+        if (faces.is_none()) require_cloud_points(sources, curves);
         SurfaceShmSetup setup;
         setup.t_coef = t_coef;
         SurfaceShmResult r = SignedHeatSurface(std::move(surface), setup).solve(sources);
@@ -593,21 +619,29 @@ PYBIND11_MODULE(_gsd, m) {
         const py::ssize_t n = py::ssize_t(r.phi.size());
         return to_numpy(std::move(r.phi), {n});
     }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("t_coef") = 1.0,
-       "Signed distance per vertex to the curves in a file (docs/formats.md), by the surface Signed Heat Method.");
+       py::arg("neighbors") = CloudSurfaceOptions{}.neighbors,
+       "Signed distance per vertex to the curves in a file (docs/formats.md), by the surface Signed Heat Method. "
+       "faces=None: vertices are a point cloud (curves name its points), φ per point.");
     m.def("surface_winding_numbers", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
                                         const std::string& lp, const std::string& lp_solver, double curve_weight,
                                         bool boundary_aware) {
-        PolygonMesh mesh = mesh_from(vertices, faces);
+        const bool is_cloud = faces.is_none();
+        PolygonMesh mesh;
+        if (is_cloud) mesh.vertices = points_from(vertices, "vertices");
+        else mesh = mesh_from(vertices, faces);
         SwnOptions o;  // curve_weight is checked by the solver
         o.residual = swn_residual_from_name(lp);
         o.solver = swn_solver_from_name(lp_solver);
         o.curve_weight = curve_weight;
         o.boundary_aware = boundary_aware;
         py::gil_scoped_release nogil;
-        SurfaceMesh surface(std::move(mesh), "mesh");
+        SurfaceMesh surface = is_cloud ? SurfaceMesh(cloud_surface(mesh.vertices, {}, {}, "points").triangulation, "points")
+                                       : SurfaceMesh(std::move(mesh), "mesh");
         const SurfaceSources sources = read_surface_curves(curves, surface);
-        SwnResult r = SurfaceWindingNumbers(std::move(surface)).solve(sources, o);
-        std::vector<std::int32_t> labels(r.labels.begin(), r.labels.end());
+        if (is_cloud) require_cloud_points(sources, curves);
+        SwnResult r = SurfaceWindingNumbers(surface).solve(sources, o);
+        const std::vector<int> per = is_cloud ? vertex_labels(surface, r.labels) : r.labels;
+        std::vector<std::int32_t> labels(per.begin(), per.end());
         std::vector<double> w;
         w.reserve(r.w.size() * 3);
         for (const auto& c : r.w) w.insert(w.end(), c.begin(), c.end());
@@ -618,5 +652,6 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("lp_solver") = "network", py::arg("curve_weight") = SwnOptions{}.curve_weight,
        py::arg("boundary_aware") = SwnOptions{}.boundary_aware,
        "(labels (F,) int32 per input face, w (T,3) per triangle corner): Surface Winding Numbers of curves in a file. "
+       "faces=None: vertices are a point cloud (curves name its points), labels per point, w on its triangulation. "
        "lp, lp_solver, curve_weight, boundary_aware: as the CLI's --lp, --lp-solver, --curve-weight, --boundary-aware.");
 }

@@ -9,7 +9,8 @@
 #     winding`) and its ½ level;
 #  3. the Signed Heat Method on a surface: a torus mesh (`gsd mesh`) and a closed curve on it with
 #     40% cut away in three gaps (`gsd curve`) → geodesic signed distance per vertex → a picture,
-#     isolines and a colored mesh;
+#     isolines and a colored mesh; the same on a point cloud sampled from a torus (no mesh): a
+#     broken curve through its points → φ per point → a picture of a disc per point;
 #  4. Surface Winding Numbers on a double torus (`gsd mesh double-torus`): a loop around a region
 #     and loops around both handles, each with 30% cut away (`gsd curve`) → inside/outside labels
 #     per face, the loops that bound nothing found and completed → pictures, beside the labels
@@ -72,6 +73,10 @@ surf_mesh="$out/torus-mesh.ply"
 "$gsd" curve "$surf_mesh" --sphere 0.39 0.31 0.2 0.28 --break 0.4 --gaps 3 --seed 4 -o "$out/torus-cut.txt"
 "$gsd" -v shm surface "$surf_mesh" --curves "$out/torus-cut.txt" -o "$out/surface-phi.npy" \
   --render "$out/surface-phi.png" --isolines "$out/surface-isolines.obj" --colored "$out/surface-phi.ply"
+surf_cloud="$out/torus-cloud.ply"
+"$gsd" sample torus -n 20000 --seed 3 -o "$surf_cloud"
+"$gsd" curve "$surf_cloud" --sphere 0.5 0 0.2 0.25 --break 0.3 --seed 4 -o "$out/cloud-cut.txt"
+"$gsd" -v shm surface "$surf_cloud" --curves "$out/cloud-cut.txt" -o "$out/cloud-phi.npy" --render "$out/cloud-phi.png"
 
 swn_mesh="$out/double-torus.ply"
 "$gsd" mesh double-torus -r 72 -o "$swn_mesh"
@@ -112,6 +117,7 @@ SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 
   picture              $out/surface-phi.png
   isolines             $out/surface-isolines.obj
   colored mesh         $out/surface-phi.ply
+  on a point cloud     $out/cloud-phi.npy (φ per point of $surf_cloud), $out/cloud-phi.png
 
 SWN on a double torus (input: $swn_mesh; a region's boundary and a loop around each handle, 30% cut):
   labels per face      $out/swn-labels.npy    (int32: 1 inside the region, 0 outside)

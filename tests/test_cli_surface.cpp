@@ -174,3 +174,65 @@ TEST_CASE("curve: the intersection with a plane or sphere, whole or broken, as a
     CHECK(run_cli("curve " + mesh + " --plane 0 0 1 5 -o " + dir.file("x.txt")).exit_code == 1);  // misses the mesh
     CHECK(run_cli("curve " + mesh + " -o " + dir.file("x.txt")).exit_code == 2);
 }
+
+TEST_CASE("point clouds: gsd curve, shm surface and swn on a cloud without faces, values per point") {
+    ScratchDir dir("cli-cloud");
+    // An unoriented cloud (.xyz, 3 numbers per line) sampled from the unit sphere.
+    const std::string cloud = dir.file("sphere.xyz");
+    REQUIRE(run_cli("sample sphere -n 3000 --seed 4 -o " + dir.file("s.ply")).exit_code == 0);
+    const PointCloud sampled = io::read_point_cloud(dir.file("s.ply"));
+    {
+        std::ofstream out(cloud);
+        for (Eigen::Index i = 0; i < sampled.points.rows(); ++i)
+            out << sampled.points(i, 0) << ' ' << sampled.points(i, 1) << ' ' << sampled.points(i, 2) << '\n';
+    }
+    const PointCloud x = io::read_cloud_points(cloud);
+    const Eigen::Vector3d center = x.points.colwise().mean().transpose();
+    const std::string curve = dir.file("c.txt");
+    // n·x < d on the curve's left: below the plane is inside.
+    auto r = run_cli("curve " + cloud + " --plane 0 0 1 " + std::to_string(center.z() + 0.1) + " -o " + curve);
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    std::ifstream in(curve);
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    CHECK(text.find("\ne ") == std::string::npos);  // points only: v records
+    CHECK(text.find("\nv ") != std::string::npos);
+
+    const std::string phi = dir.file("phi.npy");
+    r = run_cli("shm surface " + cloud + " --curves " + curve + " -o " + phi + " --render " + dir.file("p.png") +
+                " --isolines " + dir.file("iso.obj"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    CHECK(r.output.find("per point") != std::string::npos);
+    const io::NpyArray values = io::read_npy(phi);
+    REQUIRE(values.shape == std::vector<std::size_t>{std::size_t(x.points.rows())});
+    const double radius = (x.points.rowwise() - center.transpose()).rowwise().norm().mean();
+    int wrong = 0;
+    for (Eigen::Index i = 0; i < x.points.rows(); ++i) {
+        const double h = x.points(i, 2) - center.z() - 0.1;  // height above the plane
+        if (std::abs(h) > 0.15 * radius) wrong += (values.data[std::size_t(i)] < 0) != (h < 0);
+    }
+    CHECK(wrong == 0);
+    CHECK(test::file_exists(dir.file("p.png")));
+    CHECK(test::file_exists(dir.file("iso.obj")));
+
+    // SWN on the cloud: labels per point, 1 below the plane.
+    const std::string labels = dir.file("l.npy");
+    r = run_cli("swn " + cloud + " --curves " + curve + " -o " + labels + " --render " + dir.file("l.png"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    const io::NpyArray l = io::read_npy(labels);
+    REQUIRE(l.shape == std::vector<std::size_t>{std::size_t(x.points.rows())});
+    wrong = 0;
+    for (Eigen::Index i = 0; i < x.points.rows(); ++i) {
+        const double h = x.points(i, 2) - center.z() - 0.1;
+        if (std::abs(h) > 0.15 * radius) wrong += (l.data[std::size_t(i)] == 1) != (h < 0);
+    }
+    CHECK(wrong == 0);
+
+    // Records that name a mesh's edges or faces mean nothing on a cloud.
+    test::write_bytes(dir.file("e.txt"), "e 1 0.5\ne 2 0.5\ne 3 0.5\nl 1 2 3\n");
+    r = run_cli("shm surface " + cloud + " --curves " + dir.file("e.txt") + " -o " + dir.file("bad.npy"));
+    CHECK(r.exit_code == 1);
+    CHECK(r.output.find("name cloud points") != std::string::npos);
+    CHECK_FALSE(test::file_exists(dir.file("bad.npy")));
+    r = run_cli("shm surface " + cloud + " --curves " + curve + " --neighbors 2 -o " + dir.file("bad.npy"));
+    CHECK(r.exit_code == 2);
+}

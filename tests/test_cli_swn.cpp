@@ -139,7 +139,10 @@ TEST_CASE("swn: bad input is a clear error and leaves no output") {
     test::write_bytes(dir.file("empty.txt"), "#offset 0\nv 0\n");
     fails("swn " + f.mesh + " --curves " + dir.file("empty.txt") + " -o " + out, "no curves", 1);
     fails("swn " + dir.file("missing.obj") + " --curves " + f.curves + " -o " + out, "missing.obj", 1);
-    fails("swn " + f.curves + " -o " + out, "unsupported format '.txt'", 1);  // a curve file as the mesh
+    // A curve file as the mesh: .txt is a point-cloud format, so it needs --curves, and with them
+    // it does not read as a cloud.
+    fails("swn " + f.curves + " -o " + out, "--curves", 2);
+    fails("swn " + f.curves + " --curves " + f.curves + " -o " + out, f.curves + ": line", 1);
     // MESH after the --curves list: the list takes it, and the error says so.
     fails("swn --curves " + f.curves + " " + f.mesh + " -o " + out, "--curves took '" + f.mesh + "'", 2);
     CHECK(run_cli("swn --curves " + f.curves + " -- " + f.mesh + " -o " + out + " -q").exit_code == 0);

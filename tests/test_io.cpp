@@ -571,7 +571,7 @@ TEST_CASE(".xyz/.txt: comments, blank lines, commas, CRLF; bad lines name their 
         write_bytes(dir.file("b.txt"), content);
         return error_of([&] { io::read_point_cloud(dir.file("b.txt")); });
     };
-    CHECK(contains(err("1 2 3\n4 5 6\n"), "point cloud has no normals (needs nx ny nz)"));
+    CHECK(contains(err("1 2 3\n4 5 6\n"), "point cloud has no normals (needs nx ny nz"));
     CHECK(contains(err("1 2 3 0 0 1\n1 2 3 0 1\n"), "line 2"));
     CHECK(contains(err("1 2 3 0 0 1\n1 2 x 0 1 0\n"), "line 2: expected a number, found 'x'"));
     CHECK(contains(err("1 2 3 0 0 1\n1 2 inf 0 1 0\n"), "non-finite"));
@@ -599,6 +599,42 @@ TEST_CASE(".pc and .obj point clouds: v/vn pairs; counts must match") {
     CHECK(contains(err("e.pc", "v 1 2\nvn 0 0 1\n"), "line 1"));
     CHECK(contains(err("b.obj", "v 1 2 3\nv 4 5 6\nvn 0 0 1\n"), "counts must match"));
     CHECK(contains(err("c.obj", "v 1 2 3\nv 4 5 6\nf 1 2 1\n"), "no normals"));
+}
+
+TEST_CASE("unoriented clouds: read_cloud_points reads every cloud format with or without normals") {
+    ScratchDir dir("io-unoriented");
+    Points expected(3, 3);
+    expected << 1, 2, 3, 4, 5, 6, 7, 8, 10;
+    const std::vector<std::pair<std::string, std::string>> files{
+        {"a.xyz", "# x y z\n1 2 3\n4,5,6\n7 8 10\n"},
+        {"a.pc", "v 1 2 3\nv 4 5 6\nv 7 8 10\n"},
+        {"a.obj", "v 1 2 3\nv 4 5 6\nv 7 8 10\nf 1 2 3\n"},
+        {"a.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                  "end_header\n1 2 3\n4 5 6\n7 8 10\n"}};
+    for (const auto& [name, content] : files) {
+        CAPTURE(name);
+        write_bytes(dir.file(name), content);
+        const PointCloud c = io::read_cloud_points(dir.file(name));
+        CHECK(c.normals.rows() == 0);
+        CHECK(c.points == expected);
+        CHECK(contains(error_of([&] { io::read_point_cloud(dir.file(name)); }), "no normals"));
+    }
+    std::string values;
+    for (double v : {1, 2, 3, 4, 5, 6, 7, 8, 10}) values.append(reinterpret_cast<const char*>(&v), 8);
+    write_bytes(dir.file("a.npy"), npy_file("<f8", "(3, 3)", values));
+    CHECK(io::read_cloud_points(dir.file("a.npy")).points == expected);
+    // With normals, exactly read_point_cloud's answer (normalized).
+    write_bytes(dir.file("n.xyz"), "1 2 3 0 0 2\n4 5 6 0 3 0\n");
+    CHECK(io::read_cloud_points(dir.file("n.xyz")).normals.row(1) == Eigen::RowVector3d(0, 1, 0));
+    // Rows must agree on their width; coordinates must be finite.
+    write_bytes(dir.file("mixed.xyz"), "1 2 3\n4 5 6 0 0 1\n");
+    CHECK(contains(error_of([&] { io::read_cloud_points(dir.file("mixed.xyz")); }), "line 2: expected 3 numbers like the first row"));
+    write_bytes(dir.file("nan.xyz"), "1 2 3\n4 nan 6\n");
+    CHECK_THROWS_AS(io::read_cloud_points(dir.file("nan.xyz")), Error);
+    write_bytes(dir.file("far.xyz"), "1 2 3\n4 5 6\n1e31 0 0\n");
+    CHECK(contains(error_of([&] { io::read_cloud_points(dir.file("far.xyz")); }), "beyond"));
+    write_bytes(dir.file("empty.xyz"), "# nothing\n");
+    CHECK(contains(error_of([&] { io::read_cloud_points(dir.file("empty.xyz")); }), "empty"));
 }
 
 TEST_CASE(".obj meshes: polygons, v/vt/vn corners, negative indices, ignored statements") {

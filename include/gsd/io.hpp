@@ -30,6 +30,10 @@ namespace gsd::io {
 // .npy (N×6, float32 or float64, C order)
 // The returned cloud has passed gsd::validate (normals normalized).
 GSD_EXPORT PointCloud read_point_cloud(const std::string& path);
+/// The same formats with normals optional (nx ny nz, vn lines, 6 columns): `normals` comes
+/// back empty when the file has none — an unoriented cloud, for methods that fit their own
+/// tangent planes (gsd::cloud_surface). Otherwise as read_point_cloud.
+GSD_EXPORT PointCloud read_cloud_points(const std::string& path);
 /// Writes .ply (binary little endian, float32), .xyz/.xyzn/.txt, .pc, .obj or .npy (float32).
 GSD_EXPORT void write_point_cloud(const std::string& path, const PointCloud& cloud);
 

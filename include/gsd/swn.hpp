@@ -117,6 +117,12 @@ private:
 /// (φ there is rounding noise) and is 0.
 GSD_EXPORT std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& phi);
 
+/// Per-face labels (one per input face) carried to the vertices: each vertex takes the label
+/// that covers most of the area of its faces (ties: the smaller label); a vertex on no face of
+/// positive area gets 0. How a point cloud gets labels from SWN on its triangulation
+/// (CloudSurface::triangulation, whose vertices are the points).
+GSD_EXPORT std::vector<int> vertex_labels(const SurfaceMesh& mesh, const std::vector<int>& face_labels);
+
 }  // namespace gsd
 
 #include <gsd/accuracy.hpp>  // mislabeled_area

@@ -90,6 +90,14 @@ struct SurfaceRenderOptions {
 /// render buffer (width·height·supersample²) above 10^8 pixels.
 GSD_EXPORT Image render_surface(const SurfacePicture& picture, const SurfaceRenderOptions& options = {});
 
+/// A point cloud as a mesh of splats for render_surface: point i becomes a flat hexagonal disc
+/// of radius radii[i] facing normals[i] (its front side), made of vertices
+/// kSplatVertices·i … kSplatVertices·(i+1) − 1, the first at the point itself; repeat a value
+/// per point kSplatVertices times to color the discs. Throws gsd::Error for mismatched counts,
+/// no points, non-finite positions, zero normals or negative radii.
+inline constexpr std::size_t kSplatVertices = 7;
+GSD_EXPORT PolygonMesh splat_mesh(const Points& points, const Points& normals, const std::vector<double>& radii);
+
 /// The diverging color of render_slice for value x on a scale ±range (range > 0; NaN: the
 /// gray of missing values), exposed so other outputs, e.g. colored meshes, match the pictures.
 GSD_EXPORT std::array<std::uint8_t, 3> diverging_color(double x, double range);

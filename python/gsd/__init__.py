@@ -18,6 +18,8 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     for path, samples, center, radius in gsd.sdf_samples_in_folder("meshes/", 500000): ...
     phi_v = gsd.signed_heat_surface(v, f, "curves.txt")            # distance along a surface
     labels, w = gsd.surface_winding_numbers(v, f, "curves.txt")    # inside/outside on a surface
+    phi_p = gsd.signed_heat_surface(points, None, "curves.txt")    # …on a point cloud: per point
+    faces, normals = gsd.cloud_surface(points)        # a cloud's triangulation, oriented normals
     image = field.render(640, 480)                    # (480, 640, 3) uint8: φ = 0 sphere-traced
     image = gsd.render_grid(grid, bounds)             # the same for a grid
     both = field | gsd.MeshSdfField(v, f).offset(0.05)           # fields made of fields (docs/field.md):
@@ -35,6 +37,7 @@ from ._gsd import (  # noqa: F401
     Tori,
     TorusField,
     closing,
+    cloud_surface,
     devices,
     difference,
     intersection,

@@ -499,3 +499,25 @@ def test_render_matches_cli_and_gpu(sphere, tmp_path):
     with pytest.raises(gsd.Error, match="values"):
         gsd.render_grid(np.zeros((4, 4)), bounds)
 
+
+
+def test_point_cloud_surfaces_match_cli(tmp_path):
+    # An unoriented cloud (x y z only): SHM per point and SWN labels per point, as the CLI.
+    cloud, curves = tmp_path / "s.xyz", tmp_path / "c.txt"
+    cli("sample", "sphere", "-n", 2000, "-o", tmp_path / "s.ply")
+    v, _ = gsd.read_point_cloud(str(tmp_path / "s.ply"))
+    np.savetxt(cloud, v)
+    cli("curve", cloud, "--plane", 0, 0, 1, 0.3, "-o", curves)
+    cli("shm", "surface", cloud, "--curves", curves, "-o", tmp_path / "phi.npy")
+    phi = gsd.signed_heat_surface(v, None, str(curves))
+    np.testing.assert_allclose(phi, np.load(tmp_path / "phi.npy"), atol=1e-5)
+    assert phi[np.argmax(v[:, 2])] > 0 > phi[np.argmin(v[:, 2])]
+    cli("swn", cloud, "--curves", curves, "-o", tmp_path / "l.npy")
+    labels, _ = gsd.surface_winding_numbers(v, None, str(curves))
+    np.testing.assert_array_equal(labels, np.load(tmp_path / "l.npy"))
+    faces, normals = gsd.cloud_surface(v)
+    assert faces.shape == (2 * len(v) - 4, 3) and normals.shape == v.shape
+    assert (np.sum(normals * v, axis=1) > 0).all()  # outward on a closed surface
+    (tmp_path / "e.txt").write_text("e 1 0.5\ne 2 0.5\nl 1 2\n")
+    with pytest.raises(gsd.Error, match="name cloud points"):
+        gsd.signed_heat_surface(v, None, str(tmp_path / "e.txt"))

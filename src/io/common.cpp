@@ -181,14 +181,15 @@ std::uint64_t add_sat(std::uint64_t a, std::uint64_t b) {
     return __builtin_add_overflow(a, b, &r) ? std::numeric_limits<std::uint64_t>::max() : r;
 }
 
-PointCloud cloud_from_rows(const double* xyzn, std::size_t n) {
+PointCloud cloud_from_rows(const double* xyzn, std::size_t n, bool with_normals) {
     PointCloud c;
+    const std::size_t stride = with_normals ? 6 : 3;
     c.points.resize(Eigen::Index(n), 3);
-    c.normals.resize(Eigen::Index(n), 3);
+    if (with_normals) c.normals.resize(Eigen::Index(n), 3);
     for (std::size_t i = 0; i < n; ++i)
         for (int k = 0; k < 3; ++k) {
-            c.points(Eigen::Index(i), k) = xyzn[6 * i + k];
-            c.normals(Eigen::Index(i), k) = xyzn[6 * i + 3 + k];
+            c.points(Eigen::Index(i), k) = xyzn[stride * i + std::size_t(k)];
+            if (with_normals) c.normals(Eigen::Index(i), k) = xyzn[stride * i + 3 + std::size_t(k)];
         }
     return c;
 }

@@ -75,12 +75,30 @@ void check_writable(const std::string& path, const PointCloud& cloud) {
         throw Error(path, "cannot write a point cloud with non-finite coordinates or normals");
 }
 
+/// What a file of this format needs to carry normals, for the message when it has none.
+std::string normals_hint(const std::string& ext) {
+    if (ext == ".ply") return "needs nx ny nz";
+    if (ext == ".obj" || ext == ".pc") return "needs vn lines";
+    if (ext == ".npy") return "needs nx ny nz: shape (N, 6), x y z nx ny nz per row";
+    return "needs nx ny nz: 6 numbers per line, x y z nx ny nz";
+}
+
 }  // namespace
 
 PointCloud read_point_cloud(const std::string& path) {
+    PointCloud cloud = read_cloud_points(path);
+    if (cloud.normals.rows() == 0) throw Error(path, "point cloud has no normals (" + normals_hint(extension(path)) + ")");
+    return cloud;
+}
+
+PointCloud read_cloud_points(const std::string& path) {
     const CloudReader read = cloud_reader(path);
     const std::string bytes = detail::read_whole_file(path);
     PointCloud cloud = read(path, bytes);
+    if (cloud.normals.rows() == 0 && cloud.points.rows() > 0) {
+        check_coordinates(cloud.points, path, "point");
+        return cloud;
+    }
     validate(cloud, path);
     normalize_normals(cloud, path);
     return cloud;

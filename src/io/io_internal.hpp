@@ -117,10 +117,12 @@ void append_le(std::string& out, T v) {
 std::uint64_t mul_sat(std::uint64_t a, std::uint64_t b);
 std::uint64_t add_sat(std::uint64_t a, std::uint64_t b);
 
-/// Copies N×6 values (x y z nx ny nz per row) into a cloud.
-PointCloud cloud_from_rows(const double* xyzn, std::size_t n);
+/// Copies N×6 values (x y z nx ny nz per row), or N×3 (x y z) without normals, into a cloud.
+PointCloud cloud_from_rows(const double* xyzn, std::size_t n, bool with_normals = true);
 
 // ---- formats (readers return unvalidated data; io.cpp validates) ---------------------
+// Cloud readers return `normals` empty when the file has none; io.cpp decides whether that
+// is an error.
 
 PointCloud read_ply_cloud(const std::string& path, std::string_view bytes);
 PolygonMesh read_ply_mesh(const std::string& path, std::string_view bytes);

@@ -247,11 +247,9 @@ std::string npy_bytes(const std::string& path, const std::vector<std::size_t>& s
 
 PointCloud read_npy_cloud(const std::string& path, std::string_view bytes) {
     const NpyArray a = parse_npy(path, bytes);
-    if (a.shape.size() == 2 && a.shape[1] == 3)
-        fail(path, "point cloud has no normals (needs nx ny nz): shape " + shape_text(a.shape) + ", expected (N, 6)");
-    if (a.shape.size() != 2 || a.shape[1] != 6)
-        fail(path, "expected an (N, 6) array (x y z nx ny nz), found shape " + shape_text(a.shape));
-    return cloud_from_rows(a.data.data(), a.shape[0]);
+    if (a.shape.size() != 2 || (a.shape[1] != 6 && a.shape[1] != 3))
+        fail(path, "expected an (N, 6) array (x y z nx ny nz) or (N, 3) (x y z), found shape " + shape_text(a.shape));
+    return cloud_from_rows(a.data.data(), a.shape[0], a.shape[1] == 6);
 }
 
 std::string npy_cloud_bytes(const PointCloud& cloud) {

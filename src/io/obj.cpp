@@ -114,8 +114,7 @@ PointCloud read_obj_cloud(const std::string& path, std::string_view bytes) {
             case ObjStatement::unknown: unknown_statement(path, lines.line_number(), key);
         }
     }
-    if (normals.empty() && !points.empty()) fail(path, "point cloud has no normals (needs vn lines)");
-    if (points.size() != normals.size())
+    if (!normals.empty() && points.size() != normals.size())
         fail(path, std::to_string(points.size() / 3) + " 'v' lines but " + std::to_string(normals.size() / 3) +
                        " 'vn' lines (normals pair with vertices by order, so the counts must match)");
     PointCloud c;

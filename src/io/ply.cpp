@@ -535,7 +535,7 @@ PointCloud read_ply_cloud(const std::string& path, std::string_view bytes) {
     const PlyElement& vertex = vertex_element(path, h);
     const std::vector<int> slots = vertex_slots(vertex);
     require_xyz(path, slots);
-    if (!has_slots(slots, 3, 5)) fail(path, "point cloud has no normals (needs nx ny nz)");
+    const bool with_normals = has_slots(slots, 3, 5);
     PlyBodyReader body(path, h, bytes);
     for (const auto& e : h.elements) {
         if (&e != &vertex) {
@@ -544,8 +544,8 @@ PointCloud read_ply_cloud(const std::string& path, std::string_view bytes) {
         }
         PointCloud cloud;
         cloud.points.resize(Eigen::Index(e.count), 3);
-        cloud.normals.resize(Eigen::Index(e.count), 3);
-        read_vertex_rows(body, e, slots, {cloud.points.data(), cloud.normals.data()});
+        if (with_normals) cloud.normals.resize(Eigen::Index(e.count), 3);
+        read_vertex_rows(body, e, slots, {cloud.points.data(), with_normals ? cloud.normals.data() : nullptr});
         return cloud;
     }
     fail(path, "PLY vertex element not found");  // unreachable: vertex_element found it

@@ -29,24 +29,24 @@ void three_numbers(const std::string& path, std::size_t line, Tokens tokens, con
 
 PointCloud read_xyz_cloud(const std::string& path, std::string_view bytes) {
     std::vector<double> rows;
-    rows.reserve(max_data_lines(bytes, 12) * 6);  // "0 0 0 0 0 0\n"
+    rows.reserve(max_data_lines(bytes, 6) * 3);  // "0 0 0\n"
     LineScanner lines(bytes);
     std::string_view line;
+    std::size_t width = 0;  // 6 (x y z nx ny nz) or 3 (x y z, no normals), set by the first row
     while (lines.next(line)) {
         Tokens tokens(line, /*commas=*/true);
         const std::size_t n = tokens.count_left();
         if (n == 0) continue;
-        if (n == 3)
+        if (width == 0 && (n == 3 || n == 6)) width = n;
+        if (n != width)
             fail(path, at_line(lines.line_number(),
-                               "point cloud has no normals (needs nx ny nz): found 3 numbers, expected 6 "
-                               "(x y z nx ny nz)"));
-        if (n != 6)
-            fail(path, at_line(lines.line_number(), "expected 6 numbers (x y z nx ny nz), found " +
-                                                        std::to_string(n) + " values"));
+                               width == 0 ? "expected 6 numbers (x y z nx ny nz) or 3 (x y z), found " + std::to_string(n) + " values"
+                                          : "expected " + std::to_string(width) + " numbers like the first row, found " +
+                                                std::to_string(n) + " values"));
         std::string_view t;
         while (tokens.next(t)) rows.push_back(finite_number(t, path, lines.line_number(), "a number"));
     }
-    return cloud_from_rows(rows.data(), rows.size() / 6);
+    return cloud_from_rows(rows.data(), width ? rows.size() / width : 0, width != 3);
 }
 
 PointCloud read_pc_cloud(const std::string& path, std::string_view bytes) {
@@ -68,8 +68,7 @@ PointCloud read_pc_cloud(const std::string& path, std::string_view bytes) {
                                                         " (a .pc file has only 'v' and 'vn' lines)"));
         }
     }
-    if (normals.empty() && !points.empty()) fail(path, "point cloud has no normals (needs vn lines)");
-    if (points.size() != normals.size())
+    if (!normals.empty() && points.size() != normals.size())
         fail(path, std::to_string(points.size() / 3) + " 'v' lines but " + std::to_string(normals.size() / 3) +
                        " 'vn' lines (the counts must match)");
     PointCloud c;

@@ -1010,4 +1010,21 @@ std::vector<int> shm_labels(const SurfaceMesh& mesh, const std::vector<double>& 
     return majority_per_face(mesh, t.triangle_face, t.face_areas, tri);
 }
 
+std::vector<int> vertex_labels(const SurfaceMesh& mesh, const std::vector<int>& face_labels) {
+    if (face_labels.size() != mesh.face_count())
+        throw Error("vertex_labels", std::to_string(face_labels.size()) + " labels for " + std::to_string(mesh.face_count()) + " faces");
+    const Topology& t = mesh.topology();
+    std::vector<std::map<int, double>> area(mesh.vertex_count());
+    for (std::size_t f = 0; f < t.mesh.face_count(); ++f)
+        if (t.face_areas[f] > 0)
+            for (std::uint32_t v : t.mesh.faces[f]) area[v][face_labels[t.triangle_face[f]]] += t.face_areas[f];
+    std::vector<int> labels(mesh.vertex_count(), 0);
+    for (std::size_t v = 0; v < labels.size(); ++v) {
+        double best = 0;
+        for (const auto& [label, a] : area[v])  // ascending labels: a tie keeps the smaller
+            if (a > best) best = a, labels[v] = label;
+    }
+    return labels;
+}
+
 }  // namespace gsd

@@ -159,6 +159,12 @@ private:
 /// A mesh file format that cannot hold curves (.ply .off .stl): curves must come from --curves.
 bool is_curveless_mesh_format(const std::string& path);
 
+/// A file where the surface commands expect a mesh that has no faces: a point cloud, whose
+/// surface gsd::cloud_surface makes (tools/gsd/surface.cpp).
+bool is_cloud_file(const std::string& path);
+/// A splat radius per point for pictures of clouds (tools/gsd/surface.cpp).
+std::vector<double> splat_radii(const Points& points);
+
 /// The SHM's source from input files (meshes by their faces, clouds by their points and
 /// normals; several combined), and the inputs' bounding box. `read(box)`, if given, runs once
 /// the files are read and before the sources are built (a memory check that needs the extent).

@@ -1,11 +1,13 @@
-// `gsd shm surface`: the Signed Heat Method on a triangle mesh — geodesic signed distance to
-// (broken) curves and points on it, with optional pictures and derived outputs.
+// `gsd shm surface`: the Signed Heat Method on a triangle mesh or a point cloud — geodesic signed
+// distance to (broken) curves and points on it, with optional pictures and derived outputs.
 #include "cli.hpp"
 
 #include <gsd/io.hpp>
+#include <gsd/spatial.hpp>
 #include <gsd/surface.hpp>
 #include <gsd/viz.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <functional>
@@ -26,6 +28,7 @@ struct SurfaceArgs {
     SurfaceShmSetup setup;
     bool sharpen = false;
     SurfaceSharpenOptions sharpening;
+    CloudSurfaceOptions cloud;
 };
 
 /// A round spacing giving about `count` levels over [lo, hi].
@@ -90,6 +93,51 @@ SurfaceSources load_sources(const SurfaceArgs& a, const SurfaceMesh& mesh) {
     return src;
 }
 
+/// Curves whose nodes lie on edges moved onto points, each node to the nearer end of its edge,
+/// repeats and back-and-forth steps (a → b → a) dropped: the same curves through cloud points,
+/// as a cloud's curve files name them.
+std::vector<SurfaceCurve> snapped_to_points(const SurfaceMesh& mesh, const std::vector<SurfaceCurve>& curves) {
+    std::vector<SurfaceCurve> out;
+    for (const SurfaceCurve& c : curves) {
+        SurfaceCurve s;
+        s.is_signed = c.is_signed;
+        for (const SurfacePoint& p : c.nodes) {
+            std::uint32_t v = p.index;
+            if (p.kind == SurfacePoint::Kind::Edge) v = mesh.edge(p.index)[p.u < 0.5 ? 0 : 1];
+            else if (p.kind == SurfacePoint::Kind::Face) v = mesh.triangle(p.index)[0];
+            if (!s.nodes.empty() && s.nodes.back().index == v) continue;
+            if (s.nodes.size() >= 2 && s.nodes[s.nodes.size() - 2].index == v) {
+                s.nodes.pop_back();
+                continue;
+            }
+            s.nodes.push_back(SurfacePoint::at_vertex(v));
+        }
+        if (s.nodes.size() >= 2) out.push_back(std::move(s));
+    }
+    return out;
+}
+
+}  // namespace
+
+bool is_cloud_file(const std::string& path) { return !io::file_has_faces(path); }
+
+/// A splat radius per point: 1.5 × the mean distance to its 6 nearest neighbours, so discs
+/// overlap on even sampling and grow where the sampling thins.
+std::vector<double> splat_radii(const Points& points) {
+    const KdTree tree(points);
+    std::vector<double> r(std::size_t(points.rows()));
+    std::vector<Neighbor> near;
+    for (Eigen::Index i = 0; i < points.rows(); ++i) {
+        tree.knn(points.row(i).transpose(), 7, near);
+        double sum = 0;
+        for (const Neighbor& n : near) sum += n.distance;
+        r[std::size_t(i)] = 1.5 * sum / double(std::max<std::size_t>(near.size() - 1, 1));
+    }
+    return r;
+}
+
+namespace {
+
 void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurface& shm, const SurfaceShmResult& r,
             double load_seconds) {
     if (globals().verbose) {
@@ -121,15 +169,32 @@ void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurfa
 
 
 void run(const SurfaceArgs& a) {
-    if (a.curves.empty() && a.points.empty() && is_curveless_mesh_format(a.mesh))
+    if (a.curves.empty() && a.points.empty() && io::extension(a.mesh) != ".obj")
         throw CLI::RequiredError("--curves or --points (or an .obj mesh with `l` lines)");
     if (!a.render.empty() && io::extension(a.render) != ".png") throw CLI::ValidationError("--render", "must be a .png file");
     if (!a.colored.empty() && io::extension(a.colored) != ".ply") throw CLI::ValidationError("--colored", "must be a .ply file");
     if (!a.isolines.empty() && io::extension(a.isolines) != ".obj") throw CLI::ValidationError("--isolines", "must be an .obj file");
     if (io::extension(a.output) != ".npy") throw CLI::ValidationError("--output", "must be a .npy file");
     const auto t0 = std::chrono::steady_clock::now();
-    SurfaceMesh mesh(io::read_mesh(a.mesh), a.mesh);
+    // A file without faces is a point cloud: its surface is the union of its points' fans.
+    const bool is_cloud = is_cloud_file(a.mesh);
+    Points cloud_normals;
+    PolygonMesh cloud_triangulation;
+    SurfaceMesh mesh = [&] {
+        if (!is_cloud) return SurfaceMesh(io::read_mesh(a.mesh), a.mesh);
+        const PointCloud cloud = io::read_cloud_points(a.mesh);
+        CloudSurface s = cloud_surface(cloud.points, cloud.normals, a.cloud, a.mesh);
+        cloud_normals = std::move(s.normals);
+        cloud_triangulation = std::move(s.triangulation);
+        if (globals().verbose)
+            note("cloud: " + std::to_string(cloud.points.rows()) + " points" +
+                 (cloud.normals.rows() ? " (normals: their majority sign per piece)" : " (unoriented)") + ", " +
+                 std::to_string(s.mesh.triangle_count()) + " fan triangles from " + std::to_string(a.cloud.neighbors) +
+                 " neighbours each");
+        return std::move(s.mesh);
+    }();
     const SurfaceSources sources = load_sources(a, mesh);
+    if (is_cloud) require_cloud_points(sources, a.curves.empty() ? (a.points.empty() ? a.mesh : a.points) : a.curves.front());
     const double load_seconds = seconds_since(t0);
 
     SurfaceShmOptions options = a.options;
@@ -168,18 +233,31 @@ void run(const SurfaceArgs& a) {
         throw Error("--isoline-spacing", fmt("%g", spacing) + " gives " + fmt("%.3g", (hi - lo) / spacing) +
                                              " levels over φ's range [" + fmt("%g", lo) + ", " + fmt("%g", hi) +
                                              "]; at most " + fmt("%g", kMaxIsolines) + ": give a larger spacing");
+    // What the outputs draw on: the mesh, or a cloud's manifold triangulation.
+    const PolygonMesh triangles = is_cloud ? std::move(cloud_triangulation) : mesh.triangles();
     std::string isolines;
-    if (!a.isolines.empty()) isolines = isolines_obj(mesh, r.phi, spacing);
+    if (!a.isolines.empty()) isolines = isolines_obj(is_cloud ? SurfaceMesh(triangles) : mesh, r.phi, spacing);
     Image picture;
-    const PolygonMesh triangles = mesh.triangles();
     if (!a.render.empty()) {
         SurfacePicture p;
-        p.mesh = &triangles;
-        p.vertex_values = r.phi;
-        p.curves.push_back({source_polylines(mesh, sources), {20, 150, 60}, 3.0});  // green: apart from the black zero contour
         SurfaceRenderOptions o;
         o.range = top > 0 ? top : 1.0;
         o.isolines = int(std::lround(std::min(2 * o.range / spacing, kMaxIsolines)));
+        PolygonMesh splats;
+        if (is_cloud) {
+            // A cloud is drawn as it is, a disc per point in the color of its φ (no isolines:
+            // a disc holds one value).
+            splats = splat_mesh(mesh.polygons().vertices, cloud_normals, splat_radii(mesh.polygons().vertices));
+            p.mesh = &splats;
+            for (double v : r.phi) p.vertex_values.insert(p.vertex_values.end(), kSplatVertices, v);
+            o.isolines = 0;
+            o.zero_contour = false;
+            o.mark_back_faces = false;  // a disc seen through a gap is the far side, not a flipped normal
+        } else {
+            p.mesh = &triangles;
+            p.vertex_values = r.phi;
+        }
+        p.curves.push_back({source_polylines(mesh, sources), {20, 150, 60}, 3.0});  // green: apart from the black zero contour
         picture = render_surface(p, o);
     }
     write_all({{a.output, [&] { io::write_npy(a.output, {phi.size()}, phi); }},
@@ -195,21 +273,24 @@ void run(const SurfaceArgs& a) {
     std::string written = a.output;
     for (const std::string* o : {&a.colored, &a.isolines, &a.render})
         if (!o->empty()) written.append(", ").append(*o);
-    note("wrote " + written + " (φ per vertex, " + fmt("%.4g", lo) + " to " + fmt("%.4g", hi) + ")");
+    note("wrote " + written + " (φ per " + (is_cloud ? "point, " : "vertex, ") + fmt("%.4g", lo) + " to " + fmt("%.4g", hi) + ")");
 }
 
 }  // namespace
 
 void add_curve(CLI::App& app) {
-    auto* c = app.add_subcommand("curve", "Draw curves on a mesh (demo and test input for the surface methods): the "
-                                          "intersection with a plane or a sphere, optionally broken");
+    auto* c = app.add_subcommand("curve", "Draw curves on a mesh or a point cloud (demo and test input for the surface "
+                                          "methods): the intersection with a plane or a sphere, optionally broken");
     auto mesh_path = std::make_shared<std::string>();
     auto output = std::make_shared<std::string>();
     auto plane = std::make_shared<std::vector<double>>();
     auto sphere = std::make_shared<std::vector<double>>();
     auto harm = std::make_shared<CurveDamage>();
     auto seed = std::make_shared<std::uint64_t>(1);
-    c->add_option("MESH", *mesh_path, "Mesh (.obj .ply .off .stl)")->required();
+    c->add_option("MESH", *mesh_path,
+                  "Mesh (.obj .ply .off .stl) or point cloud (a file without faces): on a cloud the curve runs "
+                  "through cloud points (`v i` records), those nearest where it crosses the points' fans")
+        ->required();
     auto* p = c->add_option("--plane", *plane, "Plane nx ny nz d: the curve n·x = d, with n·x < d on its left (inside)")
                   ->expected(4);
     auto* s = c->add_option("--sphere", *sphere, "Sphere cx cy cz r: the curve |x − c| = r, with the inside on its left")
@@ -233,7 +314,10 @@ void add_curve(CLI::App& app) {
     c->add_option("-o,--output", *output, "Output curve file (the curve text format, 0-based)")->required();
     c->callback([=] {
         if (plane->empty() && sphere->empty()) throw CLI::RequiredError("--plane or --sphere");
-        const SurfaceMesh mesh(io::read_mesh(*mesh_path), *mesh_path);
+        const bool is_cloud = is_cloud_file(*mesh_path);
+        const SurfaceMesh mesh =
+            is_cloud ? SurfaceMesh(cloud_surface(io::read_cloud_points(*mesh_path).points, {}, {}, *mesh_path).triangulation)
+                     : SurfaceMesh(io::read_mesh(*mesh_path), *mesh_path);
         const Points& x = mesh.polygons().vertices;
         std::vector<double> f(mesh.vertex_count());
         for (std::size_t i = 0; i < f.size(); ++i) {
@@ -258,6 +342,7 @@ void add_curve(CLI::App& app) {
                 }
             src.curves = {src.curves[best]};
         }
+        if (is_cloud) src.curves = snapped_to_points(mesh, src.curves);
         src = damage(src, *harm, *seed);
         std::size_t pieces = 0;
         for (const SurfaceCurve& k : src.curves) pieces += k.nodes.size() - 1;
@@ -269,12 +354,16 @@ void add_curve(CLI::App& app) {
 
 void add_shm_surface(CLI::App& shm) {
     auto* s = shm.add_subcommand(
-        "surface", "Solve on a triangle mesh: geodesic signed distance to (broken) curves and points drawn on it");
+        "surface", "Solve on a triangle mesh or a point cloud: geodesic signed distance to (broken) curves and points "
+                   "drawn on it");
     auto a = std::make_shared<SurfaceArgs>();
-    s->add_option("MESH", a->mesh, "Triangle or polygon mesh (.obj .ply .off .stl)")->required();
+    s->add_option("MESH", a->mesh,
+                  "Triangle or polygon mesh (.obj .ply .off .stl), or a point cloud (a .ply or .obj without faces, "
+                  ".xyz .txt .pc .npy; normals optional): its surface is its points' local Delaunay fans")
+        ->required();
     s->add_option("--curves", a->curves,
                   "Curves on the mesh, one or more files: the curve text format (v/e/f points, l lines) or an "
-                  ".obj's l lines (default: the mesh's own l lines)");
+                  ".obj's l lines (default: the mesh's own l lines). On a cloud: `v i` records, point i");
     s->add_option("--points", a->points, "Isolated points (unsigned distance): v/e/f records of a curve text file");
     s->add_flag("--unsigned", a->is_unsigned, "Treat the curves as unsigned (distance without a side)");
     s->add_option("--level-set", a->level_set,
@@ -304,12 +393,16 @@ void add_shm_surface(CLI::App& shm) {
                 "φ's sign, by PDHG from the solve's φ");
     s->add_option("--iterations", a->sharpening.iterations, "With --sharpen: PDHG iterations (0: 24 × the mesh's diameter in edges)")
         ->check(CLI::Range(0, 1000000))->capture_default_str();
-    s->add_option("-o,--output", a->output, "Output .npy: φ per vertex, float32 (V,), in the mesh's vertex order")->required()->check(output_file({".npy"}));
-    s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex)")->check(output_file({".ply"}));
+    s->add_option("--neighbors", a->cloud.neighbors,
+                  "On a point cloud: neighbours whose Delaunay triangulation in a point's tangent plane gives its fan")
+        ->check(CLI::Range(3, 64))
+        ->capture_default_str();
+    s->add_option("-o,--output", a->output, "Output .npy: φ per vertex (per point of a cloud), float32 (V,), in the input's order")->required()->check(output_file({".npy"}));
+    s->add_option("--colored", a->colored, "Also write the mesh colored by φ (.ply with red green blue and phi per vertex; a cloud: its triangulation)")->check(output_file({".ply"}));
     s->add_option("--isolines", a->isolines, "Also write isolines of φ as .obj polylines (one group per level)")->check(output_file({".obj"}));
     s->add_option("--isoline-spacing", a->isoline_spacing, "Spacing of isolines (default: a round number, ~20 levels; at most 1000 levels)")
         ->check(finite_number())->check(CLI::PositiveNumber);
-    s->add_option("--render", a->render, "Also render a picture (.png): the mesh shaded and colored by φ, isolines, the curves")->check(output_file({".png"}));
+    s->add_option("--render", a->render, "Also render a picture (.png): the mesh shaded and colored by φ, isolines, the curves (a cloud: a disc per point)")->check(output_file({".png"}));
     s->callback([a] { run(*a); });
 }
 

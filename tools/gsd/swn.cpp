@@ -1,5 +1,5 @@
 // `gsd swn`: inside/outside of (broken) curves on a surface — Surface Winding Numbers, or the
-// sign of the surface Signed Heat Method for comparison.
+// sign of the surface Signed Heat Method for comparison — on a mesh or a point cloud.
 #include "cli.hpp"
 
 #include <gsd/io.hpp>
@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <functional>
 #include <map>
+#include <optional>
 
 namespace gsd::cli {
 
@@ -22,6 +23,7 @@ struct SwnArgs {
     std::vector<std::string> curves;
     std::string lp = "reduced", solver = "network", method = "swn";
     SwnOptions options;
+    CloudSurfaceOptions cloud;
 };
 
 /// The bounding, nonbounding and completed curves as OBJ polylines, one group each.
@@ -45,6 +47,18 @@ std::string loops_obj(const SwnResult& r) {
         }
     }
     return out;
+}
+
+/// "0 (61.2 %), 1 (38.8 %)": the labels of a cloud's points and their share of the points.
+std::string point_label_summary(const std::vector<int>& labels) {
+    std::map<int, std::size_t> count;
+    for (int l : labels) ++count[l];
+    std::string s;
+    for (const auto& [label, n] : count) {
+        if (!s.empty()) s += ", ";
+        s += std::to_string(label) + " (" + fmt("%.1f %%", 100.0 * double(n) / double(labels.size())) + " of the points)";
+    }
+    return s;
 }
 
 /// "3 regions: 0 (61.2 %), 1 (38.8 %)": the labels and their share of the area.
@@ -87,7 +101,7 @@ SurfaceSources load_curves(const SwnArgs& a, const SurfaceMesh& mesh) {
 void run(const SwnArgs& a) {
     // A mesh format without curve records needs --curves; anything else (a missing file, a
     // folder, a curve file given as the mesh) gets the reader's own error about MESH below.
-    if (a.curves.empty() && is_curveless_mesh_format(a.mesh))
+    if (a.curves.empty() && io::extension(a.mesh) != ".obj")
         throw CLI::RequiredError("--curves (or an .obj mesh with `l` lines)");
     if (io::extension(a.output) != ".npy") throw CLI::ValidationError("--output", "must be a .npy file");
     if (!a.w.empty() && io::extension(a.w) != ".npy") throw CLI::ValidationError("--w", "must be a .npy file");
@@ -98,8 +112,20 @@ void run(const SwnArgs& a) {
         throw CLI::ValidationError("--method shm", "writes labels only (--w and --loops come from --method swn)");
 
     const auto t0 = std::chrono::steady_clock::now();
-    SurfaceMesh mesh(io::read_mesh(a.mesh), a.mesh);
+    // A point cloud: SWN on its manifold triangulation, the SHM on its fans (as `shm surface`),
+    // labels per point.
+    const bool is_cloud = is_cloud_file(a.mesh);
+    std::optional<SurfaceMesh> fans;
+    Points cloud_normals;
+    SurfaceMesh mesh = [&] {
+        if (!is_cloud) return SurfaceMesh(io::read_mesh(a.mesh), a.mesh);
+        CloudSurface s = cloud_surface(io::read_cloud_points(a.mesh).points, {}, a.cloud, a.mesh);
+        fans.emplace(std::move(s.mesh));
+        cloud_normals = std::move(s.normals);
+        return SurfaceMesh(std::move(s.triangulation), a.mesh);
+    }();
     const SurfaceSources curves = load_curves(a, mesh);
+    if (is_cloud) require_cloud_points(curves, a.curves.empty() ? a.mesh : a.curves.front());
     const double load_seconds = seconds_since(t0);
 
     std::vector<int> labels;
@@ -107,9 +133,12 @@ void run(const SwnArgs& a) {
     Progress progress(shm ? "swn (shm sign)" : "swn");
     naming_file(a.mesh, "mesh", [&] {
         if (shm) {
-            SignedHeatSurface solver(mesh);
+            SignedHeatSurface solver(is_cloud ? *fans : mesh);
             const SurfaceShmResult shm_result = solver.solve(curves, {}, progress.fn());
-            labels = shm_labels(mesh, shm_result.phi);
+            if (is_cloud)
+                for (double phi : shm_result.phi) labels.push_back(phi < 0 ? 1 : 0);
+            else
+                labels = shm_labels(mesh, shm_result.phi);
             if (shm_result.unreached_vertices)
                 note("warning: " + std::to_string(shm_result.unreached_vertices) +
                      " vertices lie in mesh components that no curve reaches: labeled 0 (outside)");
@@ -119,7 +148,7 @@ void run(const SwnArgs& a) {
             o.solver = swn_solver_from_name(a.solver);
             SurfaceWindingNumbers solver(mesh);
             r = solver.solve(curves, o, progress.fn());
-            labels = r.labels;
+            labels = is_cloud ? vertex_labels(mesh, r.labels) : r.labels;
         }
     });
     progress.finish();
@@ -147,10 +176,19 @@ void run(const SwnArgs& a) {
     for (const auto& c : r.w) w.insert(w.end(), c.begin(), c.end());
     const std::string loops = a.loops.empty() ? std::string() : loops_obj(r);
     Image picture;
+    PolygonMesh splats;
     if (!a.render.empty()) {
         SurfacePicture p;
         p.mesh = &mesh.polygons();
         p.face_labels = labels;
+        SurfaceRenderOptions o;
+        if (is_cloud) {  // a disc per point in its label's color
+            splats = splat_mesh(mesh.polygons().vertices, cloud_normals, splat_radii(mesh.polygons().vertices));
+            p.mesh = &splats;
+            p.face_labels.clear();
+            for (int l : labels) p.face_labels.insert(p.face_labels.end(), kSplatVertices - 1, l);
+            o.mark_back_faces = false;
+        }
         if (shm) {
             p.curves.push_back({source_polylines(mesh, curves), {20, 20, 20}, 3.0});
         } else {
@@ -158,7 +196,7 @@ void run(const SwnArgs& a) {
             p.curves.push_back({r.nonbounding, {200, 30, 30}, 3.0});
             p.curves.push_back({r.completed, {230, 150, 0}, 2.0});
         }
-        picture = render_surface(p);
+        picture = render_surface(p, o);
     }
     std::vector<std::pair<std::string, std::function<void()>>> outputs = {
         {a.output, [&] { io::write_npy(a.output, {label32.size()}, label32); }},
@@ -169,7 +207,7 @@ void run(const SwnArgs& a) {
     std::string written;
     for (const auto& [p, write] : outputs)
         if (!p.empty()) written.append(written.empty() ? "" : ", ").append(p);
-    note("wrote " + written + "; labels: " + label_summary(mesh, labels));
+    note("wrote " + written + "; labels: " + (is_cloud ? point_label_summary(labels) : label_summary(mesh, labels)));
 }
 
 }  // namespace
@@ -178,16 +216,22 @@ void add_swn(CLI::App& app) {
     auto* s = app.add_subcommand("swn", "Surface Winding Numbers (thesis ch. 6): inside/outside of broken curves on a "
                                         "surface of any topology, as integer labels per face");
     auto a = std::make_shared<SwnArgs>();
-    s->add_option("MESH", a->mesh, "Triangle or polygon mesh (.obj .ply .off .stl); manifold and oriented for --method swn")
+    s->add_option("MESH", a->mesh,
+                  "Triangle or polygon mesh (.obj .ply .off .stl), manifold and oriented for --method swn; or a point "
+                  "cloud (a file without faces; normals optional): SWN runs on its triangulation, labels per point")
         ->required();
     s->add_option("--curves", a->curves,
                   "Oriented curves on the mesh, one or more files: the curve text format (v/e/f points, l lines) "
                   "or an .obj's l lines (default: the mesh's own l lines)");
     s->add_option("-o,--output", a->output,
-                  "Output .npy: int32 label per input face (+1 left of a counter-clockwise loop, 0 outside)")
+                  "Output .npy: int32 label per input face (+1 left of a counter-clockwise loop, 0 outside); per point "
+                  "for a cloud")
         ->required()
         ->check(output_file({".npy"}));
-    s->add_option("--w", a->w, "Also write w per triangle corner, float32 (T, 3) (T = faces for a triangle mesh)")
+    s->add_option("--neighbors", a->cloud.neighbors, "On a point cloud: neighbours of each point's Delaunay fan (gsd shm surface)")
+        ->check(CLI::Range(3, 64))
+        ->capture_default_str();
+    s->add_option("--w", a->w, "Also write w per triangle corner, float32 (T, 3) (T = faces for a triangle mesh; a cloud: its triangulation's)")
         ->check(output_file({".npy"}));
     s->add_option("--method", a->method,
                   "swn: winding numbers; shm: the sign of the surface Signed Heat Method (1 where φ < 0), often "
