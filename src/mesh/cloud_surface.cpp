@@ -155,6 +155,20 @@ void orient_normals(const Points& p, const Neighborhoods& n, Points& normals, co
     }
 }
 
+/// Replaces each (oriented) normal by the mean of its own and its neighbours' (normalized):
+/// noise of the order of the spacing tilts single fits enough that neighbouring fans, each in
+/// its own tangent plane, stop agreeing; the mean over ~30 fits tilts √30 times less, and on a
+/// smooth surface sampled finely enough it is the normal at the point.
+void smooth_normals(const Neighborhoods& n, Points& normals) {
+    const Points fits = normals;
+#pragma omp parallel for schedule(static)
+    for (Eigen::Index i = 0; i < normals.rows(); ++i) {
+        Eigen::Vector3d sum = fits.row(i).transpose();
+        for (int j = 0; j < n.k && n.at(std::size_t(i), j) != UINT32_MAX; ++j) sum += fits.row(n.at(std::size_t(i), j)).transpose();
+        if (sum.norm() > 1e-12) normals.row(i) = sum.normalized().transpose();
+    }
+}
+
 /// The Voronoi cell of the origin among points q_j of the plane, as a convex polygon whose
 /// edges remember which q_j's bisector they lie on (−1: the bounding square). Built by
 /// clipping the square with one half-plane per point, nearest first.
@@ -333,13 +347,60 @@ int votes_for(const std::vector<TriangleSupport>& by_key, const std::array<std::
     return it != by_key.end() && it->key == key ? it->count : 0;
 }
 
+/// The wedge each accepted triangle takes around each of its corners, as an angle interval in
+/// that corner's tangent plane. A triangle whose wedge would overlap one already taken at some
+/// corner is refused: that is how two fans' disagreeing triangles would otherwise stack up
+/// around a point and give the surface a handle (seen on noisy clouds).
+class Wedges {
+public:
+    Wedges(const Points& p, const Points& normals) : p_(p), n_(normals), taken_(std::size_t(p.rows())) {}
+
+    bool fits(const Triangle& t) const {
+        for (int k = 0; k < 3; ++k) {
+            const Wedge w = wedge(t, k);
+            for (const Wedge& o : taken_[t[std::size_t(k)]])
+                if (overlap(w, o)) return false;
+        }
+        return true;
+    }
+    void take(const Triangle& t) {
+        for (int k = 0; k < 3; ++k) taken_[t[std::size_t(k)]].push_back(wedge(t, k));
+    }
+
+private:
+    struct Wedge {
+        double start, width;  // counter-clockwise around the normal, radians
+    };
+    static constexpr double kTwoPi = 6.283185307179586;
+    /// A sliver of overlap (rounding, nearly flat wedges) is allowed.
+    static constexpr double kSlack = 1e-3;
+
+    Wedge wedge(const Triangle& t, int k) const {
+        const std::uint32_t v = t[std::size_t(k)], a = t[std::size_t((k + 1) % 3)], b = t[std::size_t((k + 2) % 3)];
+        const Eigen::Vector3d n = n_.row(v).transpose();
+        const Eigen::Vector3d u = n.unitOrthogonal(), w = n.cross(u);
+        const Eigen::Vector3d da = (p_.row(a) - p_.row(v)).transpose(), db = (p_.row(b) - p_.row(v)).transpose();
+        const double sa = std::atan2(da.dot(w), da.dot(u)), sb = std::atan2(db.dot(w), db.dot(u));
+        return {sa, std::fmod(sb - sa + 2 * kTwoPi, kTwoPi)};
+    }
+    static bool overlap(const Wedge& x, const Wedge& y) {
+        const double xy = std::fmod(y.start - x.start + 2 * kTwoPi, kTwoPi);  // y's start seen from x's
+        const double yx = std::fmod(x.start - y.start + 2 * kTwoPi, kTwoPi);
+        return xy < x.width - kSlack || yx < y.width - kSlack;
+    }
+
+    const Points& p_;
+    const Points& n_;
+    std::vector<std::vector<Wedge>> taken_;
+};
+
 /// Fills a hole (its loop of points, in the order that runs along the existing triangles'
 /// edges reversed, so triangles made from consecutive points face the same side as their
 /// neighbours) by clipping ears, each time the ear most fans proposed, then the one with the
 /// shortest new edge; never adds an edge the mesh already has (that would make it nonmanifold).
 /// Returns false, adding nothing, when it cannot.
 bool fill_hole(std::vector<std::uint32_t> loop, const Points& p, const std::vector<TriangleSupport>& votes,
-               HalfedgeSet& edges, std::vector<Triangle>& out) {
+               HalfedgeSet& edges, Wedges& wedges, bool check_wedges, std::vector<Triangle>& out) {
     std::vector<Triangle> made;
     std::vector<std::pair<std::uint32_t, std::uint32_t>> added;  // new diagonals, marked while clipping
     auto undo = [&] {
@@ -353,7 +414,7 @@ bool fill_hole(std::vector<std::uint32_t> loop, const Points& p, const std::vect
         double best_length = INFINITY;
         for (std::size_t k = 0; k < n; ++k) {
             const std::uint32_t a = loop[(k + n - 1) % n], b = loop[k], c = loop[(k + 1) % n];
-            if (a == c || edges.has_either(a, c)) continue;
+            if (a == c || edges.has_either(a, c) || (check_wedges && !wedges.fits({a, b, c}))) continue;
             const int count = votes_for(votes, sorted({a, b, c}));
             const double length = (p.row(a) - p.row(c)).norm();
             if (count > best_votes || (count == best_votes && length < best_length))
@@ -366,10 +427,15 @@ bool fill_hole(std::vector<std::uint32_t> loop, const Points& p, const std::vect
         added.push_back({c, a});
         loop.erase(loop.begin() + std::ptrdiff_t(best));
     }
-    if (loop[0] == loop[1] || loop[1] == loop[2] || loop[0] == loop[2]) return undo();
+    if (loop[0] == loop[1] || loop[1] == loop[2] || loop[0] == loop[2] ||
+        (check_wedges && !wedges.fits({loop[0], loop[1], loop[2]})))
+        return undo();
     made.push_back({loop[0], loop[1], loop[2]});
     out.insert(out.end(), made.begin(), made.end());
-    for (const Triangle& t : made) edges.add(t);
+    for (const Triangle& t : made) {
+        edges.add(t);
+        wedges.take(t);
+    }
     return true;
 }
 
@@ -378,7 +444,8 @@ bool fill_hole(std::vector<std::uint32_t> loop, const Points& p, const std::vect
 /// if none of its edges already runs its way and none already has two triangles. The holes
 /// left — where fans disagree, as across four nearly cocircular points — are filled when their
 /// loop has at most `max_hole` points; larger loops are the cloud's own boundary and stay open.
-std::vector<Triangle> agreed_triangulation(const Points& p, const std::vector<std::vector<Triangle>>& fans, std::size_t max_hole) {
+std::vector<Triangle> agreed_triangulation(const Points& p, const Points& normals, const std::vector<std::vector<Triangle>>& fans,
+                                           std::size_t max_hole) {
     const std::vector<TriangleSupport> votes = support(fans);  // sorted by key
     std::vector<TriangleSupport> candidates = votes;
     auto longest_side = [&](const TriangleSupport& t) {
@@ -390,13 +457,15 @@ std::vector<Triangle> agreed_triangulation(const Points& p, const std::vector<st
     });
     std::vector<Triangle> tris;
     HalfedgeSet edges;
+    Wedges wedges(p, normals);
     for (const TriangleSupport& t : candidates) {
         if (t.count < 2) break;
         bool taken = false;
         for (int k = 0; k < 3; ++k) taken |= edges.has(t.oriented[std::size_t(k)], t.oriented[std::size_t((k + 1) % 3)]);
-        if (taken) continue;
+        if (taken || !wedges.fits(t.oriented)) continue;
         tris.push_back(t.oriented);
         edges.add(t.oriented);
+        wedges.take(t.oriented);
     }
     // Hole loops run along boundary halfedges reversed: a → b on a triangle, nothing b → a.
     std::map<std::uint32_t, std::vector<std::uint32_t>> hole_next;  // b → a for each boundary a → b
@@ -434,7 +503,11 @@ std::vector<Triangle> agreed_triangulation(const Points& p, const std::vector<st
             if (closed && loop.size() >= 3) loops.push_back(std::move(loop));
         }
 
-    for (const auto& loop : loops) fill_hole(loop, p, votes, edges, tris);
+    // A hole no ear fits without overlapping a wedge (noisy clouds: the tangent planes
+    // disagree) is still filled: a small fold is better than a hole, which SWN and level sets
+    // would read as boundary.
+    for (const auto& loop : loops)
+        if (!fill_hole(loop, p, votes, edges, wedges, true, tris)) fill_hole(loop, p, votes, edges, wedges, false, tris);
 
     return tris;
 }
@@ -460,6 +533,7 @@ CloudSurface cloud_surface(const Points& points, const Points& normals, const Cl
 #pragma omp parallel for schedule(static)
     for (Eigen::Index i = 0; i < points.rows(); ++i) fitted.row(i) = fitted_normal(points, n, std::size_t(i)).transpose();
     orient_normals(points, n, fitted, normals);
+    smooth_normals(n, fitted);
 
     std::vector<std::vector<Triangle>> fans(N);
 #pragma omp parallel for schedule(dynamic, 256)
@@ -475,7 +549,7 @@ CloudSurface cloud_surface(const Points& points, const Points& normals, const Cl
         for (const Triangle& t : f) mesh.add_face(t.data(), 3);
     PolygonMesh agreed;
     agreed.vertices = points;
-    for (const Triangle& t : agreed_triangulation(points, fans, kMaxFilledHole)) agreed.add_face(t.data(), 3);
+    for (const Triangle& t : agreed_triangulation(points, fitted, fans, kMaxFilledHole)) agreed.add_face(t.data(), 3);
     return CloudSurface{SurfaceMesh(std::move(mesh), where), std::move(fitted), std::move(agreed)};
 }
 
