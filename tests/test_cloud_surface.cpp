@@ -274,9 +274,16 @@ TEST_CASE("cloud surface: random samples — SHM on the fans is as accurate as o
 }
 
 TEST_CASE("cloud surface: the triangulation of a torus has its genus; SWN on the cloud labels as on the mesh") {
-    // A torus mesh whose vertices are moved along the surface by up to a quarter of a spacing:
-    // sampled unevenly, as a scan would be (an exact parametric grid projects differently into
-    // each point's tangent plane, and its fans can disagree throughout: docs/shm-surface.md).
+    // An exact parametric grid: each point's tangent plane bends its squares differently, so
+    // fans disagree on every other one (no triangle has all three votes); the triangulation
+    // still closes into a torus.
+    const SurfaceMesh grid(cloud_surface(shapes::torus_mesh(72, 32).vertices).triangulation);
+    CHECK(grid.summary().euler_characteristic == 0);
+    CHECK(grid.summary().boundary_edges == 0);
+    CHECK(grid.triangle_count() == 2 * 72 * 32);
+
+    // The same torus with its vertices moved along the surface by up to a quarter of a spacing:
+    // sampled unevenly, as a scan would be.
     PolygonMesh torus = shapes::torus_mesh(72, 32);
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> jitter(-0.25, 0.25);

@@ -440,10 +440,13 @@ bool fill_hole(std::vector<std::uint32_t> loop, const Points& p, const std::vect
 }
 
 /// A manifold, consistently oriented mesh from the fans: triangles taken greedily, those more
-/// fans proposed first (three: all their corners agree; two), then the more compact, each only
-/// if none of its edges already runs its way and none already has two triangles. The holes
-/// left — where fans disagree, as across four nearly cocircular points — are filled when their
-/// loop has at most `max_hole` points; larger loops are the cloud's own boundary and stay open.
+/// fans proposed first (three: all their corners agree), then the more compact, each only if
+/// none of its edges already runs its way and its wedge at each corner overlaps none taken
+/// there. Triangles only one fan proposed come last but still count: on a parametric grid of a
+/// curved surface, every other square is split one way by two of its corners' fans and the
+/// other way by the other two, so no triangle of it has more than one vote. The holes left are
+/// filled when their loop has at most `max_hole` points; larger loops are the cloud's own
+/// boundary and stay open.
 std::vector<Triangle> agreed_triangulation(const Points& p, const Points& normals, const std::vector<std::vector<Triangle>>& fans,
                                            std::size_t max_hole) {
     const std::vector<TriangleSupport> votes = support(fans);  // sorted by key
@@ -459,7 +462,6 @@ std::vector<Triangle> agreed_triangulation(const Points& p, const Points& normal
     HalfedgeSet edges;
     Wedges wedges(p, normals);
     for (const TriangleSupport& t : candidates) {
-        if (t.count < 2) break;
         bool taken = false;
         for (int k = 0; k < 3; ++k) taken |= edges.has(t.oriented[std::size_t(k)], t.oriented[std::size_t((k + 1) % 3)]);
         if (taken || !wedges.fits(t.oriented)) continue;

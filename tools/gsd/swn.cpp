@@ -155,6 +155,14 @@ void run(const SwnArgs& a) {
     if (globals().verbose) {
         note("mesh: " + std::to_string(mesh.vertex_count()) + " vertices, " + std::to_string(mesh.face_count()) +
              " faces; load " + fmt("%.3f s", load_seconds));
+        if (is_cloud) {
+            // Holes and handles where the fans disagree (noise) change what SWN reads as
+            // boundary and as loops around handles: say what the triangulation came out as.
+            const SurfaceMesh::Summary t = mesh.summary();
+            note("cloud triangulation: " + std::to_string(t.components) + " components, Euler characteristic " +
+                 std::to_string(t.euler_characteristic) + ", " + std::to_string(t.boundary_edges) + " boundary edges, " +
+                 std::to_string(t.unreferenced_vertices) + " points on no triangle");
+        }
         if (!shm) {
             note(std::string(r.simply_connected ? "every component a disk or sphere: no residual step"
                                                 : "not simply connected: residual by the " + a.lp + " program") +
