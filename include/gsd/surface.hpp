@@ -87,8 +87,8 @@ struct CloudSurfaceOptions {
     /// neighbours, projected to its tangent plane. On random sampling a point's Delaunay
     /// neighbours are not always among its 12 nearest: with too few, fans gain triangles that
     /// overlap their neighbours' (measured on a random sphere of 5000 points: ε 2.4× at 12,
-    /// 1.0× from 16 on) and the triangulation gains holes and handles (exact from ~30 on
-    /// 5000–50000 points). More only costs time. 3 to 64.
+    /// 1.0× from 16 on) and the triangulation can gain holes and handles. More only costs
+    /// time. 3 to 64.
     int neighbors = 30;
 };
 
@@ -99,9 +99,9 @@ struct CloudSurfaceOptions {
 /// fans disagree, which the surface Signed Heat Method takes as it is. `normals` are the fitted
 /// tangent planes' unit normals, oriented consistently over each connected piece of the cloud.
 /// `triangulation` is a manifold, consistently oriented mesh of the same points, for what needs
-/// one (Surface Winding Numbers, level sets, pictures): the triangles all three corners' fans
-/// agree on, with the holes between them (where fans disagree) filled up to kMaxFilledHole
-/// points around; larger loops are the cloud's own boundary.
+/// one (Surface Winding Numbers, level sets, pictures): fan triangles taken greedily, those more
+/// fans proposed first, none overlapping another around a point, and the holes left filled up
+/// to kMaxFilledHole points around; larger loops are the cloud's own boundary.
 struct CloudSurface {
     SurfaceMesh mesh;
     Points normals;
