@@ -611,9 +611,10 @@ TEST_CASE("unoriented clouds: read_cloud_points reads every cloud format with or
         {"a.obj", "v 1 2 3\nv 4 5 6\nv 7 8 10\nf 1 2 3\n"},
         {"a.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                   "end_header\n1 2 3\n4 5 6\n7 8 10\n"}};
-    for (const auto& [name, content] : files) {
+    for (const auto& file : files) {
+        const std::string& name = file.first;
         CAPTURE(name);
-        write_bytes(dir.file(name), content);
+        write_bytes(dir.file(name), file.second);
         const PointCloud c = io::read_cloud_points(dir.file(name));
         CHECK(c.normals.rows() == 0);
         CHECK(c.points == expected);
