@@ -2,10 +2,12 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <numbers>
 #include <random>
 #include <sys/wait.h>
 
@@ -56,6 +58,23 @@ RunResult run_shell(const std::string& command) {
 RunResult run_cli(const std::string& args) { return run_shell(std::string(GSD_CLI) + " " + args); }
 
 std::string shared_data(const std::string& relative) { return std::string(GSD_SHARED_DATA) + "/" + relative; }
+
+std::vector<double> polygon_sdf(const Points& x, const std::vector<Eigen::Vector2d>& P) {
+    std::vector<double> d(std::size_t(x.rows()));
+    for (Eigen::Index i = 0; i < x.rows(); ++i) {
+        const Eigen::Vector2d p(x(i, 0), x(i, 1));
+        double dist = INFINITY, winding = 0;
+        for (std::size_t k = 0; k + 1 < P.size(); ++k) {
+            const Eigen::Vector2d e = P[k + 1] - P[k];
+            const double t = std::clamp((p - P[k]).dot(e) / e.squaredNorm(), 0.0, 1.0);
+            dist = std::min(dist, (p - P[k] - t * e).norm());
+            const Eigen::Vector2d a = P[k] - p, b = P[k + 1] - p;
+            winding += std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b));
+        }
+        d[std::size_t(i)] = std::abs(winding) > std::numbers::pi ? -dist : dist;
+    }
+    return d;
+}
 
 void write_bytes(const std::string& path, const std::string& bytes) {
     std::ofstream f(path, std::ios::binary);

@@ -43,6 +43,10 @@ std::string shared_data(const std::string& relative);
 /// Van Oosterom–Strackee, / 4π), written here apart from the library as an independent reference.
 std::vector<double> brute_force_winding(const PolygonMesh& mesh, const Points& queries);
 
+/// Exact signed distance in the plane z = 0 to a closed polygon (P[0] repeated at the end),
+/// negative inside, at each point's projection.
+std::vector<double> polygon_sdf(const Points& x, const std::vector<Eigen::Vector2d>& P);
+
 /// Writes raw bytes to a file (for hand-made malformed inputs).
 void write_bytes(const std::string& path, const std::string& bytes);
 

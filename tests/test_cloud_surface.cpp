@@ -17,6 +17,7 @@
 #include <random>
 
 using namespace gsd;
+using test::polygon_sdf;
 
 namespace {
 
@@ -93,25 +94,6 @@ SurfaceCurve vertex_loop(const SurfaceMesh& mesh, const std::vector<double>& f) 
     }
     if (loop.nodes.front().index != loop.nodes.back().index) loop.nodes.push_back(loop.nodes.front());
     return loop;
-}
-
-/// Exact signed distance in the plane z = 0 to a closed polygon (negative inside), at each
-/// point's projection.
-std::vector<double> polygon_sdf(const Points& x, const std::vector<Eigen::Vector2d>& P) {
-    std::vector<double> d(std::size_t(x.rows()));
-    for (Eigen::Index i = 0; i < x.rows(); ++i) {
-        const Eigen::Vector2d p(x(i, 0), x(i, 1));
-        double dist = INFINITY, winding = 0;
-        for (std::size_t k = 0; k + 1 < P.size(); ++k) {
-            const Eigen::Vector2d e = P[k + 1] - P[k];
-            const double t = std::clamp((p - P[k]).dot(e) / e.squaredNorm(), 0.0, 1.0);
-            dist = std::min(dist, (p - P[k] - t * e).norm());
-            const Eigen::Vector2d a = P[k] - p, b = P[k + 1] - p;
-            winding += std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b));
-        }
-        d[std::size_t(i)] = std::abs(winding) > 3.14159 ? -dist : dist;
-    }
-    return d;
 }
 
 struct Comparison {

@@ -23,32 +23,11 @@
 #include <random>
 
 using namespace gsd;
+using test::polygon_sdf;
 
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-
-double segment_distance(const Eigen::Vector2d& p, const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
-    const Eigen::Vector2d d = b - a;
-    const double t = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
-    return (p - a - t * d).norm();
-}
-
-/// Exact signed distance to a closed polygon in the plane z = 0 (negative inside).
-std::vector<double> polygon_sdf(const Points& x, const std::vector<Eigen::Vector2d>& P) {
-    std::vector<double> d(std::size_t(x.rows()));
-    for (Eigen::Index i = 0; i < x.rows(); ++i) {
-        const Eigen::Vector2d p(x(i, 0), x(i, 1));
-        double dist = INFINITY, winding = 0;
-        for (std::size_t k = 0; k + 1 < P.size(); ++k) {
-            dist = std::min(dist, segment_distance(p, P[k], P[k + 1]));
-            const Eigen::Vector2d a = P[k] - p, b = P[k + 1] - p;
-            winding += std::atan2(a.x() * b.y() - a.y() * b.x(), a.dot(b));
-        }
-        d[std::size_t(i)] = std::abs(winding) > kPi ? -dist : dist;
-    }
-    return d;
-}
 
 /// The triangle of a planar mesh holding p, as a surface point.
 SurfacePoint locate_in_plane(const SurfaceMesh& mesh, const Eigen::Vector2d& p) {

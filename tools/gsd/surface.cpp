@@ -315,9 +315,12 @@ void add_curve(CLI::App& app) {
     c->callback([=] {
         if (plane->empty() && sphere->empty()) throw CLI::RequiredError("--plane or --sphere");
         const bool is_cloud = is_cloud_file(*mesh_path);
-        const SurfaceMesh mesh =
-            is_cloud ? SurfaceMesh(cloud_surface(io::read_cloud_points(*mesh_path).points, {}, {}, *mesh_path).triangulation)
-                     : SurfaceMesh(io::read_mesh(*mesh_path), *mesh_path);
+        const SurfaceMesh mesh = [&] {
+            if (!is_cloud) return SurfaceMesh(io::read_mesh(*mesh_path), *mesh_path);
+            // The file's normals, if any, orient the triangulation as shm surface and swn will.
+            const PointCloud cloud = io::read_cloud_points(*mesh_path);
+            return SurfaceMesh(cloud_surface(cloud.points, cloud.normals, {}, *mesh_path).triangulation);
+        }();
         const Points& x = mesh.polygons().vertices;
         std::vector<double> f(mesh.vertex_count());
         for (std::size_t i = 0; i < f.size(); ++i) {

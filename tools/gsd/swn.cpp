@@ -119,7 +119,8 @@ void run(const SwnArgs& a) {
     Points cloud_normals;
     SurfaceMesh mesh = [&] {
         if (!is_cloud) return SurfaceMesh(io::read_mesh(a.mesh), a.mesh);
-        CloudSurface s = cloud_surface(io::read_cloud_points(a.mesh).points, {}, a.cloud, a.mesh);
+        const PointCloud cloud = io::read_cloud_points(a.mesh);  // normals, if any, set the side (as shm surface)
+        CloudSurface s = cloud_surface(cloud.points, cloud.normals, a.cloud, a.mesh);
         fans.emplace(std::move(s.mesh));
         cloud_normals = std::move(s.normals);
         return SurfaceMesh(std::move(s.triangulation), a.mesh);
