@@ -601,7 +601,7 @@ PYBIND11_MODULE(_gsd, m) {
        "fitted normals, oriented consistently (normals given: their majority sign). As gsd.signed_heat_surface and "
        "gsd.surface_winding_numbers use it with faces=None.");
     m.def("signed_heat_surface", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
-                                    double t_coef, int neighbors) {
+                                    double t_coef, int neighbors, bool filter_nonbounding) {
         PolygonMesh mesh;
         Points cloud;
         if (faces.is_none()) cloud = points_from(vertices, "vertices");
@@ -609,9 +609,17 @@ PYBIND11_MODULE(_gsd, m) {
         py::gil_scoped_release nogil;
         CloudSurfaceOptions o;
         o.neighbors = neighbors;
-        SurfaceMesh surface = faces.is_none() ? cloud_surface(cloud, {}, o, "points").mesh : SurfaceMesh(std::move(mesh), "mesh");
-        const SurfaceSources sources = read_surface_curves(curves, surface);
-        if (faces.is_none()) require_cloud_points(sources, curves);
+        std::optional<CloudSurface> cs;
+        if (faces.is_none()) cs = cloud_surface(cloud, {}, o, "points");
+        SurfaceMesh surface = cs ? std::move(cs->mesh) : SurfaceMesh(std::move(mesh), "mesh");
+        SurfaceSources sources = read_surface_curves(curves, surface);
+        if (cs) require_cloud_points(sources, curves);
+        if (filter_nonbounding) {
+            // SWN's decomposition (a cloud: on its manifold triangulation, the same vertices).
+            const SwnResult w = SurfaceWindingNumbers(cs ? SurfaceMesh(cs->triangulation, "points") : surface).solve(sources);
+            if (w.bounding_curves.curves.empty()) throw Error(curves, "every curve bounds nothing: no inside to sign the distance by");
+            sources.curves = w.bounding_curves.curves;
+        }
         SurfaceShmSetup setup;
         setup.t_coef = t_coef;
         SurfaceShmResult r = SignedHeatSurface(std::move(surface), setup).solve(sources);
@@ -619,9 +627,39 @@ PYBIND11_MODULE(_gsd, m) {
         const py::ssize_t n = py::ssize_t(r.phi.size());
         return to_numpy(std::move(r.phi), {n});
     }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("t_coef") = 1.0,
-       py::arg("neighbors") = CloudSurfaceOptions{}.neighbors,
+       py::arg("neighbors") = CloudSurfaceOptions{}.neighbors, py::arg("filter_nonbounding") = false,
        "Signed distance per vertex to the curves in a file (docs/formats.md), by the surface Signed Heat Method. "
-       "faces=None: vertices are a point cloud (curves name its points), φ per point.");
+       "faces=None: vertices are a point cloud (curves name its points), φ per point. filter_nonbounding: leave out "
+       "the parts of the curves that bound nothing (Surface Winding Numbers' decomposition), as the CLI's "
+       "--filter-nonbounding.");
+    m.def("discontinuous_distance", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
+                                       double t_coef) {
+        PolygonMesh mesh = mesh_from(vertices, faces);
+        py::gil_scoped_release nogil;
+        SurfaceMesh surface(std::move(mesh), "mesh");
+        const SurfaceSources sources = read_surface_curves(curves, surface);
+        SurfaceShmSetup setup;
+        setup.t_coef = t_coef;
+        SurfaceShmOptions o;
+        o.integration = SurfaceIntegration::L1;
+        SurfaceShmResult r = SignedHeatSurface(std::move(surface), setup).solve(sources, o);
+        std::vector<double> corners;
+        corners.reserve(3 * r.corner_phi.size());
+        for (const auto& c : r.corner_phi) corners.insert(corners.end(), c.begin(), c.end());
+        py::gil_scoped_acquire gil;
+        const py::ssize_t n = py::ssize_t(r.phi.size()), t = py::ssize_t(r.corner_phi.size());
+        py::list jumps;
+        for (const Polyline& line : r.jumps) {
+            std::vector<double> xyz;
+            for (const Eigen::Vector3d& x : line) xyz.insert(xyz.end(), {x.x(), x.y(), x.z()});
+            const py::ssize_t k = py::ssize_t(line.size());
+            jumps.append(to_numpy(std::move(xyz), {k, 3}));
+        }
+        return py::make_tuple(to_numpy(std::move(r.phi), {n}), to_numpy(std::move(corners), {t, 3}), jumps);
+    }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("t_coef") = 1.0,
+       "(phi (V,), corner_phi (T,3), jumps: list of (k,3) polylines): the surface Signed Heat Method with L1 "
+       "integration (the CLI's --integrate l1): around curves that bound nothing φ jumps along the cheapest loop "
+       "instead of warping; corner_phi holds both sides of a jump (T: the mesh's triangles, polygons fanned).");
     m.def("surface_winding_numbers", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
                                         const std::string& lp, const std::string& lp_solver, double curve_weight,
                                         bool boundary_aware) {

@@ -175,6 +175,9 @@ if [ "$what" = all ] || [ "$what" = surface ]; then
     build/bin/gsd-surface-bench accuracy --work "$work/acc"
   fi
   echo
+  echo "== Signed Heat Method on surfaces: curves that bound nothing (L1 integration)"
+  build/bin/gsd-surface-bench nonbounding
+  echo
   echo "== Signed Heat Method on surfaces: time and memory vs mesh size"
   build/bin/gsd-surface-bench timing --levels "${GSD_BENCH_SURFACE_LEVELS:-4,5,6,7,8}"
   if [ -n "$ref" ]; then

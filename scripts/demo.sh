@@ -73,6 +73,17 @@ surf_mesh="$out/torus-mesh.ply"
 "$gsd" curve "$surf_mesh" --sphere 0.39 0.31 0.2 0.28 --break 0.4 --gaps 3 --seed 4 -o "$out/torus-cut.txt"
 "$gsd" -v shm surface "$surf_mesh" --curves "$out/torus-cut.txt" -o "$out/surface-phi.npy" \
   --render "$out/surface-phi.png" --isolines "$out/surface-isolines.obj" --colored "$out/surface-phi.ply"
+# A loop around the tube bounds nothing (docs/shm-surface.md): the L² distance warps, the L1 one
+# jumps on the far side; --filter-nonbounding drops the loop and measures to a small loop beside it.
+surf_nb="$out/torus-64.obj"
+"$gsd" mesh torus -r 64 -o "$surf_nb"
+"$gsd" curve "$surf_nb" --plane 0 1 0 0 --near 0.5 0 0 -o "$out/meridian.txt"
+"$gsd" curve "$surf_nb" --sphere 0.2 0.62 0.15 0.2 -o "$out/small-loop.txt"
+"$gsd" shm surface "$surf_nb" --curves "$out/meridian.txt" -o "$out/meridian-l2.npy" --render "$out/meridian-l2.png"
+"$gsd" -v shm surface "$surf_nb" --curves "$out/meridian.txt" --integrate l1 -o "$out/meridian-l1.npy" \
+  --corners "$out/meridian-l1-corners.npy" --jumps "$out/meridian-jumps.obj" --render "$out/meridian-l1.png"
+"$gsd" shm surface "$surf_nb" --curves "$out/meridian.txt" "$out/small-loop.txt" --filter-nonbounding \
+  -o "$out/filtered.npy" --render "$out/filtered.png"
 surf_cloud="$out/torus-cloud.ply"
 "$gsd" sample torus -n 20000 --seed 3 -o "$surf_cloud"
 "$gsd" curve "$surf_cloud" --sphere 0.5 0 0.2 0.25 --break 0.3 --seed 4 -o "$out/cloud-cut.txt"
@@ -118,6 +129,10 @@ SHM on a surface (input: $surf_mesh and $out/torus-cut.txt, a closed curve with 
   isolines             $out/surface-isolines.obj
   colored mesh         $out/surface-phi.ply
   on a point cloud     $out/cloud-phi.npy (φ per point of $surf_cloud), $out/cloud-phi.png
+  no inside (a loop around the tube of $surf_nb):
+    L² (warped)        $out/meridian-l2.png
+    L1 (jumps)         $out/meridian-l1.npy, $out/meridian-l1-corners.npy (per corner), $out/meridian-jumps.obj, $out/meridian-l1.png
+    loop left out      $out/filtered.npy, $out/filtered.png (distance to the small loop only)
 
 SWN on a double torus (input: $swn_mesh; a region's boundary and a loop around each handle, 30% cut):
   labels per face      $out/swn-labels.npy    (int32: 1 inside the region, 0 outside)

@@ -10,6 +10,7 @@
 #include "support.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -78,6 +79,70 @@ TEST_CASE("shm surface: the modes and options run from the command line") {
     double lowest = INFINITY;
     for (double x : io::read_npy(dir.file("u.npy")).data) lowest = std::min(lowest, x);
     CHECK(lowest > -0.05);
+}
+
+TEST_CASE("shm surface --integrate l1: φ per corner and the jumps around a torus' tube") {
+    ScratchDir dir("cli-surface-l1");
+    const std::string mesh = dir.file("torus.obj"), curve = dir.file("meridian.txt");
+    REQUIRE(run_cli("mesh torus -r 24 -o " + mesh).exit_code == 0);
+    REQUIRE(run_cli("curve " + mesh + " --plane 0 1 0 0 --near 0.5 0 0 -o " + curve).exit_code == 0);
+    const std::string base = "shm surface " + mesh + " --curves " + curve + " -o " + dir.file("phi.npy");
+    const auto r = run_cli(base + " --integrate l1 --corners " + dir.file("c.npy") + " --jumps " + dir.file("j.obj") +
+                           " --render " + dir.file("p.png") + " --isolines " + dir.file("i.obj") + " --colored " +
+                           dir.file("c.ply") + " -v");
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    CHECK(r.output.find("L1 integration: φ jumps along 1 polylines") != std::string::npos);
+    const SurfaceMesh surface(io::read_mesh(mesh));
+    const io::NpyArray corners = io::read_npy(dir.file("c.npy"));
+    REQUIRE(corners.shape == std::vector<std::size_t>{surface.triangle_count(), 3});
+    // The jump: one closed polyline on the far side of the tube (x < 0), φ higher on its left.
+    std::ifstream obj(dir.file("j.obj"));
+    std::string line;
+    int points = 0, lines = 0;
+    while (std::getline(obj, line)) {
+        double x, y, z;
+        if (std::sscanf(line.c_str(), "v %lf %lf %lf", &x, &y, &z) == 3) {
+            ++points;
+            CHECK(x < -0.2);
+        }
+        lines += line.rfind("l ", 0) == 0;
+    }
+    CHECK(points > 8);
+    CHECK(lines == 1);
+    // The colored mesh has a vertex per triangle corner, so the jump shows.
+    CHECK(io::read_mesh(dir.file("c.ply")).vertices.rows() == Eigen::Index(3 * surface.triangle_count()));
+    CHECK(test::file_exists(dir.file("p.png")));
+    CHECK(test::file_exists(dir.file("i.obj")));
+    // Options that need L1 integration, or that it excludes.
+    for (const std::string& bad : std::vector<std::string>{" --corners " + dir.file("x.npy"), " --jumps " + dir.file("x.obj"),
+                                  " --integrate l1 --sharpen", " --integrate l3"}) {
+        const auto e = run_cli(base + bad);
+        CHECK_MESSAGE(e.exit_code != 0, bad);
+        CHECK_FALSE(test::file_exists(dir.file("x.npy")));
+        CHECK_FALSE(test::file_exists(dir.file("x.obj")));
+    }
+}
+
+TEST_CASE("shm surface --filter-nonbounding: the loop around the tube left out, the distance to the rest") {
+    ScratchDir dir("cli-surface-filter");
+    const std::string mesh = dir.file("torus.obj"), meridian = dir.file("m.txt"), loop = dir.file("loop.txt");
+    REQUIRE(run_cli("mesh torus -r 24 -o " + mesh).exit_code == 0);
+    REQUIRE(run_cli("curve " + mesh + " --plane 0 1 0 0 --near -0.5 0 0 -o " + meridian).exit_code == 0);
+    REQUIRE(run_cli("curve " + mesh + " --sphere 0.7 0 0 0.15 -o " + loop).exit_code == 0);
+    const auto r = run_cli("shm surface " + mesh + " --curves " + meridian + " " + loop + " --filter-nonbounding -o " +
+                           dir.file("f.npy") + " --render " + dir.file("f.png"));
+    REQUIRE_MESSAGE(r.exit_code == 0, r.output);
+    CHECK(r.output.find("1 nonbounding polylines left out") != std::string::npos);
+    REQUIRE(run_cli("shm surface " + mesh + " --curves " + loop + " -o " + dir.file("loop.npy")).exit_code == 0);
+    const io::NpyArray filtered = io::read_npy(dir.file("f.npy")), direct = io::read_npy(dir.file("loop.npy"));
+    REQUIRE(filtered.data.size() == direct.data.size());
+    for (std::size_t i = 0; i < direct.data.size(); ++i) CHECK(filtered.data[i] == doctest::Approx(direct.data[i]).epsilon(1e-5).scale(1));
+    // Only a loop around the tube: nothing bounds, a clear error and no output.
+    const auto e = run_cli("shm surface " + mesh + " --curves " + meridian + " --filter-nonbounding -o " + dir.file("x.npy"));
+    CHECK(e.exit_code != 0);
+    CHECK(e.output.find("every curve bounds nothing") != std::string::npos);
+    CHECK_FALSE(test::file_exists(dir.file("x.npy")));
+    CHECK(run_cli("shm surface " + mesh + " --curves " + loop + " --filter-nonbounding --unsigned -o " + dir.file("x.npy")).exit_code != 0);
 }
 
 TEST_CASE("shm surface: curves from an .obj's own l lines, points from --points") {

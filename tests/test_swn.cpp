@@ -11,7 +11,7 @@
 #include <gsd/swn.hpp>
 
 #include "support.hpp"
-#include "swn/tension.hpp"
+#include "l1/tension.hpp"
 
 #include <Eigen/Geometry>
 
@@ -250,6 +250,40 @@ TEST_CASE("SWN: a torus with a bounding loop and a loop around the tube, whole a
     }
 }
 
+TEST_CASE("SWN: the bounding part as curves on the mesh; the surface SHM on it is the SHM of the bounding loop") {
+    // Thesis §6.4.1's first remedy for curves with no inside: drop the nonbounding part first.
+    // Curves off the edges (solved on a split mesh) and along them (on the mesh itself).
+    const PolygonMesh m = shapes::torus_mesh(72, 24);
+    const SurfaceMesh mesh(m, "torus");
+    SurfaceWindingNumbers swn(mesh);
+    const std::vector<double> f = per_vertex(m, [](const Eigen::Vector3d& x) { return (x - Eigen::Vector3d(0.7, 0, 0)).norm() - 0.3; });
+    SurfaceSources off, along, loop_off, loop_along;
+    off.curves = level_set_curves(mesh, f, 0);
+    loop_off = off;
+    for (SurfaceCurve& c : tube_loops(mesh, Eigen::Vector3d::Zero(), 2.0)) off.curves.push_back(std::move(c));
+    along = region_boundary(m, truth_below(m, f));
+    loop_along = along;
+    along.curves.push_back(meridian(72, 24, 40));
+    SignedHeatSurface shm(mesh);
+    for (const auto& [curves, loop] : {std::pair{&off, &loop_off}, std::pair{&along, &loop_along}}) {
+        const SwnResult r = swn.solve(*curves);
+        CHECK(r.nonbounding.size() == 1);
+        auto length = [&](const SurfaceSources& s) {
+            double sum = 0;
+            for (const Polyline& line : source_polylines(mesh, s))
+                for (std::size_t i = 0; i + 1 < line.size(); ++i) sum += (line[i + 1] - line[i]).norm();
+            return sum;
+        };
+        CHECK(length(r.bounding_curves) == doctest::Approx(length(*loop)).epsilon(1e-9));
+        const std::vector<double> filtered = shm.solve(r.bounding_curves).phi, direct = shm.solve(*loop).phi;
+        CHECK(surface_distance_error(mesh, filtered, direct) < 1e-6);
+    }
+    // Nothing to drop: every piece is kept.
+    const SwnResult whole = swn.solve(loop_off);
+    CHECK(whole.bounding_curves.curves.size() == loop_off.curves.size());
+    CHECK(whole.nonbounding.empty());
+}
+
 TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduced programs agree" * doctest::test_suite("slow")) {
     const PolygonMesh m = shapes::double_torus_mesh(40);
     const SurfaceMesh mesh(m, "double torus");
@@ -292,17 +326,17 @@ TEST_CASE("SWN: double torus with bounding and nonbounding loops; full and reduc
 TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
     // By hand: three nodes in a row, x0 − x1 + 1 and x1 − x2 + 1 at cost 1, x0 − x2 at cost 3:
     // the cheapest is to jump on the two unit edges... unless they must stay below 0.5.
-    swn::TensionProblem p;
+    l1::TensionProblem p;
     p.nodes = 3;
     p.edges = {{0, 1, 1.0, 1.0}, {1, 2, 1.0, 1.0}, {0, 2, 0.0, 3.0}};
-    for (auto* solve : {&swn::solve_tension_network, &swn::solve_tension_lp}) {
-        const swn::TensionSolution s = solve(p);
+    for (auto* solve : {&l1::solve_tension_network, &l1::solve_tension_lp}) {
+        const l1::TensionSolution s = solve(p);
         CHECK(s.objective == doctest::Approx(2.0).epsilon(1e-6));  // x equal: J = 1, 1, 0
     }
     p.edges[0].hi = 0.5;
     p.edges[1].hi = 0.5;
-    for (auto* solve : {&swn::solve_tension_network, &swn::solve_tension_lp}) {
-        const swn::TensionSolution s = solve(p);
+    for (auto* solve : {&l1::solve_tension_network, &l1::solve_tension_lp}) {
+        const l1::TensionSolution s = solve(p);
         CHECK(s.violation < 1e-6);
         CHECK(s.objective == doctest::Approx(4.0).epsilon(1e-6));  // J = ½, ½ and 1 on the costly edge: 1 + 3
     }
@@ -310,10 +344,10 @@ TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> u(0, 1);
     for (int trial = 0; trial < 20; ++trial) {
-        swn::TensionProblem q;
+        l1::TensionProblem q;
         q.nodes = 40;
         for (int e = 0; e < 120; ++e) {
-            swn::TensionProblem::Edge edge;
+            l1::TensionProblem::Edge edge;
             edge.left = std::uint32_t(rng() % 40);
             edge.right = std::uint32_t((edge.left + 1 + rng() % 39) % 40);
             edge.offset = 4 * u(rng) - 2;
@@ -327,13 +361,13 @@ TEST_CASE("tension problems: network simplex and CLP reach the same optimum") {
         }
         CAPTURE(trial);
         bool lp_feasible = true;
-        swn::TensionSolution b;
+        l1::TensionSolution b;
         try {
-            b = swn::solve_tension_lp(q);
+            b = l1::solve_tension_lp(q);
         } catch (const Error&) {
             lp_feasible = false;  // bounds that contradict each other: the network solver still answers
         }
-        const swn::TensionSolution a = swn::solve_tension_network(q);
+        const l1::TensionSolution a = l1::solve_tension_network(q);
         if (lp_feasible) {
             CHECK(a.violation < 1e-6);
             CHECK(b.violation < 1e-6);

@@ -203,6 +203,14 @@ enum class LevelSetConstraint {
 };
 GSD_EXPORT LevelSetConstraint level_set_from_name(const std::string& name);  // "none" | "zero" | "components"
 
+/// How step 3 turns the unit field Y into φ.
+enum class SurfaceIntegration {
+    L2,  ///< least squares ∫|∇φ − Y|² (eq. 4.6): one continuous φ
+    L1,  ///< thesis §6.4.1: φ may jump along the cheapest edges where Y cannot be integrated
+         ///< (a curve that bounds nothing, around a handle), and is the L² result elsewhere
+};
+GSD_EXPORT SurfaceIntegration surface_integration_from_name(const std::string& name);  // "l2" | "l1"
+
 /// Per-mesh settings: they decide the operators, which are factored once and cached.
 struct SurfaceShmSetup {
     /// Diffusion time t = t_coef · h², h = half the mean edge length (the mean spacing of the
@@ -238,6 +246,9 @@ struct SurfaceShmOptions {
     /// Constrain the diffused field to stay normal to the curves at the curves (an extra
     /// constrained vector solve; signed curves only).
     bool preserve_normals = false;
+    /// L1: docs/shm-surface.md ("Curves that bound nothing") has the method and measurements.
+    /// Runs on the input triangulation (not with SurfaceShmSetup::intrinsic_delaunay).
+    SurfaceIntegration integration = SurfaceIntegration::L2;
 };
 
 struct SurfaceShmResult {
@@ -252,6 +263,12 @@ struct SurfaceShmResult {
                                           ///< in their component): φ there is not a distance
     std::size_t solve_vertices = 0;       ///< vertices of the triangulation solved on (refinement adds)
     std::size_t flips = 0;                ///< intrinsic Delaunay edge flips
+    // L1 integration only (empty otherwise):
+    std::vector<std::array<double, 3>> corner_phi;  ///< per triangle (SurfaceMesh numbering) and corner:
+                                                    ///< φ on either side of a jump (`phi` takes, at a
+                                                    ///< vertex on one, the side with the larger angle)
+    Polylines jumps;                      ///< the edges φ jumps across, chained
+    double jump_cost = 0;                 ///< the L1 program's optimum: Σ weight·∫|jump| over the edges
 };
 
 /// Distance sharpening on a surface (thesis §4.4, eq. 4.13): max Σ_v A_v·sign(φ₀)·φ subject to

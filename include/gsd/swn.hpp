@@ -80,6 +80,9 @@ struct SwnResult {
     Polylines bounding;                          ///< input curves that bound regions
     Polylines nonbounding;                       ///< input curves that bound nothing
     Polylines completed;                         ///< where the nonbounding curves were completed
+    SurfaceSources bounding_curves;              ///< the bounding part of the input curves as curves on the
+                                                 ///< mesh (e.g. for the surface SHM without the loops that
+                                                 ///< bound nothing: gsd shm surface --filter-nonbounding)
     bool simply_connected = true;                ///< every component a disk or a sphere: steps ②–⑤ skipped
     bool split = false;                          ///< curves off the edges: solved on a mesh cut along them
     std::size_t lp_variables = 0, lp_rows = 0;   ///< size of the residual's linear program

@@ -19,6 +19,7 @@ float dtype. Devices: "" ($GSD_DEVICE, else "auto"), "auto", "gpu", "cpu", an in
     phi_v = gsd.signed_heat_surface(v, f, "curves.txt")            # distance along a surface
     labels, w = gsd.surface_winding_numbers(v, f, "curves.txt")    # inside/outside on a surface
     phi_p = gsd.signed_heat_surface(points, None, "curves.txt")    # …on a point cloud: per point
+    phi_v, corner_phi, jumps = gsd.discontinuous_distance(v, f, "loop.txt")  # around a handle: φ jumps
     faces, normals = gsd.cloud_surface(points)        # a cloud's triangulation, oriented normals
     image = field.render(640, 480)                    # (480, 640, 3) uint8: φ = 0 sphere-traced
     image = gsd.render_grid(grid, bounds)             # the same for a grid
@@ -40,6 +41,7 @@ from ._gsd import (  # noqa: F401
     cloud_surface,
     devices,
     difference,
+    discontinuous_distance,
     intersection,
     opening,
     union,

@@ -314,6 +314,43 @@ def test_surface_methods_match_cli(tmp_path):
     assert phi[np.argmax(v[:, 2])] > 0 > phi[np.argmin(v[:, 2])]
 
 
+def test_discontinuous_distance_matches_cli(tmp_path):
+    # A loop around the tube of a torus bounds nothing: φ jumps along one loop, at the antipode.
+    mesh = tmp_path / "t.obj"
+    curves = tmp_path / "m.txt"
+    cli("mesh", "torus", "-r", 24, "-o", mesh)
+    cli("curve", mesh, "--plane", 0, 1, 0, 0, "--near", 0.5, 0, 0, "-o", curves)
+    v, f = gsd.read_mesh(str(mesh))
+    cli("shm", "surface", mesh, "--curves", curves, "--integrate", "l1", "-o", tmp_path / "phi.npy",
+        "--corners", tmp_path / "corners.npy")
+    phi, corners, jumps = gsd.discontinuous_distance(v, f, str(curves))
+    np.testing.assert_allclose(phi, np.load(tmp_path / "phi.npy"), atol=1e-5)
+    np.testing.assert_allclose(corners, np.load(tmp_path / "corners.npy"), atol=1e-5)
+    assert corners.shape == (f.shape[0], 3)
+    assert len(jumps) == 1 and jumps[0].shape[1] == 3
+    assert np.all(jumps[0][:, 0] < -0.2)  # the curve is at x = 0.5: the jump on the far side
+    # The other remedy: leave the loop out (with a small loop beside it, the distance to that).
+    loop = tmp_path / "loop.txt"
+    cli("curve", mesh, "--sphere", -0.7, 0, 0, 0.15, "-o", loop)
+    both = tmp_path / "both.txt"  # one file: the second file's l records renumbered after the first's
+    lines, records = ["#offset 0"], 0
+    for path in (curves, loop):
+        start = records
+        for line in path.read_text().splitlines():
+            if line[:2] in ("v ", "e ", "f "):
+                lines.append(line)
+                records += 1
+            elif line.startswith("l "):
+                lines.append("l " + " ".join(str(int(i) + start) for i in line.split()[1:]))
+    both.write_text("\n".join(lines) + "\n")
+    cli("shm", "surface", mesh, "--curves", curves, loop, "--filter-nonbounding", "-o", tmp_path / "f.npy")
+    filtered = gsd.signed_heat_surface(v, f, str(both), filter_nonbounding=True)
+    np.testing.assert_allclose(filtered, np.load(tmp_path / "f.npy"), atol=1e-5)
+    np.testing.assert_allclose(filtered, gsd.signed_heat_surface(v, f, str(loop)), atol=1e-5)
+    with pytest.raises(gsd.Error, match="bounds nothing"):
+        gsd.signed_heat_surface(v, f, str(curves), filter_nonbounding=True)
+
+
 def test_surface_winding_options_match_cli(tmp_path):
     # A torus with two holes (a surface with boundary, not simply connected) and a broken loop
     # around its tube: every option changes w here.

@@ -7,6 +7,7 @@
 #include "mesh/topology.hpp"
 
 #include <algorithm>
+#include <map>
 #include <numeric>
 #include <unordered_map>
 
@@ -209,6 +210,42 @@ Topology build_topology(PolygonMesh mesh) {
     measure(t);
     t.face_component = face_components(t);
     return t;
+}
+
+/// Edges with |value| > ½ as 3D polylines along their direction (flipped where negative),
+/// chained where one ends where the next starts.
+Polylines chain_polylines(const Topology& t, const std::vector<double>& value) {
+    const Triangulation& T = t.mesh;
+    std::multimap<std::uint32_t, std::pair<std::uint32_t, std::uint32_t>> from;  // tail → (head, edge)
+    std::vector<std::uint8_t> used(T.edge_count(), 0);
+    std::map<std::uint32_t, int> indegree;
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (std::abs(value[e]) <= 0.5) continue;
+        auto [a, b] = T.edges[e];
+        if (value[e] < 0) std::swap(a, b);
+        from.insert({a, {b, std::uint32_t(e)}});
+        ++indegree[b];
+    }
+    const Points& x = t.polygons.vertices;
+    Polylines out;
+    auto follow = [&](std::uint32_t v) {
+        std::vector<Eigen::Vector3d> line{x.row(v).transpose()};
+        for (;;) {
+            auto [lo, hi] = from.equal_range(v);
+            auto it = lo;
+            while (it != hi && used[it->second.second]) ++it;
+            if (it == hi) break;
+            used[it->second.second] = 1;
+            v = it->second.first;
+            line.push_back(x.row(v).transpose());
+        }
+        if (line.size() > 1) out.push_back(std::move(line));
+    };
+    for (const auto& [v, next] : from)
+        if (!indegree.count(v)) follow(v);
+    for (const auto& [v, next] : from)
+        if (!used[next.second]) follow(v);
+    return out;
 }
 
 }  // namespace gsd::mesh

@@ -56,6 +56,10 @@ struct Topology {
 /// corners/halfedges (3f+k) that reference each item.
 Adjacency corner_adjacency(std::size_t items, const std::vector<std::array<std::uint32_t, 3>>& per_corner);
 
+/// Edges with |value[e]| > ½ as 3D polylines along their direction (flipped where the value is
+/// negative), chained where one ends where the next starts.
+Polylines chain_polylines(const Topology& t, const std::vector<double>& value);
+
 /// Triangulates and numbers a validated mesh (see gsd::SurfaceMesh for the rules).
 Topology build_topology(PolygonMesh mesh);
 

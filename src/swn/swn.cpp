@@ -16,7 +16,7 @@
 #include "mesh/cut_graph.hpp"
 #include "mesh/halfedges.hpp"
 #include "mesh/split.hpp"
-#include "swn/tension.hpp"
+#include "l1/tension.hpp"
 #include "mesh/topology.hpp"
 
 #include <algorithm>
@@ -321,7 +321,7 @@ std::vector<double> curve_straightness(const Topology& t, const std::vector<doub
 /// the curve it stands for would) and the bounds of J (on curve edges, between 0 and the
 /// multiplicity).
 struct ResidualTerm {
-    double weight, lo = -swn::TensionProblem::kInfinity, hi = swn::TensionProblem::kInfinity;
+    double weight, lo = -l1::TensionProblem::kInfinity, hi = l1::TensionProblem::kInfinity;
 };
 ResidualTerm residual_term(std::size_t e, const std::vector<double>& chain, const std::vector<double>& straightness,
                            const SwnOptions& o) {
@@ -334,14 +334,14 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
                              std::size_t groups, const std::vector<double>& chain,
                              const std::vector<double>& straightness, const SwnOptions& o) {
     const Triangulation& T = t.mesh;
-    swn::TensionProblem p;
+    l1::TensionProblem p;
     p.nodes = groups;
     // Costs in units of the mean edge length: near 1 whatever the mesh's scale.
     const double unit = 1.0 / mesh::mean_edge_length(T, t.face_areas);
     for (std::size_t e = 0; e < T.edge_count(); ++e) {
         const EdgeSides s = sides(t, e);
         if (s.left == kNone || s.right == kNone) continue;
-        swn::TensionProblem::Edge edge;
+        l1::TensionProblem::Edge edge;
         edge.left = group[s.left];
         edge.right = group[s.right];
         if (edge.left == edge.right) continue;
@@ -353,8 +353,8 @@ ResidualLp solve_residual_lp(const Topology& t, const std::vector<double>& v0, c
         edge.hi = term.hi;
         p.edges.push_back(edge);
     }
-    const swn::TensionSolution s =
-        o.solver == SwnSolver::Clp ? swn::solve_tension_lp(p) : swn::solve_tension_network(p);
+    const l1::TensionSolution s =
+        o.solver == SwnSolver::Clp ? l1::solve_tension_lp(p) : l1::solve_tension_network(p);
     ResidualLp r;
     r.shift = s.x;
     r.variables = groups + 2 * p.edges.size();  // as a linear program: shifts and |J|'s two parts
@@ -626,47 +626,12 @@ std::vector<int> normalized_labels(const Topology& t, const std::vector<double>&
     return label;
 }
 
-/// Edges with |value| > ½ as 3D polylines along their direction (flipped where negative),
-/// chained where one ends where the next starts.
-Polylines chain_polylines(const Topology& t, const std::vector<double>& value) {
-    const Triangulation& T = t.mesh;
-    std::multimap<std::uint32_t, std::pair<std::uint32_t, std::uint32_t>> from;  // tail → (head, edge)
-    std::vector<std::uint8_t> used(T.edge_count(), 0);
-    std::map<std::uint32_t, int> indegree;
-    for (std::size_t e = 0; e < T.edge_count(); ++e) {
-        if (std::abs(value[e]) <= 0.5) continue;
-        auto [a, b] = T.edges[e];
-        if (value[e] < 0) std::swap(a, b);
-        from.insert({a, {b, std::uint32_t(e)}});
-        ++indegree[b];
-    }
-    const Points& x = t.polygons.vertices;
-    Polylines out;
-    auto follow = [&](std::uint32_t v) {
-        std::vector<Eigen::Vector3d> line{x.row(v).transpose()};
-        for (;;) {
-            auto [lo, hi] = from.equal_range(v);
-            auto it = lo;
-            while (it != hi && used[it->second.second]) ++it;
-            if (it == hi) break;
-            used[it->second.second] = 1;
-            v = it->second.first;
-            line.push_back(x.row(v).transpose());
-        }
-        if (line.size() > 1) out.push_back(std::move(line));
-    };
-    for (const auto& [v, next] : from)
-        if (!indegree.count(v)) follow(v);
-    for (const auto& [v, next] : from)
-        if (!used[next.second]) follow(v);
-    return out;
-}
-
 // ---- the solver ---------------------------------------------------------------------------------
 
 /// What one run of the algorithm produces on the mesh it ran on (the input or a cut copy).
 struct CoreResult {
     std::vector<double> u, w;  // per corner
+    std::vector<double> bounding_chain;  // per edge: the bounding part of the curves' chain
     std::vector<int> labels, naive_labels;  // per triangle
     Polylines bounding, nonbounding, completed;
     bool simply_connected = true;
@@ -819,8 +784,8 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
                 completed[e] = jumps[e];
             }
         }
-        r.nonbounding = chain_polylines(t, nonbounding);
-        r.completed = chain_polylines(t, completed);
+        r.nonbounding = mesh::chain_polylines(t, nonbounding);
+        r.completed = mesh::chain_polylines(t, completed);
         r.seconds_residual = seconds_since(t0);
         t0 = Clock::now();
         if (progress) progress("winding number", 0.9);
@@ -838,8 +803,9 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
         r.w = corner_values(T, KR.solve(jump_rhs(ops.H, J_final, &robin)), J_final);
         r.seconds_boundary = seconds_since(t0);
     }
-    r.bounding = chain_polylines(t, bounding_chain);
+    r.bounding = mesh::chain_polylines(t, bounding_chain);
     r.labels = normalized_labels(t, face_means(T, r.w), contour_shift(t, r.w, bounding_chain));
+    r.bounding_chain = std::move(bounding_chain);
     return r;
 }
 
@@ -864,6 +830,47 @@ std::optional<std::vector<double>> edge_chain(const Topology& t, const surface_s
         chain[e] += T.edges[e][0] == from ? 1.0 : -1.0;
     }
     return chain;
+}
+
+/// The share of a chain's edges that is bounding (1 where the chain is empty).
+double bounding_share(const std::vector<double>& chain, const std::vector<double>& bounding, std::uint32_t e) {
+    return std::abs(chain[e]) > 1e-9 ? std::clamp(bounding[e] / chain[e], 0.0, 1.0) : 1.0;
+}
+
+SurfacePoint surface_point(const mesh::FacePoint& p, const Triangulation& T) {
+    for (int k = 0; k < 3; ++k)
+        if (p.bary[std::size_t(k)] == 1.0) return SurfacePoint::at_vertex(T.faces[p.face][std::size_t(k)]);
+    return SurfacePoint::in_triangle(p.face, p.bary[1], p.bary[2]);
+}
+
+/// The resolved pieces whose share is at least ½, as curves on the input mesh: consecutive
+/// pieces of one component that meet are one curve.
+SurfaceSources bounding_pieces(const Topology& t, const surface_shm::ResolvedSources& S, const std::vector<double>& share) {
+    SurfaceSources out;
+    Eigen::Vector3d last_end(NAN, NAN, NAN);
+    std::uint32_t last_component = UINT32_MAX;
+    auto at = [&](std::uint32_t f, const std::array<double, 3>& b) {
+        Eigen::Vector3d x = Eigen::Vector3d::Zero();
+        for (int k = 0; k < 3; ++k) x += b[std::size_t(k)] * t.corner_position(f, k);
+        return x;
+    };
+    for (std::size_t i = 0; i < S.pieces.size(); ++i) {
+        const surface_shm::CurvePiece& p = S.pieces[i];
+        if (share[i] < 0.5) {
+            last_component = UINT32_MAX;
+            continue;
+        }
+        const Eigen::Vector3d a = at(p.segment.face, p.segment.a);
+        const bool joins = p.component == last_component && (a - last_end).norm() <= 1e-12 * (1 + a.norm());
+        if (!joins) {
+            out.curves.emplace_back();
+            out.curves.back().nodes.push_back(surface_point({p.segment.face, p.segment.a}, t.mesh));
+        }
+        out.curves.back().nodes.push_back(surface_point({p.segment.face, p.segment.b}, t.mesh));
+        last_end = at(p.segment.face, p.segment.b);
+        last_component = p.component;
+    }
+    return out;
 }
 
 std::vector<int> majority_per_face(const SurfaceMesh& mesh, const std::vector<std::uint32_t>& triangle_face,
@@ -932,6 +939,13 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
     if (const auto on_edges = edge_chain(t, S)) {
         if (!impl_->ops) impl_->ops.emplace(t);
         CoreResult r = run_core(*impl_->ops, *on_edges, o, progress);
+        std::vector<double> share(S.pieces.size());
+        for (std::size_t i = 0; i < S.pieces.size(); ++i) {
+            const surface_shm::CurvePiece& p = S.pieces[i];
+            const std::uint32_t e = t.mesh.face_edges[p.segment.face][std::size_t(surface_shm::piece_side(p.segment))];
+            share[i] = bounding_share(*on_edges, r.bounding_chain, e);
+        }
+        result.bounding_curves = bounding_pieces(t, S, share);
         result.labels = majority_per_face(mesh, t.triangle_face, t.face_areas, r.labels);
         result.naive_labels = majority_per_face(mesh, t.triangle_face, t.face_areas, r.naive_labels);
         result.w.resize(t.mesh.face_count());
@@ -954,6 +968,18 @@ SwnResult SurfaceWindingNumbers::solve(const SurfaceSources& curves, const SwnOp
             }
         Operators ops(st);
         CoreResult r = run_core(ops, chain, o, progress);
+        std::vector<double> share(S.pieces.size(), 1.0);
+        for (std::size_t i = 0; i < S.pieces.size(); ++i) {
+            const auto& path = cut.piece_paths[i];
+            double sum = 0, length = 0;
+            for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+                const std::uint32_t e = st.find_edge(path[k], path[k + 1]);
+                sum += st.mesh.edge_lengths[e] * bounding_share(chain, r.bounding_chain, e);
+                length += st.mesh.edge_lengths[e];
+            }
+            if (length > 0) share[i] = sum / length;
+        }
+        result.bounding_curves = bounding_pieces(t, S, share);
         // Labels per input face by area majority; w at input corners from a sub-triangle there.
         std::vector<std::uint32_t> input_face(st.mesh.face_count());
         for (std::size_t f = 0; f < input_face.size(); ++f) input_face[f] = t.triangle_face[cut.triangle_of[f]];

@@ -8,6 +8,11 @@
 //   gsd-surface-bench timing [--levels 5,6,7,8]
 //       setup (factor) and solve times vs mesh size (icospheres), a first solve vs a repeated
 //       solve with a new curve, each level-set mode, peak memory.
+//   gsd-surface-bench nonbounding
+//       curves that bound nothing (thesis §6.4.1): tori with a loop around the tube, L² against
+//       L1 integration — the share of the area where |∇φ| is within 10 % of 1, the error of φ
+//       against the exact distance along the inner equator, the jumps, the time of step 3 — and
+//       curves that do bound a region, where L1 must give the L² result.
 //   gsd-surface-bench write LEVEL PREFIX
 //       writes PREFIX.obj and PREFIX.txt (an icosphere and a wavy closed curve on it) for
 //       side-by-side runs of whole programs.
@@ -373,6 +378,105 @@ int timing(const std::vector<int>& levels) {
     return 0;
 }
 
+// ---- curves that bound nothing ----------------------------------------------------------------
+
+/// Share of the area where |∇φ| is within 10 % of 1, φ linear on each triangle from its corners.
+double unit_slope_share(const SurfaceMesh& mesh, const std::function<double(std::size_t, std::size_t)>& corner) {
+    const Points& x = mesh.polygons().vertices;
+    double good = 0, total = 0;
+    for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+        const auto c = mesh.triangle(t);
+        std::array<Eigen::Vector3d, 3> p;
+        for (std::size_t k = 0; k < 3; ++k) p[k] = x.row(c[k]).transpose();
+        const Eigen::Vector3d n = (p[1] - p[0]).cross(p[2] - p[0]);
+        const double twice_area = n.norm();
+        if (!(twice_area > 0)) continue;
+        const Eigen::Vector3d u = n / twice_area;
+        const Eigen::Vector3d g =
+            (corner(t, 0) * u.cross(p[2] - p[1]) + corner(t, 1) * u.cross(p[0] - p[2]) + corner(t, 2) * u.cross(p[1] - p[0])) /
+            twice_area;
+        total += twice_area;
+        if (std::abs(g.norm() - 1) <= 0.1) good += twice_area;
+    }
+    return good / total;
+}
+
+/// Max |(|φ| − d)| / (largest d) along the inner equator of a torus_mesh with a meridian at
+/// column 0 (d = (R − r)·min(θ, 2π − θ) exactly there), away from the antipode (|θ − π| > 0.25);
+/// infinite if the sign does not flip exactly across the curve and the antipode.
+double inner_equator_error(const std::vector<double>& phi, int n_major, int n_minor, double R, double r) {
+    double worst = 0;
+    int side = 0;
+    for (int i = 1; i < n_major; ++i) {
+        const double theta = 2 * std::numbers::pi * i / n_major;
+        if (std::abs(theta - std::numbers::pi) < 0.25) continue;
+        const double d = (R - r) * std::min(theta, 2 * std::numbers::pi - theta);
+        const double v = phi[std::size_t(i * n_minor + n_minor / 2)];
+        const int s = (v > 0) == (theta < std::numbers::pi) ? 1 : -1;
+        if (side == 0) side = s;
+        worst = std::max(worst, s == side ? std::abs(std::abs(v) - d) : INFINITY);
+    }
+    return worst / ((R - r) * std::numbers::pi);
+}
+
+int nonbounding() {
+    std::printf("tori with one loop around the tube (a meridian along edges), L2 | L1 integration:\n");
+    std::printf("%-8s %-10s %8s | %12s %12s | %12s %12s | %5s %9s %9s\n", "R/r", "grid", "faces", "|∇φ|≈1 L2",
+                "|∇φ|≈1 L1", "equator L2", "equator L1", "jumps", "step3 L2", "step3 L1");
+    for (const auto& [R, r] : {std::pair{0.5, 0.2}, std::pair{0.5, 0.1}, std::pair{0.5, 0.3}})
+        for (int n : {16, 24, 32, 48, 64}) {
+            const int n_major = 3 * n;
+            const SurfaceMesh mesh(shapes::torus_mesh(n_major, n, R, r), "torus");
+            SignedHeatSurface shm(mesh);
+            SurfaceSources src;
+            src.curves.emplace_back();
+            for (int j = 0; j <= n; ++j) src.curves.back().nodes.push_back(SurfacePoint::at_vertex(std::uint32_t(j % n)));
+            SurfaceShmOptions o;
+            o.integration = SurfaceIntegration::L1;
+            const SurfaceShmResult l1 = shm.solve(src, o), l2 = shm.solve(src);
+            const double s2 = unit_slope_share(mesh, [&](std::size_t t, std::size_t k) { return l2.phi[mesh.triangle(t)[k]]; });
+            const double s1 = unit_slope_share(mesh, [&](std::size_t t, std::size_t k) { return l1.corner_phi[t][k]; });
+            std::printf("%-8.2g %4dx%-5d %8zu | %12.3f %12.3f | %12.3g %12.3g | %5zu %8.3fs %8.3fs\n", R / r, n_major, n,
+                        mesh.triangle_count(), s2, s1, inner_equator_error(l2.phi, n_major, n, R, r),
+                        inner_equator_error(l1.phi, n_major, n, R, r), l1.jumps.size(), l2.seconds_integrate,
+                        l1.seconds_integrate);
+            std::fflush(stdout);
+        }
+    std::printf("\ncurves that bound a region: L1 against L2 (ε of thesis §4.5 between them), jumps\n");
+    auto level_set = [](const PolygonMesh& m, const std::function<double(const Eigen::Vector3d&)>& f) {
+        const SurfaceMesh mesh(m);
+        std::vector<double> values(mesh.vertex_count());
+        for (std::size_t v = 0; v < values.size(); ++v) values[v] = f(m.vertices.row(Eigen::Index(v)).transpose());
+        SurfaceSources s;
+        s.curves = level_set_curves(mesh, values);
+        return s;
+    };
+    struct Bounding {
+        const char* name;
+        PolygonMesh mesh;
+        std::function<double(const Eigen::Vector3d&)> f;
+    };
+    const std::vector<Bounding> cases = {
+        {"torus 96x32, a small loop", shapes::torus_mesh(96, 32), [](const Eigen::Vector3d& x) { return (x - Eigen::Vector3d(0.7, 0, 0)).norm() - 0.15; }},
+        {"torus 96x32, two tube loops", shapes::torus_mesh(96, 32), [](const Eigen::Vector3d& x) { return std::abs(x.y()) - 0.3; }},
+        {"sphere 20k, a wavy loop", shapes::icosphere(5), [](const Eigen::Vector3d& x) { return x.z() + 0.2 * x.x() * x.x() - 0.3; }},
+        {"double torus, a loop", shapes::double_torus_mesh(64), [](const Eigen::Vector3d& x) { return (x - Eigen::Vector3d(-0.9, 0.3, 0)).norm() - 0.3; }},
+    };
+    for (const Bounding& c : cases) {
+        const SurfaceMesh mesh(c.mesh, c.name);
+        SignedHeatSurface shm(mesh);
+        const SurfaceSources src = level_set(c.mesh, c.f);
+        SurfaceShmOptions o;
+        o.integration = SurfaceIntegration::L1;
+        const SurfaceShmResult l1 = shm.solve(src, o), l2 = shm.solve(src);
+        std::printf("%-30s %8zu faces, %zu curves: ε(L1, L2) %.3g, %zu jumps; step 3 %.3fs (L2 %.3fs)\n", c.name,
+                    mesh.triangle_count(), src.curves.size(), surface_distance_error(mesh, l1.phi, l2.phi),
+                    l1.jumps.size(), l1.seconds_integrate, l2.seconds_integrate);
+        std::fflush(stdout);
+    }
+    return 0;
+}
+
 int write_case(int level, const std::string& prefix) {
     const PolygonMesh m = shapes::icosphere(level);
     const SurfaceMesh mesh(m);
@@ -396,6 +500,7 @@ int main(int argc, char** argv) {
     t->add_option("--levels", levels, "icosphere levels")->delimiter(',')->check(CLI::Range(0, 12))->capture_default_str();
     int level = 0;
     std::string prefix;
+    CLI::App* nb = app.add_subcommand("nonbounding", "curves that bound nothing: L2 against L1 integration (thesis §6.4.1)");
     CLI::App* w = app.add_subcommand("write", "an icosphere and a wavy closed curve on it as PREFIX.obj, PREFIX.txt");
     w->add_option("LEVEL", level, "icosphere level")->required()->check(CLI::Range(0, 12));
     w->add_option("PREFIX", prefix, "where to write")->required();
@@ -403,6 +508,7 @@ int main(int argc, char** argv) {
     try {
         if (*a) return accuracy(reference, work);
         if (*t) return timing(levels);
+        if (*nb) return nonbounding();
         return write_case(level, prefix);
     } catch (const Error& e) {
         std::fprintf(stderr, "gsd-surface-bench: error: %s%s%s\n", e.where().c_str(), e.where().empty() ? "" : ": ", e.what());

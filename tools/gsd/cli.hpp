@@ -162,6 +162,9 @@ bool is_curveless_mesh_format(const std::string& path);
 /// A file where the surface commands expect a mesh that has no faces: a point cloud, whose
 /// surface gsd::cloud_surface makes (tools/gsd/surface.cpp).
 bool is_cloud_file(const std::string& path);
+/// Polylines as an OBJ file: `header` (comment lines, each starting with #) and one group per
+/// entry (tools/gsd/surface.cpp).
+std::string polylines_obj(const std::string& header, const std::vector<std::pair<std::string, const Polylines*>>& groups);
 /// A splat radius per point for pictures of clouds (tools/gsd/surface.cpp).
 std::vector<double> splat_radii(const Points& points);
 

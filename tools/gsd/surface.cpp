@@ -5,6 +5,7 @@
 #include <gsd/io.hpp>
 #include <gsd/spatial.hpp>
 #include <gsd/surface.hpp>
+#include <gsd/swn.hpp>
 #include <gsd/viz.hpp>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <tuple>
 #include <optional>
 
 namespace gsd::cli {
@@ -19,9 +21,11 @@ namespace gsd::cli {
 namespace {
 
 struct SurfaceArgs {
-    std::string mesh, points, output, colored, isolines, render;
+    std::string mesh, points, output, colored, isolines, render, corners, jumps;
     std::vector<std::string> curves;
+    std::string integrate = "l2";
     bool is_unsigned = false;
+    bool filter_nonbounding = false;
     std::string level_set = "zero";
     double isoline_spacing = 0;
     SurfaceShmOptions options;
@@ -121,6 +125,48 @@ std::vector<SurfaceCurve> snapped_to_points(const SurfaceMesh& mesh, const std::
 
 bool is_cloud_file(const std::string& path) { return !io::file_has_faces(path); }
 
+std::string polylines_obj(const std::string& header, const std::vector<std::pair<std::string, const Polylines*>>& groups) {
+    std::string out = header;
+    std::size_t vertices = 0;
+    for (const auto& [name, lines] : groups) {
+        out.append("g ").append(name).append("\n");
+        for (const auto& line : *lines) {
+            std::string l = "l";
+            for (const Eigen::Vector3d& x : line) {
+                char v[128];
+                std::snprintf(v, sizeof(v), "v %.9g %.9g %.9g\n", x.x(), x.y(), x.z());
+                out += v;
+                l.append(" ").append(std::to_string(++vertices));
+            }
+            out.append(l).append("\n");
+        }
+    }
+    return out;
+}
+
+namespace {
+
+/// A triangle mesh with a vertex per corner of each triangle (nothing shared), and φ at each:
+/// draws a function that jumps across edges (L1 integration) as it is.
+std::pair<PolygonMesh, std::vector<double>> corner_mesh(const SurfaceMesh& mesh,
+                                                        const std::vector<std::array<double, 3>>& corner_phi) {
+    const PolygonMesh& in = mesh.polygons();
+    PolygonMesh out;
+    out.vertices.resize(Eigen::Index(3 * mesh.triangle_count()), 3);
+    std::vector<double> values(3 * mesh.triangle_count());
+    for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+        const auto tri = mesh.triangle(t);
+        for (std::size_t k = 0; k < 3; ++k) {
+            out.vertices.row(Eigen::Index(3 * t + k)) = in.vertices.row(Eigen::Index(tri[k]));
+            values[3 * t + k] = corner_phi[t][k];
+        }
+        out.add_face({std::uint32_t(3 * t), std::uint32_t(3 * t + 1), std::uint32_t(3 * t + 2)});
+    }
+    return {std::move(out), std::move(values)};
+}
+
+}  // namespace
+
 /// A splat radius per point: 1.5 × the mean distance to its 6 nearest neighbours, so discs
 /// overlap on even sampling and grow where the sampling thins.
 std::vector<double> splat_radii(const Points& points) {
@@ -137,6 +183,12 @@ std::vector<double> splat_radii(const Points& points) {
 }
 
 namespace {
+
+std::size_t jump_edges(const SurfaceShmResult& r) {
+    std::size_t n = 0;
+    for (const Polyline& line : r.jumps) n += line.size() - 1;
+    return n;
+}
 
 void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurface& shm, const SurfaceShmResult& r,
             double load_seconds) {
@@ -155,6 +207,9 @@ void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurfa
                                          : std::string()));
         note("load " + fmt("%.3f s", load_seconds) + ", factor " + fmt("%.3f s", r.seconds_factor) + ", diffuse " +
              fmt("%.3f s", r.seconds_diffuse) + ", integrate " + fmt("%.3f s", r.seconds_integrate));
+        if (a.integrate == "l1")
+            note("L1 integration: φ jumps along " + std::to_string(r.jumps.size()) + " polylines (" +
+                 std::to_string(jump_edges(r)) + " edges), program optimum " + fmt("%.4g", r.jump_cost));
         if (r.constraints)
             note(std::to_string(r.constraints) + " constraint rows, max |residual| " + fmt("%.2e", r.constraint_residual) +
                  " after " + std::to_string(r.constraint_iterations) + " iterations");
@@ -168,6 +223,31 @@ void report(const SurfaceArgs& a, const SurfaceMesh& mesh, const SignedHeatSurfa
 }
 
 
+/// The curves without their parts that bound nothing (thesis §6.4.1's first remedy): Surface
+/// Winding Numbers' decomposition, on the mesh (a cloud: its triangulation, same vertices).
+SurfaceSources bounding_part(const SurfaceSources& sources, const SurfaceMesh& mesh, const SurfaceArgs& a,
+                             Polylines& left_out) {
+    if (sources.curves.empty()) throw CLI::ValidationError("--filter-nonbounding", "needs curves (points bound nothing to filter)");
+    Progress progress("shm surface --filter-nonbounding");
+    SwnResult w;
+    naming_file(a.mesh, "mesh", [&] { w = SurfaceWindingNumbers(mesh).solve(sources, {}, progress.fn()); });
+    progress.finish();
+    std::size_t pieces = 0, kept = 0;
+    for (const SurfaceCurve& c : sources.curves) pieces += c.nodes.size() - 1;
+    for (const SurfaceCurve& c : w.bounding_curves.curves) kept += c.nodes.size() - 1;
+    note("filter-nonbounding: " + std::to_string(w.nonbounding.size()) + " nonbounding polylines left out; " +
+         std::to_string(w.bounding_curves.curves.size()) + " bounding curves kept (" + std::to_string(kept) +
+         " pieces; the input had " + std::to_string(pieces) + ")");
+    if (w.bounding_curves.curves.empty() && sources.points.empty())
+        throw Error(a.curves.empty() ? a.mesh : a.curves.front(),
+                    "every curve bounds nothing (it goes around a handle): no inside to sign the distance by; "
+                    "without --filter-nonbounding, --integrate l1 gives a distance that jumps instead");
+    SurfaceSources out = w.bounding_curves;
+    out.points = sources.points;
+    left_out = std::move(w.nonbounding);
+    return out;
+}
+
 void run(const SurfaceArgs& a) {
     if (a.curves.empty() && a.points.empty() && io::extension(a.mesh) != ".obj")
         throw CLI::RequiredError("--curves or --points (or an .obj mesh with `l` lines)");
@@ -175,6 +255,12 @@ void run(const SurfaceArgs& a) {
     if (!a.colored.empty() && io::extension(a.colored) != ".ply") throw CLI::ValidationError("--colored", "must be a .ply file");
     if (!a.isolines.empty() && io::extension(a.isolines) != ".obj") throw CLI::ValidationError("--isolines", "must be an .obj file");
     if (io::extension(a.output) != ".npy") throw CLI::ValidationError("--output", "must be a .npy file");
+    const bool l1 = surface_integration_from_name(a.integrate) == SurfaceIntegration::L1;
+    if (!l1 && !(a.corners.empty() && a.jumps.empty()))
+        throw CLI::ValidationError(a.corners.empty() ? "--jumps" : "--corners", "needs --integrate l1");
+    if (l1 && a.sharpen) throw CLI::ValidationError("--sharpen", "sharpens a continuous φ: not with --integrate l1");
+    if (a.filter_nonbounding && a.is_unsigned)
+        throw CLI::ValidationError("--filter-nonbounding", "needs oriented curves (not --unsigned): it runs Surface Winding Numbers");
     const auto t0 = std::chrono::steady_clock::now();
     // A file without faces is a point cloud: its surface is the union of its points' fans.
     const bool is_cloud = is_cloud_file(a.mesh);
@@ -193,12 +279,17 @@ void run(const SurfaceArgs& a) {
                  " neighbours each");
         return std::move(s.mesh);
     }();
-    const SurfaceSources sources = load_sources(a, mesh);
+    SurfaceSources sources = load_sources(a, mesh);
     if (is_cloud) require_cloud_points(sources, a.curves.empty() ? (a.points.empty() ? a.mesh : a.points) : a.curves.front());
+    Polylines left_out;  // --filter-nonbounding: the curves' parts that bound nothing
+    if (a.filter_nonbounding) sources = bounding_part(sources, is_cloud ? SurfaceMesh(cloud_triangulation) : mesh, a, left_out);
+    if (is_cloud && !a.corners.empty())
+        throw CLI::ValidationError("--corners", "φ per triangle corner is for meshes (a cloud's φ is per point: --output)");
     const double load_seconds = seconds_since(t0);
 
     SurfaceShmOptions options = a.options;
     options.level_set = level_set_from_name(a.level_set);
+    options.integration = l1 ? SurfaceIntegration::L1 : SurfaceIntegration::L2;
     Progress progress("shm surface");
     std::optional<SignedHeatSurface> shm;
     SurfaceShmResult r;
@@ -234,9 +325,12 @@ void run(const SurfaceArgs& a) {
                                              " levels over φ's range [" + fmt("%g", lo) + ", " + fmt("%g", hi) +
                                              "]; at most " + fmt("%g", kMaxIsolines) + ": give a larger spacing");
     // What the outputs draw on: the mesh, or a cloud's manifold triangulation.
-    const PolygonMesh triangles = is_cloud ? std::move(cloud_triangulation) : mesh.triangles();
+    // With L1 integration on a mesh: a vertex per triangle corner, so that jumps show as they are.
+    PolygonMesh triangles = is_cloud ? std::move(cloud_triangulation) : mesh.triangles();
+    std::vector<double> drawn = r.phi;
+    if (l1 && !is_cloud) std::tie(triangles, drawn) = corner_mesh(mesh, r.corner_phi);
     std::string isolines;
-    if (!a.isolines.empty()) isolines = isolines_obj(is_cloud ? SurfaceMesh(triangles) : mesh, r.phi, spacing);
+    if (!a.isolines.empty()) isolines = isolines_obj(is_cloud || l1 ? SurfaceMesh(triangles) : mesh, drawn, spacing);
     Image picture;
     if (!a.render.empty()) {
         SurfacePicture p;
@@ -255,23 +349,38 @@ void run(const SurfaceArgs& a) {
             o.mark_back_faces = false;  // a disc seen through a gap is the far side, not a flipped normal
         } else {
             p.mesh = &triangles;
-            p.vertex_values = r.phi;
+            p.vertex_values = drawn;
         }
         p.curves.push_back({source_polylines(mesh, sources), {20, 150, 60}, 3.0});  // green: apart from the black zero contour
+        if (l1) p.curves.push_back({r.jumps, {200, 30, 30}, 3.0});                  // red: where φ jumps
+        p.curves.push_back({left_out, {150, 150, 150}, 2.0});                       // gray: left out
         picture = render_surface(p, o);
     }
     write_all({{a.output, [&] { io::write_npy(a.output, {phi.size()}, phi); }},
                {a.colored,
                 [&] {
-                    std::vector<std::array<std::uint8_t, 3>> colors(r.phi.size());
-                    for (std::size_t i = 0; i < colors.size(); ++i) colors[i] = diverging_color(r.phi[i], top > 0 ? top : 1.0);
-                    io::write_colored_mesh(a.colored, triangles, colors, r.phi, "phi");
+                    std::vector<std::array<std::uint8_t, 3>> colors(drawn.size());
+                    for (std::size_t i = 0; i < colors.size(); ++i) colors[i] = diverging_color(drawn[i], top > 0 ? top : 1.0);
+                    io::write_colored_mesh(a.colored, triangles, colors, drawn, "phi");
+                }},
+               {a.corners,
+                [&] {
+                    std::vector<float> c;
+                    c.reserve(3 * r.corner_phi.size());
+                    for (const auto& t : r.corner_phi) c.insert(c.end(), t.begin(), t.end());
+                    io::write_npy(a.corners, {r.corner_phi.size(), 3}, c);
+                }},
+               {a.jumps,
+                [&] {
+                    io::write_file_atomic(a.jumps, polylines_obj("# where the L1 surface distance of gsd shm surface jumps: "
+                                                                 "higher on the left of each line (seen from the normal side)\n",
+                                                                 {{"jumps", &r.jumps}}));
                 }},
                {a.isolines, [&] { io::write_file_atomic(a.isolines, isolines); }},
                {a.render, [&] { write_png(a.render, picture); }}});
     if (globals().verbose) note("write " + fmt("%.3f s", seconds_since(t1)));
     std::string written = a.output;
-    for (const std::string* o : {&a.colored, &a.isolines, &a.render})
+    for (const std::string* o : {&a.colored, &a.isolines, &a.render, &a.corners, &a.jumps})
         if (!o->empty()) written.append(", ").append(*o);
     note("wrote " + written + " (φ per " + (is_cloud ? "point, " : "vertex, ") + fmt("%.4g", lo) + " to " + fmt("%.4g", hi) + ")");
 }
@@ -379,6 +488,19 @@ void add_shm_surface(CLI::App& shm) {
         "φ to 0 next to curves whose nodes are not a level set, see docs/shm-surface.md)")
         ->check(finite_number())->check(CLI::NonNegativeNumber)
         ->capture_default_str();
+    s->add_option("--integrate", a->integrate,
+                  "Step 3: l2 (least squares, one continuous φ) or l1 (φ may jump along the cheapest edges where "
+                  "the field cannot be integrated: curves that bound nothing, around a handle; docs/shm-surface.md)")
+        ->check(CLI::IsMember({"l2", "l1"}))
+        ->capture_default_str();
+    s->add_flag("--filter-nonbounding", a->filter_nonbounding,
+                "Leave out the parts of the curves that bound nothing (around a handle), found by Surface Winding "
+                "Numbers, and measure the distance to the rest (thesis §6.4.1)");
+    s->add_option("--corners", a->corners, "With --integrate l1: also write φ per triangle corner (.npy, float32 (T, 3), "
+                                           "the mesh's triangles in order: polygons fanned from their first corner)")
+        ->check(output_file({".npy"}));
+    s->add_option("--jumps", a->jumps, "With --integrate l1: also write where φ jumps as .obj polylines")
+        ->check(output_file({".obj"}));
     s->add_flag("--preserve-normals", a->options.preserve_normals,
                 "Keep the diffused field normal to the curves at the curves (one more constrained solve)");
     s->add_option("--t-coef", a->setup.t_coef, "Diffusion time t = t_coef · h², h = half the mean edge length")

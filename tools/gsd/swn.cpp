@@ -28,25 +28,9 @@ struct SwnArgs {
 
 /// The bounding, nonbounding and completed curves as OBJ polylines, one group each.
 std::string loops_obj(const SwnResult& r) {
-    std::string out = "# curve decomposition written by gsd swn: bounding and nonbounding parts of the input curves,\n"
-                      "# and where the nonbounding ones were completed\n";
-    std::size_t vertices = 0;
-    for (const auto& [name, lines] : {std::pair<const char*, const Polylines*>{"bounding", &r.bounding},
-                                      {"nonbounding", &r.nonbounding},
-                                      {"completed", &r.completed}}) {
-        out.append("g ").append(name).append("\n");
-        for (const auto& line : *lines) {
-            std::string l = "l";
-            for (const Eigen::Vector3d& x : line) {
-                char v[128];
-                std::snprintf(v, sizeof(v), "v %.9g %.9g %.9g\n", x.x(), x.y(), x.z());
-                out += v;
-                l.append(" ").append(std::to_string(++vertices));
-            }
-            out.append(l).append("\n");
-        }
-    }
-    return out;
+    return polylines_obj("# curve decomposition written by gsd swn: bounding and nonbounding parts of the input curves,\n"
+                         "# and where the nonbounding ones were completed\n",
+                         {{"bounding", &r.bounding}, {"nonbounding", &r.nonbounding}, {"completed", &r.completed}});
 }
 
 /// "0 (61.2 %), 1 (38.8 %)": the labels of a cloud's points and their share of the points.

@@ -5,9 +5,9 @@
 // c·max(0, x_l − x_r + d) of our objective is an arc r → l with cost −d and capacity c, and a
 // bound J ≤ hi an arc r → l with cost hi − d and a capacity larger than any flow that could use
 // it (an exact penalty). LEMON's optimal potentials are then an optimal x.
-#include "swn/tension.hpp"
+#include "l1/tension.hpp"
 
-#include "swn/lp.hpp"
+#include "l1/lp.hpp"
 
 #include <gsd/core.hpp>
 
@@ -18,7 +18,7 @@
 #include <cmath>
 #include <string>
 
-namespace gsd::swn {
+namespace gsd::l1 {
 
 namespace {
 
@@ -119,4 +119,4 @@ TensionSolution solve_tension_lp(const TensionProblem& p) {
     return s;
 }
 
-}  // namespace gsd::swn
+}  // namespace gsd::l1

@@ -1,5 +1,5 @@
 // CLP behind the LinearProgram description: column-major assembly, dual simplex, quiet.
-#include "swn/lp.hpp"
+#include "l1/lp.hpp"
 
 #include <gsd/core.hpp>
 
@@ -9,7 +9,7 @@
 #include <numeric>
 #include <string>
 
-namespace gsd::swn {
+namespace gsd::l1 {
 
 LpSolution solve_lp(const LinearProgram& lp) {
     const auto cols = int(lp.columns()), rows = int(lp.rows());
@@ -59,4 +59,4 @@ LpSolution solve_lp(const LinearProgram& lp) {
     return s;
 }
 
-}  // namespace gsd::swn
+}  // namespace gsd::l1

@@ -1,10 +1,11 @@
-// lp.hpp — sparse linear programs solved with COIN-OR CLP (dual simplex). Private to src/swn.
+// lp.hpp — sparse linear programs solved with COIN-OR CLP (dual simplex). Private to the modules
+// that pose L1 problems (src/l1 itself, through tension.hpp).
 #pragma once
 
 #include <cstdint>
 #include <vector>
 
-namespace gsd::swn {
+namespace gsd::l1 {
 
 /// minimize Σ cost_j x_j subject to row_lo ≤ A x ≤ row_hi and col_lo ≤ x ≤ col_hi. Bounds may be
 /// ±infinity (use kInfinity). A is given by triplets; repeated entries are summed.
@@ -47,4 +48,4 @@ struct LpSolution {
 /// unbounded (callers build problems that are neither).
 LpSolution solve_lp(const LinearProgram& lp);
 
-}  // namespace gsd::swn
+}  // namespace gsd::l1

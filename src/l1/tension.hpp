@@ -1,6 +1,8 @@
 // tension.hpp — L1 "tension" problems: choose a value per node so that the jumps across edges
 // are small in the weighted L1 sense. Surface Winding Numbers' residual function is one (nodes:
-// faces, or groups of faces; edges: mesh edges). Private to src/swn.
+// faces, or groups of faces; edges: mesh edges); so is the surface Signed Heat Method's L1
+// integration (src/surface_shm/jumps.cpp: nodes: faces; edges: mesh edges at each end).
+// Private to the surface methods (src/surface_shm, src/swn).
 //
 // The problem is a linear program, and the dual of a minimum-cost circulation, so it can be
 // solved two ways: as a general LP with COIN-OR CLP (solve_tension_lp, the thesis' formulation)
@@ -12,7 +14,7 @@
 #include <limits>
 #include <vector>
 
-namespace gsd::swn {
+namespace gsd::l1 {
 
 /// minimize Σ_e cost_e·|J_e| over x (one value per node), J_e = x[left_e] − x[right_e] + offset_e,
 /// subject to lo_e ≤ J_e ≤ hi_e. Bounds may be infinite; costs must be positive. x is defined
@@ -44,4 +46,4 @@ TensionSolution solve_tension_network(const TensionProblem& p);
 /// the network solver). Throws gsd::Error if the bounds cannot all be met.
 TensionSolution solve_tension_lp(const TensionProblem& p);
 
-}  // namespace gsd::swn
+}  // namespace gsd::l1
