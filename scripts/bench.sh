@@ -270,6 +270,10 @@ if [ "$what" = all ] || [ "$what" = swn ]; then
   # shellcheck disable=SC2086
   build/bin/gsd-swn-bench accuracy --cases "${GSD_BENCH_SWN_CASES:-3}" ${ref:+--reference "$ref"} --work "$work/swn"
   echo
+  echo "== Surface Winding Numbers: a broken small loop beside a broken loop around the tube (3 gaps, one piece reversed)"
+  # shellcheck disable=SC2086
+  build/bin/gsd-swn-bench broken-loops --seeds 8 ${ref:+--reference "$ref"} --work "$work/swn"
+  echo
   echo "== Surface Winding Numbers: time per step, full vs reduced program, vs mesh size"
   build/bin/gsd-swn-bench timing --sizes "${GSD_BENCH_SWN_SIZES:-32,48,64,96,128}"
   if [ -d ../shared/data/surface-curves ]; then

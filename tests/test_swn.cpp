@@ -250,6 +250,49 @@ TEST_CASE("SWN: a torus with a bounding loop and a loop around the tube, whole a
     }
 }
 
+TEST_CASE("SWN: a broken loop with a reversed piece beside a broken loop around the tube") {
+    // The reversed piece leaves the small loop's chain no boundary; the residual reads the piece
+    // as nonbounding, a jump that closes right beside it — which the reduced program must offer
+    // (reversed_run_detours), or it closes it around the handle and takes the loop around the
+    // tube for the bounding one (46 % of the area mislabeled here without it).
+    const PolygonMesh m = shapes::torus_mesh(96, 32);
+    const SurfaceMesh mesh(m, "torus");
+    SurfaceWindingNumbers swn(mesh);
+    const Eigen::Vector3d center(0.5557, -0.0692, -0.1908);
+    std::vector<int> truth(m.face_count());
+    for (std::size_t f = 0; f < truth.size(); ++f)
+        truth[f] = ((vertex(m, face(m, f)[0]) + vertex(m, face(m, f)[1]) + vertex(m, face(m, f)[2])) / 3 - center).norm() < 0.152;
+    // Both loops as chained curves along edges (the damage cuts each curve in gaps).
+    auto chained = [](const SurfaceSources& edges) {
+        std::map<std::uint32_t, std::uint32_t> next;
+        for (const SurfaceCurve& c : edges.curves) next[c.nodes[0].index] = c.nodes[1].index;
+        SurfaceSources out;
+        while (!next.empty()) {
+            SurfaceCurve c;
+            std::uint32_t v = next.begin()->first;
+            c.nodes.push_back(SurfacePoint::at_vertex(v));
+            for (auto it = next.find(v); it != next.end(); it = next.find(v)) {
+                v = it->second;
+                next.erase(it);
+                c.nodes.push_back(SurfacePoint::at_vertex(v));
+            }
+            out.curves.push_back(std::move(c));
+        }
+        return out;
+    };
+    SurfaceSources src = chained(region_boundary(m, truth));
+    REQUIRE(src.curves.size() == 1);
+    src.curves.push_back(meridian(96, 32, 49));
+    const SurfaceSources broken = damage(src, {0.3, 3, 1}, 4);
+    for (SwnResidual residual : {SwnResidual::Reduced, SwnResidual::Full}) {
+        SwnOptions o;
+        o.residual = residual;
+        const SwnResult r = swn.solve(broken, o);
+        CAPTURE(int(residual));
+        CHECK(mislabeled_area(mesh, r.labels, truth, true) < 0.01);
+    }
+}
+
 TEST_CASE("SWN: the bounding part as curves on the mesh; the surface SHM on it is the SHM of the bounding loop") {
     // Thesis §6.4.1's first remedy for curves with no inside: drop the nonbounding part first.
     // Curves off the edges (solved on a split mesh) and along them (on the mesh itself).

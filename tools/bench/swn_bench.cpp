@@ -16,6 +16,11 @@
 //   gsd-swn-bench timing [--sizes 32,48,64,96,128] [--clp-max 48]
 //       Time per step and full vs reduced program vs mesh size: double tori with broken loops;
 //       the network solver vs CLP on the same program for sizes up to --clp-max.
+//   gsd-swn-bench broken-loops [--seeds N] [--cut C] [--reference PROGRAM] [--work DIR]
+//       Tori (resolution 48 + 12·seed) carrying one small bounding loop (the boundary of a random
+//       disk) and one loop around the tube, both on mesh edges and broken: C (0.3) cut away in 3
+//       gaps and one piece reversed. (write broken-loops/SEED writes one, cut 0.3.) The mislabeled area of SWN (reduced, full) and the
+//       reference, case by case, and their means.
 //   gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]
 //       Writes one accuracy case (by name, at the sizes given to accuracy) as PREFIX.obj,
 //       PREFIX.txt and PREFIX.truth.npy for side-by-side runs.
@@ -528,7 +533,94 @@ int timing(const std::vector<int>& sizes, int clp_max) {
     return 0;
 }
 
+// ---- broken loops ------------------------------------------------------------------------------
+
+/// One case of the broken-loops class: a torus, a small disk region's boundary and a loop around
+/// the tube (random side, orientation), both broken, on mesh edges.
+Case broken_loops_case(int seed, double cut) {
+    std::mt19937_64 rng(std::uint64_t(977 * seed + 13));
+    std::uniform_real_distribution<double> u(0, 1);
+    const int n = 48 + 12 * seed;
+    Case c;
+    c.mesh = shapes::torus_mesh(n, n / 3);
+    c.on_edges = true;
+    const SurfaceMesh mesh(c.mesh);
+    for (int attempt = 0; attempt < 100; ++attempt) {
+        // A disk around a random point of the surface, radius 0.12–0.25 (the tube's radius is 0.2).
+        const double a = 2 * kPi * u(rng), b = 2 * kPi * u(rng), radius = 0.12 + 0.13 * u(rng);
+        const Eigen::Vector3d center((0.5 + 0.2 * std::cos(b)) * std::cos(a), (0.5 + 0.2 * std::cos(b)) * std::sin(a),
+                                     0.2 * std::sin(b));
+        c.truth.assign(c.mesh.face_count(), 0);
+        for (std::size_t f = 0; f < c.truth.size(); ++f) {
+            const std::uint32_t* v = face(c.mesh, f);
+            c.truth[f] = ((vertex(c.mesh, v[0]) + vertex(c.mesh, v[1]) + vertex(c.mesh, v[2])) / 3 - center).norm() < radius;
+        }
+        if (all_disks(c.mesh, c.truth, 1) && all_disks(c.mesh, c.truth, 1)) break;
+    }
+    SurfaceSources src;
+    src.curves = region_boundary(c.mesh, c.truth, [](const Eigen::Vector3d&) { return true; });
+    std::set<std::pair<std::uint32_t, std::uint32_t>> used;
+    for (const SurfaceCurve& k : src.curves)
+        for (std::size_t i = 0; i + 1 < k.nodes.size(); ++i) used.insert(std::minmax(k.nodes[i].index, k.nodes[i + 1].index));
+    const bool reverse = u(rng) < 0.5;
+    for (int attempt = 0; attempt < 50; ++attempt) {
+        const std::vector<SurfaceCurve> loops = handle_loop(mesh, c.mesh, Eigen::Vector3d::Zero(), 2 * kPi * u(rng), true, reverse);
+        bool shares = false;
+        for (const SurfaceCurve& k : loops)
+            for (std::size_t i = 0; i + 1 < k.nodes.size(); ++i)
+                shares = shares || used.count(std::minmax(k.nodes[i].index, k.nodes[i + 1].index));
+        if (shares && attempt + 1 < 50) continue;
+        src.curves.insert(src.curves.end(), loops.begin(), loops.end());
+        break;
+    }
+    c.curves = damage(src, {cut, 3, 1}, std::uint64_t(seed));
+    char name[64];
+    std::snprintf(name, sizeof(name), "torus %dx%d, seed %d", n, n / 3, seed);
+    c.name = name;
+    return c;
+}
+
+int broken_loops(int seeds, double cut, const std::string& reference, std::string work) {
+    if (work.empty()) work = std::filesystem::temp_directory_path().string() + "/gsd-swn-bench";
+    std::filesystem::create_directories(work);
+    std::printf("%-26s %7s %10s %10s %10s %10s\n", "case", "faces", "reduced %", "full %", "ref %", "naive %");
+    Stats reduced, full, ref;
+    for (int seed = 1; seed <= seeds; ++seed) {
+        const Case c = broken_loops_case(seed, cut);
+        const SurfaceMesh mesh(c.mesh, c.name);
+        SurfaceWindingNumbers swn(mesh);
+        SwnOptions o;
+        const SwnResult rr = swn.solve(c.curves, o);
+        o.residual = SwnResidual::Full;
+        const SwnResult rf = swn.solve(c.curves, o);
+        const double er = 100 * mislabeled_area(mesh, rr.labels, c.truth, true);
+        const double ef = 100 * mislabeled_area(mesh, rf.labels, c.truth, true);
+        reduced.add(er);
+        full.add(ef);
+        double seconds = 0, eref = NAN;
+        if (!reference.empty())
+            if (const auto labels = run_reference(reference, c, work, seconds)) {
+                eref = 100 * mislabeled_area(mesh, *labels, c.truth, true);
+                ref.add(eref);
+            }
+        std::printf("%-26s %7zu %10.2f %10.2f %10.2f %10.2f\n", c.name.c_str(), mesh.face_count(), er, ef, eref,
+                    100 * mislabeled_area(mesh, rr.naive_labels, c.truth, true));
+        std::fflush(stdout);
+    }
+    std::printf("%-26s %7s %10.2f %10.2f %10.2f\n", "mean", "", reduced.mean(), full.mean(), ref.mean());
+    return 0;
+}
+
 int write_case(const std::string& name, const std::string& prefix, const MeshSizes& sizes) {
+    if (name.rfind("broken-loops/", 0) == 0) {  // broken-loops/SEED
+        const Case c = broken_loops_case(std::atoi(name.substr(13).c_str()), 0.3);
+        io::write_mesh(prefix + ".obj", c.mesh);
+        write_surface_curves(prefix + ".txt", c.curves);
+        std::vector<std::int32_t> truth(c.truth.begin(), c.truth.end());
+        io::write_npy(prefix + ".truth.npy", {truth.size()}, truth);
+        std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", prefix.c_str(), c.name.c_str());
+        return 0;
+    }
     const int index = std::atoi(name.substr(name.find('/') + 1).c_str());
     for (const Case& c : make_cases(index + 1, sizes)) {
         if (c.name != name) continue;
@@ -574,9 +666,18 @@ int main(int argc, char** argv) {
     w->add_option("CASE", case_name, "a name from the accuracy table")->required();
     w->add_option("PREFIX", prefix, "where to write")->required();
     add_sizes(w, write_sizes);
+    int seeds = 5;
+    std::string bl_reference, bl_work;
+    CLI::App* bl = app.add_subcommand("broken-loops", "tori with a broken small loop and a broken loop around the tube");
+    bl->add_option("--seeds", seeds, "cases (seeds 1…N)")->check(CLI::Range(1, 1000))->capture_default_str();
+    double bl_cut = 0.3;
+    bl->add_option("--cut", bl_cut, "share of each loop cut away (in 3 gaps)")->check(CLI::Range(0.0, 0.9))->capture_default_str();
+    bl->add_option("--reference", bl_reference, "a program `REF MESH.obj CURVES.txt -o PREFIX` writing PREFIX.labels.npy");
+    bl->add_option("--work", bl_work, "a folder for the reference's files (default: a temporary one)");
     CLI11_PARSE(app, argc, argv);
     try {
         if (*a) return accuracy(acc);
+        if (*bl) return broken_loops(seeds, bl_cut, bl_reference, bl_work);
         if (*t) return timing(timing_sizes, clp_max);
         return write_case(case_name, prefix, write_sizes);
     } catch (const std::exception& e) {
