@@ -150,13 +150,12 @@ void add_terms(l1::TensionProblem& p, std::uint32_t l, std::uint32_t r, std::vec
 std::vector<double> solve_restricted(const Terms& t, const std::vector<std::uint32_t>& node,
                                      const std::vector<double>& level, std::size_t nodes, std::size_t components,
                                      std::uint32_t merged, JumpSet& J) {
-    auto node_of = [&](std::uint32_t f) { return node[f]; };
     l1::TensionProblem p;
     p.nodes = nodes + components;
     // Terms per ordered pair of nodes, gathered to be merged.
     std::unordered_map<std::uint64_t, std::vector<std::pair<double, double>>> between;
     for (const FacePair& pr : t.pairs) {
-        const std::uint32_t a = node_of(pr.f), b = node_of(pr.g);
+        const std::uint32_t a = node[pr.f], b = node[pr.g];
         if (a == b) continue;
         const bool swap = a > b;
         auto& terms = between[swap ? (std::uint64_t(b) << 32 | a) : (std::uint64_t(a) << 32 | b)];
@@ -166,7 +165,7 @@ std::vector<double> solve_restricted(const Terms& t, const std::vector<std::uint
         }
     }
     for (const CurveTie& c : t.ties) {
-        const std::uint32_t a = node_of(c.f), b = std::uint32_t(nodes + c.component);
+        const std::uint32_t a = node[c.f], b = std::uint32_t(nodes + c.component);
         between[std::uint64_t(a) << 32 | b].push_back({c.offset + level[c.f], c.cost});
     }
     std::vector<std::uint64_t> keys;

@@ -611,26 +611,22 @@ int broken_loops(int seeds, double cut, const std::string& reference, std::strin
     return 0;
 }
 
+/// PREFIX.obj, PREFIX.txt and PREFIX.truth.npy of one case.
+int write_files(const Case& c, const std::string& prefix) {
+    io::write_mesh(prefix + ".obj", c.mesh);
+    write_surface_curves(prefix + ".txt", c.curves);
+    std::vector<std::int32_t> truth(c.truth.begin(), c.truth.end());
+    io::write_npy(prefix + ".truth.npy", {truth.size()}, truth);
+    std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", prefix.c_str(), c.name.c_str());
+    return 0;
+}
+
 int write_case(const std::string& name, const std::string& prefix, const MeshSizes& sizes) {
-    if (name.rfind("broken-loops/", 0) == 0) {  // broken-loops/SEED
-        const Case c = broken_loops_case(std::atoi(name.substr(13).c_str()), 0.3);
-        io::write_mesh(prefix + ".obj", c.mesh);
-        write_surface_curves(prefix + ".txt", c.curves);
-        std::vector<std::int32_t> truth(c.truth.begin(), c.truth.end());
-        io::write_npy(prefix + ".truth.npy", {truth.size()}, truth);
-        std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", prefix.c_str(), c.name.c_str());
-        return 0;
-    }
+    if (name.rfind("broken-loops/", 0) == 0)  // broken-loops/SEED
+        return write_files(broken_loops_case(std::atoi(name.substr(13).c_str()), 0.3), prefix);
     const int index = std::atoi(name.substr(name.find('/') + 1).c_str());
-    for (const Case& c : make_cases(index + 1, sizes)) {
-        if (c.name != name) continue;
-        io::write_mesh(prefix + ".obj", c.mesh);
-        write_surface_curves(prefix + ".txt", c.curves);
-        std::vector<std::int32_t> truth(c.truth.begin(), c.truth.end());
-        io::write_npy(prefix + ".truth.npy", {truth.size()}, truth);
-        std::printf("wrote %s.obj, .txt, .truth.npy (%s)\n", prefix.c_str(), c.name.c_str());
-        return 0;
-    }
+    for (const Case& c : make_cases(index + 1, sizes))
+        if (c.name == name) return write_files(c, prefix);
     std::fprintf(stderr, "no case named %s\n", name.c_str());
     return 2;
 }
