@@ -662,7 +662,7 @@ PYBIND11_MODULE(_gsd, m) {
        "instead of warping; corner_phi holds both sides of a jump (T: the mesh's triangles, polygons fanned).");
     m.def("surface_winding_numbers", [](const DoubleArray& vertices, const py::object& faces, const std::string& curves,
                                         const std::string& lp, const std::string& lp_solver, double curve_weight,
-                                        bool boundary_aware) {
+                                        bool boundary_aware, bool close_gaps) {
         const bool is_cloud = faces.is_none();
         PolygonMesh mesh;
         if (is_cloud) mesh.vertices = points_from(vertices, "vertices");
@@ -672,6 +672,7 @@ PYBIND11_MODULE(_gsd, m) {
         o.solver = swn_solver_from_name(lp_solver);
         o.curve_weight = curve_weight;
         o.boundary_aware = boundary_aware;
+        o.close_gaps = close_gaps;
         py::gil_scoped_release nogil;
         SurfaceMesh surface = is_cloud ? SurfaceMesh(cloud_surface(mesh.vertices, {}, {}, "points").triangulation, "points")
                                        : SurfaceMesh(std::move(mesh), "mesh");
@@ -688,8 +689,9 @@ PYBIND11_MODULE(_gsd, m) {
         return py::make_tuple(to_numpy(std::move(labels), {f}), to_numpy(std::move(w), {t, 3}));
     }, py::arg("vertices"), py::arg("faces"), py::arg("curves"), py::arg("lp") = "reduced",
        py::arg("lp_solver") = "network", py::arg("curve_weight") = SwnOptions{}.curve_weight,
-       py::arg("boundary_aware") = SwnOptions{}.boundary_aware,
+       py::arg("boundary_aware") = SwnOptions{}.boundary_aware, py::arg("close_gaps") = SwnOptions{}.close_gaps,
        "(labels (F,) int32 per input face, w (T,3) per triangle corner): Surface Winding Numbers of curves in a file. "
        "faces=None: vertices are a point cloud (curves name its points), labels per point, w on its triangulation. "
-       "lp, lp_solver, curve_weight, boundary_aware: as the CLI's --lp, --lp-solver, --curve-weight, --boundary-aware.");
+       "lp, lp_solver, curve_weight, boundary_aware, close_gaps: as the CLI's --lp, --lp-solver, --curve-weight, "
+       "--boundary-aware, --close-gaps.");
 }

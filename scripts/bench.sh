@@ -32,7 +32,8 @@
 # GSD_BENCH_SURFACE_LEVELS (icosphere levels for the surface timing, default 4,5,6,7,8: 5k to
 # 1.3M faces), GSD_SURFACE_REFERENCE (a program `REF MESH.obj CURVES.txt -o OUT.npy` to compare
 # with, e.g. geometry-central's signed heat solver; default: ../shared/anchors/gc_shm if present),
-# GSD_BENCH_SWN_CASES (random functions per mesh, default 3), GSD_BENCH_SWN_SIZES (double-torus grid
+# GSD_BENCH_SWN_CASES (random functions per mesh, default 3), GSD_BENCH_SWN_MESHES (§7.1 meshes, default
+# 8), GSD_BENCH_SWN_SIZES (double-torus grid
 # sizes for the SWN timing), GSD_SWN_REFERENCE (a program `REF MESH.obj CURVES.txt -o PREFIX` writing
 # PREFIX.labels.npy, e.g. the SWN reference code; default: ../shared/anchors/swn_clp if present),
 # GSD_IGL_WN (libigl's fast winding number as `REF mesh MESH.obj Q.npy OUT.npy --threads T`;
@@ -273,6 +274,14 @@ if [ "$what" = all ] || [ "$what" = swn ]; then
   echo "== Surface Winding Numbers: a broken small loop beside a broken loop around the tube (3 gaps, one piece reversed)"
   # shellcheck disable=SC2086
   build/bin/gsd-swn-bench broken-loops --seeds 8 ${ref:+--reference "$ref"} --work "$work/swn"
+  echo
+  echo "== Surface Winding Numbers: the same with the loop around the hole, half of each loop cut away"
+  # shellcheck disable=SC2086
+  build/bin/gsd-swn-bench broken-loops --seeds 8 --cut 0.5 --around hole ${ref:+--reference "$ref"} --work "$work/swn"
+  echo
+  echo "== Inside/outside, thesis §7.1: level sets of Laplacian eigenfunctions with offsets, half deleted (SWN, SHM's sign, reference)"
+  # shellcheck disable=SC2086
+  build/bin/gsd-swn-bench section71 --meshes "${GSD_BENCH_SWN_MESHES:-8}" ${ref:+--reference "$ref"} --work "$work/swn"
   echo
   echo "== Surface Winding Numbers: time per step, full vs reduced program, vs mesh size"
   build/bin/gsd-swn-bench timing --sizes "${GSD_BENCH_SWN_SIZES:-32,48,64,96,128}"

@@ -6,7 +6,7 @@ set -euo pipefail
 
 packages=(
   cmake ninja-build g++ ccache pkg-config
-  libeigen3-dev libnanoflann-dev libsuitesparse-dev coinor-libclp-dev liblemon-dev
+  libeigen3-dev libnanoflann-dev libsuitesparse-dev coinor-libclp-dev liblemon-dev libspectra-dev
   libvulkan-dev libvulkan-volk-dev glslang-tools mesa-vulkan-drivers vulkan-validationlayers
   libcli11-dev libstb-dev nlohmann-json3-dev doctest-dev libopenvdb-dev libboost-dev python3-openvdb
   libopenblas0-pthread

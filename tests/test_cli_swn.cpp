@@ -81,7 +81,8 @@ TEST_CASE("swn: the options run; --method shm labels by the sign of the surface 
     ScratchDir dir("cli-swn-options");
     const Files f = torus_with_loops(dir);
     const std::vector<std::string> options = {"--lp full",        "--lp none",    "--lp-solver clp",
-                                              "--curve-weight 0.01", "--boundary-aware", "--method shm",
+                                              "--curve-weight 0.01", "--boundary-aware", "--no-close-gaps",
+                                              "--close-gaps",     "--method shm",
                                               std::string("--method shm --render ").append(dir.file("s.png"))};
     for (const std::string& extra : options) {
         const auto r = run_cli("swn " + f.mesh + " --curves " + f.curves + " -o " + dir.file("l.npy") + " " + extra);

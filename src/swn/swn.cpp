@@ -516,6 +516,180 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
     return on_path;
 }
 
+/// The curves closed across their gaps: each interior end where curves arrive (the chain's
+/// boundary +k there) joined to ends where they leave (−k) by shortest paths along edges, the
+/// best pairs first (a greedy matching; an end joins several others if its multiplicity says
+/// so). Paths leave a head forward (into the half-space ahead of the arriving curve), and a
+/// pair's score is the path's length times how much the join turns: 3 − cos α − cos β, α between
+/// the arriving curve's direction and the path's first few edges, β between the path's last few
+/// edges and the leaving curve's direction — 1 for a gap in a straight curve, up to 5 for
+/// running back along the piece to its own start (which the nearest end often is when gaps are
+/// long).
+/// Why: the harmonic part of a broken curve's jump function has fractional periods — a loop
+/// around a handle with half of it cut away winds about 0.3 times, two broken loops that bound
+/// a band together can wind 0.8 times — and the residual program then read the wrong curves as
+/// the ones that bound nothing (or placed a fraction of a jump off every curve). Completed as a
+/// person would complete them, the curves wind an integer number of times around each handle.
+/// Ends no path joins (another component) stay open.
+std::vector<double> closed_chain(const Topology& t, const std::vector<double>& chain, const std::vector<std::uint8_t>& endpoint) {
+    const Triangulation& T = t.mesh;
+    const std::size_t V = T.vertex_count;
+    std::vector<double> end_sign(V, 0.0);  // curves arriving minus leaving
+    for (std::size_t e = 0; e < T.edge_count(); ++e) {
+        if (chain[e] == 0) continue;
+        const auto [a, b] = T.edges[e];
+        if (endpoint[a]) end_sign[a] -= chain[e];
+        if (endpoint[b]) end_sign[b] += chain[e];
+    }
+    std::vector<long> capacity(V, 0);  // ends still to join, signed like end_sign
+    for (std::size_t v = 0; v < V; ++v) capacity[v] = std::lround(end_sign[v]);
+    const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
+    // The curves' direction at each end: from a few edges back along the curve (staircases along
+    // mesh edges turn at every vertex) to the end, or from the end a few edges on.
+    auto x = [&](std::uint32_t v) -> Eigen::Vector3d { return t.polygons.vertices.row(v).transpose(); };
+    auto flow = [&](std::uint32_t e, std::uint32_t from) {  // the chain along e leaving `from`
+        return T.edges[e][0] == from ? chain[e] : -chain[e];
+    };
+    auto direction = [&](std::uint32_t end, bool arriving) {
+        std::uint32_t v = end, previous = kNone;
+        for (int step = 0; step < 4; ++step) {
+            std::uint32_t next = kNone;
+            for (const auto& [w, e] : nbr[v])
+                if (w != previous && (arriving ? flow(e, v) < -0.5 : flow(e, v) > 0.5)) next = w;
+            if (next == kNone) break;
+            previous = v;
+            v = next;
+        }
+        const Eigen::Vector3d d = arriving ? x(end) - x(v) : x(v) - x(end);
+        return d.norm() > 0 ? Eigen::Vector3d(d.normalized()) : Eigen::Vector3d::Zero();
+    };
+    // The vertices of the piece arriving at a head (followed back while unbranched) and their
+    // neighbours, less those within two edges of the head.
+    std::vector<std::uint8_t> blocked(V, 0), near(V, 0);
+    auto beside_piece = [&](std::uint32_t head) {
+        std::vector<std::uint32_t> piece{head}, out;
+        for (std::uint32_t v = head, previous = kNone; piece.size() < V;) {
+            std::uint32_t next = kNone;
+            for (const auto& [w, e] : nbr[v])
+                if (w != previous && flow(e, v) < -0.5) next = w;
+            if (next == kNone || next == head) break;
+            previous = v;
+            v = next;
+            piece.push_back(v);
+        }
+        std::vector<std::uint32_t> close{head}, ring{head};  // within two edges of the head
+        near[head] = 1;
+        for (int step = 0; step < 2; ++step) {
+            std::vector<std::uint32_t> next;
+            for (std::uint32_t v : ring)
+                for (const auto& [w, e] : nbr[v])
+                    if (!near[w]) next.push_back(w), close.push_back(w), near[w] = 1;
+            ring = std::move(next);
+        }
+        for (std::uint32_t v : piece) {
+            if (!near[v]) out.push_back(v);
+            for (const auto& [w, e] : nbr[v])
+                if (!near[w]) out.push_back(w);
+        }
+        for (std::uint32_t v : close) near[v] = 0;
+        return out;
+    };
+    std::vector<Eigen::Vector3d> tangent(V, Eigen::Vector3d::Zero());
+    for (std::uint32_t v = 0; v < V; ++v)
+        if (capacity[v] != 0) tangent[v] = direction(v, capacity[v] > 0);
+    struct Candidate {
+        double score;
+        std::uint32_t head, tail;
+        std::vector<std::uint32_t> edges;  // the path, head to tail
+    };
+    std::vector<double> dist(V, std::numeric_limits<double>::infinity());
+    std::vector<std::uint32_t> via(V, kNone), touched;
+    using Item = std::pair<double, std::uint32_t>;
+    constexpr double kClearJoin = 2.0;  // the second best join of a head scores this much worse, or it stays open
+    // From each head with ends left, the `reach` nearest tails with ends left, scored.
+    auto candidates = [&](int reach) {
+        std::vector<Candidate> out;
+        for (std::uint32_t head = 0; head < V; ++head) {
+            if (capacity[head] <= 0) continue;
+            const std::size_t first = out.size();
+            std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
+            dist[head] = 0;
+            touched.push_back(head);
+            heap.push({0.0, head});
+            int found = 0;
+            // The ring around the head's own piece is closed to the path (but for the end of the
+            // piece near the head): else the way back along the piece to its own start is often
+            // as short as the way across the gap.
+            const std::vector<std::uint32_t> closed_off = beside_piece(head);
+            for (std::uint32_t v : closed_off) blocked[v] = 1;
+            while (!heap.empty() && found < reach) {
+                const auto [d, v] = heap.top();
+                heap.pop();
+                if (d > dist[v]) continue;
+                if (capacity[v] < 0 && v != head) {
+                    Candidate c{0, head, v, {}};
+                    std::vector<std::uint32_t> path{v};  // vertices, tail to head
+                    for (std::uint32_t u = v; u != head;) {
+                        c.edges.push_back(via[u]);
+                        u = T.edges[via[u]][0] == u ? T.edges[via[u]][1] : T.edges[via[u]][0];
+                        path.push_back(u);
+                    }
+                    std::reverse(c.edges.begin(), c.edges.end());
+                    std::reverse(path.begin(), path.end());
+                    // The path's own direction a few edges from either end (not the chord: a
+                    // gap across a thin tube and the way back along the piece share it).
+                    const std::size_t k = std::min<std::size_t>(3, path.size() - 1);
+                    const Eigen::Vector3d leave = (x(path[k]) - x(head)).normalized();
+                    const Eigen::Vector3d arrive = (x(v) - x(path[path.size() - 1 - k])).normalized();
+                    c.score = d * (3 - tangent[head].dot(leave) - arrive.dot(tangent[v]));
+                    out.push_back(std::move(c));
+                    ++found;
+                }
+                if (blocked[v] && v != head) continue;  // reached (a tail counts), not passed through
+                for (const auto& [w, e] : nbr[v]) {
+                    // Leave a head forward, along the curve arriving there.
+                    if (v == head && (x(w) - x(head)).dot(tangent[head]) <= 0 && tangent[head].squaredNorm() > 0) continue;
+                    const double nd = d + T.edge_lengths[e];
+                    if (nd < dist[w]) {
+                        if (std::isinf(dist[w])) touched.push_back(w);
+                        dist[w] = nd;
+                        via[w] = e;
+                        heap.push({nd, w});
+                    }
+                }
+            }
+            for (std::uint32_t v : touched) dist[v] = std::numeric_limits<double>::infinity();
+            touched.clear();
+            for (std::uint32_t v : closed_off) blocked[v] = 0;
+            // A head whose two best joins score alike has no clear continuation (half of a loop
+            // around a tube: across the gap or around the other way): it stays open.
+            auto mine = out.begin() + std::ptrdiff_t(first);
+            std::sort(mine, out.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
+            if (out.size() - first >= 2 && mine[1].score < kClearJoin * mine[0].score) out.resize(first);
+        }
+        std::sort(out.begin(), out.end(), [](const Candidate& a, const Candidate& b) { return a.score < b.score; });
+        return out;
+    };
+    std::vector<double> closed = chain;
+    // A few nearest tails per head settle almost every end; the rest look again among what is left.
+    for (int reach : {6, 1 << 30}) {
+        for (const Candidate& c : candidates(reach)) {
+            const long k = std::min(capacity[c.head], -capacity[c.tail]);
+            if (k <= 0) continue;
+            capacity[c.head] -= k;
+            capacity[c.tail] += k;
+            std::uint32_t at = c.head;
+            for (std::uint32_t e : c.edges) {
+                const bool forward = T.edges[e][0] == at;
+                closed[e] += forward ? double(k) : -double(k);
+                at = forward ? T.edges[e][1] : T.edges[e][0];
+            }
+        }
+        if (std::none_of(capacity.begin(), capacity.end(), [](long c) { return c > 0; })) break;
+    }
+    return closed;
+}
+
 /// Components of the faces across uncut edges, with γ integrated along a spanning tree of each
 /// (consistent: every loop inside a component bounds, and γ is closed).
 std::vector<std::uint32_t> cut_components(const Topology& t, const std::vector<std::uint8_t>& cut,
@@ -796,9 +970,24 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
     if (!ops.simply_connected && o.residual != SwnResidual::None) {
         t0 = Clock::now();
         if (progress) progress("Hodge decomposition", 0.3);
-        const std::vector<double> omega = darboux_derivative(t, r.u, J);
-        const bool open = std::any_of(J.endpoint.begin(), J.endpoint.end(), [](std::uint8_t e) { return e != 0; });
-        const std::vector<double> gamma = open ? ops.harmonic_part(omega) : omega;
+        const auto any_end = [](const JumpData& data) {
+            return std::any_of(data.endpoint.begin(), data.endpoint.end(), [](std::uint8_t e) { return e != 0; });
+        };
+        // With close_gaps the program runs on the curves closed across their gaps (closed_chain
+        // says why); the bounding part it finds is then taken from the curves as given.
+        std::vector<double> lp_chain = chain;
+        JumpData JL = J;
+        std::vector<double> u_closed;
+        const std::vector<double>* u_lp = &r.u;
+        if (o.close_gaps && any_end(J)) {
+            lp_chain = closed_chain(t, chain, J.endpoint);
+            JL = jump_offsets(ops.H, lp_chain, nullptr);
+            const Cholesky<double> KL = ops.factor_jump(jump_matrix(ops.H, JL.endpoint));
+            u_closed = corner_values(T, KL.solve(jump_rhs(ops.H, JL)), JL);
+            u_lp = &u_closed;
+        }
+        const std::vector<double> omega = darboux_derivative(t, *u_lp, JL);
+        const std::vector<double> gamma = any_end(JL) ? ops.harmonic_part(omega) : omega;
         r.seconds_hodge = seconds_since(t0);
         t0 = Clock::now();
         if (progress) progress("residual function (linear program)", 0.5);
@@ -814,13 +1003,14 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
             if (ops.cut.empty()) ops.cut = cut_graph(t);
             std::vector<std::uint8_t> cut = ops.cut;
             const std::vector<std::uint8_t> paths = completion_paths(t, chain, J.endpoint);
-            for (std::size_t e = 0; e < T.edge_count(); ++e) cut[e] = cut[e] || paths[e] || std::abs(chain[e]) > 1e-9;
+            for (std::size_t e = 0; e < T.edge_count(); ++e)
+                cut[e] = cut[e] || paths[e] || std::abs(chain[e]) > 1e-9 || std::abs(lp_chain[e]) > 1e-9;
             const std::vector<std::uint8_t> detours = reversed_run_detours(t, chain);
             for (std::size_t e = 0; e < T.edge_count(); ++e) cut[e] = cut[e] || detours[e];
             group = cut_components(t, cut, gamma, v, groups);
         }
-        const std::vector<double> straightness = curve_straightness(t, chain);
-        const ResidualLp lp = solve_residual_lp(t, v, group, groups, chain, straightness, o);
+        const std::vector<double> straightness = curve_straightness(t, lp_chain);
+        const ResidualLp lp = solve_residual_lp(t, v, group, groups, lp_chain, straightness, o);
         for (std::size_t f = 0; f < T.face_count(); ++f)
             for (int k = 0; k < 3; ++k) v[corner_id(f, k)] += lp.shift[group[f]];
         r.lp_variables = lp.variables;
@@ -830,12 +1020,14 @@ CoreResult run_core(Operators& ops, const std::vector<double>& chain, const SwnO
         const std::vector<double> jumps = edge_jumps(t, v);
         // The full program's cost at v, over every edge: the same measure whichever program
         // found v (the reduced one's own cost leaves out the edges inside its pieces).
-        std::tie(r.lp_objective, r.lp_violation) = residual_cost(t, jumps, chain, straightness, o);
+        std::tie(r.lp_objective, r.lp_violation) = residual_cost(t, jumps, lp_chain, straightness, o);
         std::vector<double> nonbounding(T.edge_count(), 0.0), completed(T.edge_count(), 0.0);
         for (std::size_t e = 0; e < T.edge_count(); ++e) {
             if (std::abs(chain[e]) > 1e-9) {
-                nonbounding[e] = jumps[e];
-                bounding_chain[e] = chain[e] - jumps[e];
+                // A completion running over a curve edge can widen its bounds: keep the jump
+                // within the curve's own.
+                nonbounding[e] = std::clamp(jumps[e], std::min(0.0, chain[e]), std::max(0.0, chain[e]));
+                bounding_chain[e] = chain[e] - nonbounding[e];
             } else {
                 completed[e] = jumps[e];
             }

@@ -19,8 +19,18 @@
 //   gsd-swn-bench broken-loops [--seeds N] [--cut C] [--reference PROGRAM] [--work DIR]
 //       Tori (resolution 48 + 12·seed) carrying one small bounding loop (the boundary of a random
 //       disk) and one loop around the tube, both on mesh edges and broken: C (0.3) cut away in 3
-//       gaps and one piece reversed. (write broken-loops/SEED writes one, cut 0.3.) The mislabeled area of SWN (reduced, full) and the
-//       reference, case by case, and their means.
+//       gaps and one piece reversed; --around hole: the outer equator instead of the loop around the tube.
+//       (write broken-loops/SEED[/CUT] writes one, cut 0.3 by default.) The mislabeled area of SWN
+//       (reduced, full, reduced without close_gaps) and the reference, case by case, and their means.
+//   gsd-swn-bench section71 [--meshes N] [--reference PROGRAM] [--work DIR] [--quiet]
+//       Thesis §7.1's comparison: closed meshes of about 5k vertices (genus 0 and 1 in turn, bent
+//       at random), five cases each: the region below a random level of one of the five lowest
+//       nonconstant Laplacian eigenfunctions is the truth; its boundary along edges plus the
+//       boundary of the region one ring larger or smaller (a parallel copy) is the curve, half of
+//       it deleted at random intervals. Inside/outside mislabeled by SWN (its labels contoured as
+//       the thesis does: from the level most often seen across the curves), the best threshold of
+//       its labels, SHM's sign, SHM's sign on SWN's bounding part, and the reference.
+//       (write section71/MESH/EIGENFUNCTION writes one.)
 //   gsd-swn-bench write CASE PREFIX [--torus N] [--double-torus N]
 //       Writes one accuracy case (by name, at the sizes given to accuracy) as PREFIX.obj,
 //       PREFIX.txt and PREFIX.truth.npy for side-by-side runs.
@@ -30,12 +40,14 @@
 #include <gsd/swn.hpp>
 
 #include "core/disjoint_sets.hpp"
+#include "laplace_eigen.hpp"
 
 #include <CLI/CLI.hpp>
 #include <Eigen/Geometry>
 
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -359,6 +371,47 @@ std::optional<std::vector<int>> run_reference(const std::string& program, const 
     return out;
 }
 
+// ---- inside/outside from labels ---------------------------------------------------------------
+
+/// Inside (1) or outside (0) from integer winding numbers, as the thesis' §7.1 contours them:
+/// along the input curves (on mesh edges), the label on the higher side of each edge where the
+/// two sides differ, weighted by length; the most frequent one m is where inside begins
+/// (label ≥ m). Ties: the smaller. With no such edge, everything is outside.
+std::vector<int> inside_by_curve_levels(const PolygonMesh& m, const std::vector<int>& labels, const SurfaceSources& curves) {
+    std::map<std::pair<std::uint32_t, std::uint32_t>, std::size_t> left;  // directed edge → its face
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        for (int k = 0; k < 3; ++k) left[{face(m, f)[k], face(m, f)[(k + 1) % 3]}] = f;
+    std::map<int, double> votes;
+    for (const SurfaceCurve& c : curves.curves)
+        for (std::size_t i = 0; i + 1 < c.nodes.size(); ++i) {
+            const std::uint32_t a = c.nodes[i].index, b = c.nodes[i + 1].index;
+            const auto l = left.find({a, b}), r = left.find({b, a});
+            if (l == left.end() || r == left.end() || labels[l->second] == labels[r->second]) continue;
+            votes[std::max(labels[l->second], labels[r->second])] += (vertex(m, a) - vertex(m, b)).norm();
+        }
+    const int start = votes.empty() ? INT_MAX
+                                    : std::max_element(votes.begin(), votes.end(), [](auto& x, auto& y) {
+                                          return x.second < y.second;
+                                      })->first;
+    std::vector<int> inside(labels.size());
+    for (std::size_t f = 0; f < labels.size(); ++f) inside[f] = labels[f] >= start;
+    return inside;
+}
+
+/// The smallest mislabeled area over every threshold "label ≥ m" (what the best possible
+/// contouring of these winding numbers would give): separates SWN's completion from its contouring.
+double best_threshold_error(const SurfaceMesh& mesh, const std::vector<int>& labels, const std::vector<int>& truth) {
+    std::set<int> values(labels.begin(), labels.end());
+    values.insert(*values.rbegin() + 1);
+    double best = 1;
+    for (int m : values) {
+        std::vector<int> inside(labels.size());
+        for (std::size_t f = 0; f < labels.size(); ++f) inside[f] = labels[f] >= m;
+        best = std::min(best, mislabeled_area(mesh, inside, truth, false));
+    }
+    return best;
+}
+
 // ---- accuracy ------------------------------------------------------------------------------
 
 struct Stats {
@@ -535,9 +588,23 @@ int timing(const std::vector<int>& sizes, int clp_max) {
 
 // ---- broken loops ------------------------------------------------------------------------------
 
+/// The torus' outer equator along mesh edges (torus_mesh's minor rings are at angles 2πj/m, so
+/// j = 0 is on the edges): a loop around the hole.
+std::vector<SurfaceCurve> hole_loop(const PolygonMesh& m, bool reverse) {
+    std::vector<int> below(m.face_count());
+    for (std::size_t f = 0; f < m.face_count(); ++f) {
+        const std::uint32_t* v = face(m, f);
+        below[f] = (vertex(m, v[0]) + vertex(m, v[1]) + vertex(m, v[2])).z() < 0;
+    }
+    std::vector<SurfaceCurve> loops = region_boundary(m, below, [](const Eigen::Vector3d& x) { return std::hypot(x.x(), x.y()) > 0.5; });
+    if (reverse)
+        for (SurfaceCurve& k : loops) std::reverse(k.nodes.begin(), k.nodes.end());
+    return loops;
+}
+
 /// One case of the broken-loops class: a torus, a small disk region's boundary and a loop around
-/// the tube (random side, orientation), both broken, on mesh edges.
-Case broken_loops_case(int seed, double cut) {
+/// the tube (or the hole) (random side, orientation), both broken, on mesh edges.
+Case broken_loops_case(int seed, double cut, bool around_hole = false) {
     std::mt19937_64 rng(std::uint64_t(977 * seed + 13));
     std::uniform_real_distribution<double> u(0, 1);
     const int n = 48 + 12 * seed;
@@ -564,7 +631,9 @@ Case broken_loops_case(int seed, double cut) {
         for (std::size_t i = 0; i + 1 < k.nodes.size(); ++i) used.insert(std::minmax(k.nodes[i].index, k.nodes[i + 1].index));
     const bool reverse = u(rng) < 0.5;
     for (int attempt = 0; attempt < 50; ++attempt) {
-        const std::vector<SurfaceCurve> loops = handle_loop(mesh, c.mesh, Eigen::Vector3d::Zero(), 2 * kPi * u(rng), true, reverse);
+        const double theta = 2 * kPi * u(rng);
+        const std::vector<SurfaceCurve> loops =
+            around_hole ? hole_loop(c.mesh, reverse) : handle_loop(mesh, c.mesh, Eigen::Vector3d::Zero(), theta, true, reverse);
         bool shares = false;
         for (const SurfaceCurve& k : loops)
             for (std::size_t i = 0; i + 1 < k.nodes.size(); ++i)
@@ -580,13 +649,14 @@ Case broken_loops_case(int seed, double cut) {
     return c;
 }
 
-int broken_loops(int seeds, double cut, const std::string& reference, std::string work) {
+int broken_loops(int seeds, double cut, bool around_hole, const std::string& reference, std::string work) {
     if (work.empty()) work = std::filesystem::temp_directory_path().string() + "/gsd-swn-bench";
     std::filesystem::create_directories(work);
-    std::printf("%-26s %7s %10s %10s %10s %10s\n", "case", "faces", "reduced %", "full %", "ref %", "naive %");
-    Stats reduced, full, ref;
+    std::printf("%-26s %7s %10s %10s %10s %10s %10s\n", "case", "faces", "reduced %", "full %", "no close %", "ref %",
+                "naive %");
+    Stats reduced, full, closed, ref;
     for (int seed = 1; seed <= seeds; ++seed) {
-        const Case c = broken_loops_case(seed, cut);
+        const Case c = broken_loops_case(seed, cut, around_hole);
         const SurfaceMesh mesh(c.mesh, c.name);
         SurfaceWindingNumbers swn(mesh);
         SwnOptions o;
@@ -595,19 +665,244 @@ int broken_loops(int seeds, double cut, const std::string& reference, std::strin
         const SwnResult rf = swn.solve(c.curves, o);
         const double er = 100 * mislabeled_area(mesh, rr.labels, c.truth, true);
         const double ef = 100 * mislabeled_area(mesh, rf.labels, c.truth, true);
+        SwnOptions oc;
+        oc.close_gaps = false;
+        const double ec = 100 * mislabeled_area(mesh, swn.solve(c.curves, oc).labels, c.truth, true);
         reduced.add(er);
         full.add(ef);
+        closed.add(ec);
         double seconds = 0, eref = NAN;
         if (!reference.empty())
             if (const auto labels = run_reference(reference, c, work, seconds)) {
                 eref = 100 * mislabeled_area(mesh, *labels, c.truth, true);
                 ref.add(eref);
             }
-        std::printf("%-26s %7zu %10.2f %10.2f %10.2f %10.2f\n", c.name.c_str(), mesh.face_count(), er, ef, eref,
+        std::printf("%-26s %7zu %10.2f %10.2f %10.2f %10.2f %10.2f\n", c.name.c_str(), mesh.face_count(), er, ef, ec, eref,
                     100 * mislabeled_area(mesh, rr.naive_labels, c.truth, true));
         std::fflush(stdout);
     }
-    std::printf("%-26s %7s %10.2f %10.2f %10.2f\n", "mean", "", reduced.mean(), full.mean(), ref.mean());
+    std::printf("%-26s %7s %10.2f %10.2f %10.2f %10.2f\n", "mean", "", reduced.mean(), full.mean(), closed.mean(), ref.mean());
+    return 0;
+}
+
+// ---- thesis §7.1: level sets of Laplacian eigenfunctions, with offsets, half deleted ---------
+
+/// A smooth random bend: every vertex moved along three plane waves of wavelength about the
+/// shape's size, by up to `amplitude` × its size. The methods are intrinsic: what matters is that
+/// the triangles and the eigenfunctions change.
+PolygonMesh bent(PolygonMesh m, std::mt19937_64& rng, double amplitude) {
+    std::normal_distribution<double> n(0, 1);
+    std::uniform_real_distribution<double> u(0, 1);
+    const double size = (m.vertices.colwise().maxCoeff() - m.vertices.colwise().minCoeff()).norm();
+    for (int wave = 0; wave < 3; ++wave) {
+        const double kx = n(rng), ky = n(rng), kz = n(rng), dx = n(rng), dy = n(rng), dz = n(rng);
+        const Eigen::Vector3d k = Eigen::Vector3d(kx, ky, kz).normalized() * (2 * kPi / size) * (1 + u(rng));
+        const Eigen::Vector3d d = Eigen::Vector3d(dx, dy, dz).normalized() * amplitude * size / 3;
+        const double phase = 2 * kPi * u(rng);
+        for (Eigen::Index v = 0; v < m.vertices.rows(); ++v) {
+            const Eigen::Vector3d x = m.vertices.row(v).transpose();
+            m.vertices.row(v) += (d * std::sin(k.dot(x) + phase)).transpose();
+        }
+    }
+    return m;
+}
+
+/// The §7.1 meshes: closed, about 5k vertices, genus 0 and 1 in turn, contoured from an SDF
+/// (irregular triangles; not from shapes with flat sides, where contouring leaves triangles of zero
+/// area) or parametric grids (regular ones), each bent at random (seed `index`; the blob more).
+PolygonMesh section71_mesh(int index, std::string& name) {
+    std::mt19937_64 rng(std::uint64_t(7919 * index + 3));
+    struct Kind {
+        const char* name;
+        std::function<PolygonMesh()> make;
+    };
+    const std::array<Kind, 8> kinds{{
+        {"sphere, contoured", [] { return shapes::mesh(*shapes::sphere(Eigen::Vector3d::Zero(), 0.5), 25); }},
+        {"torus grid", [] { return shapes::torus_mesh(118, 42); }},
+        {"capsule, contoured", [] { return shapes::mesh(*shapes::by_name("capsule"), 26); }},
+        {"torus, contoured", [] { return shapes::mesh(*shapes::by_name("torus"), 23); }},
+        {"blob, contoured", [] { return shapes::mesh(*shapes::sphere(Eigen::Vector3d::Zero(), 0.5), 24); }},
+        {"thin torus grid", [] { return shapes::torus_mesh(160, 32, 0.5, 0.125); }},
+        {"icosphere", [] { return shapes::icosphere(4); }},
+        {"fat torus grid", [] { return shapes::torus_mesh(100, 50, 0.5, 0.3); }},
+    }};
+    const Kind& k = kinds[std::size_t(index) % kinds.size()];
+    name = std::string(k.name) + " #" + std::to_string(index);
+    return bent(k.make(), rng, index % kinds.size() == 4 ? 0.4 : 0.15);
+}
+
+/// Faces that share a vertex with a face of `region` (grow) or whose vertices all lie only on
+/// faces of `region` (shrink): the region one ring of triangles larger or smaller. Their
+/// boundaries are the boundaries of the triangle strips along the region's own (thesis §7.1).
+std::vector<int> offset_region(const PolygonMesh& m, const std::vector<int>& region, bool grow) {
+    std::vector<std::uint8_t> touches(std::size_t(m.vertices.rows()), 0);  // vertex on a face of the other side
+    for (std::size_t f = 0; f < m.face_count(); ++f)
+        if (region[f] == (grow ? 1 : 0))
+            for (int k = 0; k < 3; ++k) touches[face(m, f)[k]] = 1;
+    std::vector<int> out(region);
+    for (std::size_t f = 0; f < m.face_count(); ++f) {
+        bool near = false;
+        for (int k = 0; k < 3; ++k) near = near || touches[face(m, f)[k]];
+        if (near) out[f] = grow ? 1 : 0;
+    }
+    return out;
+}
+
+/// About `fraction` of each curve's pieces deleted in 2–6 gaps of random lengths at random places
+/// (the kept runs random too).
+SurfaceSources delete_intervals(const SurfaceSources& src, double fraction, std::mt19937_64& rng) {
+    SurfaceSources out;
+    for (const SurfaceCurve& c : src.curves) {
+        const std::size_t pieces = c.nodes.size() - 1;
+        const std::size_t gaps = std::clamp<std::size_t>(2 + rng() % 5, 1, std::max<std::size_t>(1, pieces / 4));
+        const auto cut = std::size_t(std::lround(fraction * double(pieces)));
+        // Random compositions of `cut` and `pieces − cut` into `gaps` positive parts.
+        auto split = [&](std::size_t total) {
+            std::vector<std::size_t> marks{0, total};
+            for (std::size_t g = 1; g < gaps; ++g) marks.push_back(total > gaps ? 1 + rng() % (total - 1) : g);
+            std::sort(marks.begin(), marks.end());
+            std::vector<std::size_t> parts;
+            for (std::size_t g = 0; g + 1 < marks.size(); ++g) parts.push_back(marks[g + 1] - marks[g]);
+            return parts;
+        };
+        const std::vector<std::size_t> removed = split(cut), kept = split(pieces - cut);
+        std::vector<std::uint8_t> drop(pieces, 0);
+        std::size_t at = rng() % pieces;
+        for (std::size_t g = 0; g < gaps; ++g) {
+            for (std::size_t i = 0; i < removed[g]; ++i) drop[at++ % pieces] = 1;
+            at += kept[g];
+        }
+        SurfaceCurve run;
+        run.is_signed = c.is_signed;
+        for (std::size_t i = 0; i < pieces; ++i) {
+            if (!drop[i]) {
+                if (run.nodes.empty()) run.nodes.push_back(c.nodes[i]);
+                run.nodes.push_back(c.nodes[i + 1]);
+            } else if (!run.nodes.empty()) {
+                out.curves.push_back(std::move(run));
+                run.nodes.clear();
+            }
+        }
+        if (!run.nodes.empty()) out.curves.push_back(std::move(run));
+    }
+    return out;
+}
+
+/// Case `which` (0–4) on mesh `index`: the region below a random level (30–70 % of the vertices)
+/// of the which-th lowest nonconstant Laplacian eigenfunction is the truth; its boundary along
+/// mesh edges plus the boundary of the region one ring larger or smaller (same orientation: a
+/// second, parallel curve) is the curve, about half of it deleted at random intervals.
+Case section71_case(int index, int which, const PolygonMesh& m, const std::string& mesh_name,
+                    const Eigen::MatrixXd& eigenfunctions) {
+    std::mt19937_64 rng(std::uint64_t(104729 * index + 31 * which + 5));
+    std::uniform_real_distribution<double> u(0, 1);
+    const Eigen::VectorXd phi = eigenfunctions.col(which + 1);
+    std::vector<double> sorted(phi.data(), phi.data() + phi.size());
+    std::sort(sorted.begin(), sorted.end());
+    const double level = sorted[std::size_t((0.3 + 0.4 * u(rng)) * double(sorted.size() - 1))];
+    Case c;
+    c.mesh = m;
+    c.on_edges = true;
+    c.truth.resize(m.face_count());
+    for (std::size_t f = 0; f < m.face_count(); ++f) {
+        const std::uint32_t* v = face(m, f);
+        c.truth[f] = phi[v[0]] + phi[v[1]] + phi[v[2]] < 3 * level;
+    }
+    const bool grow = u(rng) < 0.5;
+    SurfaceSources full;
+    full.curves = region_boundary(m, c.truth, [](const Eigen::Vector3d&) { return true; });
+    for (SurfaceCurve& k : region_boundary(m, offset_region(m, c.truth, grow), [](const Eigen::Vector3d&) { return true; }))
+        full.curves.push_back(std::move(k));
+    c.curves = delete_intervals(full, 0.5, rng);
+    char name[128];
+    std::snprintf(name, sizeof(name), "%s, eigenfunction %d", mesh_name.c_str(), which + 1);
+    c.name = name;
+    return c;
+}
+
+struct Section71Args {
+    int meshes = 8;
+    SwnOptions options;
+    std::string reference, work;
+    bool quiet = false;
+};
+
+int section71(Section71Args args) {
+    if (args.work.empty()) args.work = std::filesystem::temp_directory_path().string() + "/gsd-swn-bench";
+    std::filesystem::create_directories(args.work);
+    const std::vector<std::string> methods = {"swn", "swn best", "shm", "shm bounding", "reference", "ref best"};
+    std::map<std::string, std::map<std::string, Stats>> by_group;  // group → method → mislabeled %
+    std::map<std::string, Stats> seconds;
+    if (!args.quiet) {
+        std::printf("%-44s %6s", "case", "faces");
+        for (const std::string& m : methods) std::printf(" %12s", (m + " %").c_str());
+        std::printf("\n");
+    }
+    for (int index = 0; index < args.meshes; ++index) {
+        std::string mesh_name;
+        const PolygonMesh m = section71_mesh(index, mesh_name);
+        const Eigen::MatrixXd eigenfunctions = bench::laplace_eigenfunctions(m, 6);
+        const SurfaceMesh mesh(m, mesh_name);
+        const bool genus0 = mesh.summary().euler_characteristic == 2;
+        SurfaceWindingNumbers swn(mesh);
+        SignedHeatSurface shm(mesh);
+        for (int which = 0; which < 5; ++which) {
+            const Case c = section71_case(index, which, m, mesh_name, eigenfunctions);
+            std::map<std::string, double> err;
+            auto t0 = Clock::now();
+            const SwnResult r = swn.solve(c.curves, args.options);
+            seconds["swn"].add(since(t0));
+            err["swn"] = 100 * mislabeled_area(mesh, inside_by_curve_levels(m, r.labels, c.curves), c.truth, false);
+            err["swn best"] = 100 * best_threshold_error(mesh, r.labels, c.truth);
+            t0 = Clock::now();
+            err["shm"] = 100 * mislabeled_area(mesh, shm_labels(mesh, shm.solve(c.curves).phi), c.truth, false);
+            seconds["shm"].add(since(t0));
+            if (!r.bounding_curves.curves.empty())  // gsd shm surface --filter-nonbounding's sign
+                err["shm bounding"] =
+                    100 * mislabeled_area(mesh, shm_labels(mesh, shm.solve(r.bounding_curves).phi), c.truth, false);
+            if (!args.reference.empty()) {
+                double s = 0;
+                if (const auto ref = run_reference(args.reference, c, args.work, s)) {
+                    err["reference"] = 100 * mislabeled_area(mesh, inside_by_curve_levels(m, *ref, c.curves), c.truth, false);
+                    err["ref best"] = 100 * best_threshold_error(mesh, *ref, c.truth);
+                    seconds["reference"].add(s);
+                }
+            }
+            for (const auto& [method, e] : err) {
+                by_group["all"][method].add(e);
+                by_group[genus0 ? "genus 0" : "genus 1"][method].add(e);
+            }
+            if (!args.quiet) {
+                std::printf("%-44s %6zu", c.name.c_str(), m.face_count());
+                for (const std::string& method : methods)
+                    if (err.count(method)) std::printf(" %12.2f", err[method]);
+                    else std::printf(" %12s", "-");
+                std::printf("\n");
+                std::fflush(stdout);
+            }
+        }
+    }
+    std::printf("\nMislabeled area, %% of the surface, inside/outside: mean / median / max, and cases above 50 %%\n");
+    std::printf("%-8s %5s", "group", "cases");
+    for (const std::string& m : methods) std::printf(" %26s", m.c_str());
+    std::printf("\n");
+    for (const char* g : {"all", "genus 0", "genus 1"}) {
+        if (!by_group.count(g)) continue;
+        std::printf("%-8s %5zu", g, by_group[g]["swn"].v.size());
+        for (const std::string& m : methods) {
+            const Stats& s = by_group[g][m];
+            if (s.v.empty()) {
+                std::printf(" %26s", "-");
+                continue;
+            }
+            const auto above = std::count_if(s.v.begin(), s.v.end(), [](double x) { return x > 50; });
+            std::printf("   %5.1f /%5.1f /%5.1f  >50:%2ld", s.mean(), s.median(), s.max(), long(above));
+        }
+        std::printf("\n");
+    }
+    std::printf("\nseconds per case (mean):");
+    for (const auto& [m, s] : seconds) std::printf(" %s %.3f", m.c_str(), s.mean());
+    std::printf("\n");
     return 0;
 }
 
@@ -622,8 +917,19 @@ int write_files(const Case& c, const std::string& prefix) {
 }
 
 int write_case(const std::string& name, const std::string& prefix, const MeshSizes& sizes) {
-    if (name.rfind("broken-loops/", 0) == 0)  // broken-loops/SEED
-        return write_files(broken_loops_case(std::atoi(name.substr(13).c_str()), 0.3), prefix);
+    if (name.rfind("broken-loops/", 0) == 0) {  // broken-loops/SEED[/CUT]
+        const std::string rest = name.substr(13);
+        const double cut = rest.find('/') == std::string::npos ? 0.3 : std::atof(rest.substr(rest.find('/') + 1).c_str());
+        return write_files(broken_loops_case(std::atoi(rest.c_str()), cut), prefix);
+    }
+    if (name.rfind("section71/", 0) == 0) {  // section71/MESH/EIGENFUNCTION (1–5)
+        const int index = std::atoi(name.substr(10).c_str());
+        const int which = std::atoi(name.substr(name.rfind('/') + 1).c_str()) - 1;
+        if (index < 0 || which < 0 || which > 4) throw std::runtime_error("section71/MESH/EIGENFUNCTION: MESH ≥ 0, EIGENFUNCTION 1–5");
+        std::string mesh_name;
+        const PolygonMesh m = section71_mesh(index, mesh_name);
+        return write_files(section71_case(index, which, m, mesh_name, bench::laplace_eigenfunctions(m, 6)), prefix);
+    }
     const int index = std::atoi(name.substr(name.find('/') + 1).c_str());
     for (const Case& c : make_cases(index + 1, sizes))
         if (c.name == name) return write_files(c, prefix);
@@ -648,6 +954,7 @@ int main(int argc, char** argv) {
     a->add_option("--only", acc.only, "the cases on one mesh")->check(CLI::IsMember({"sphere", "torus", "double-torus"}));
     add_sizes(a, acc.sizes);
     a->add_option("--curve-weight", acc.defaults.curve_weight, "SwnOptions::curve_weight")->capture_default_str();
+    a->add_flag("--close-gaps,!--no-close-gaps", acc.defaults.close_gaps, "SwnOptions::close_gaps")->capture_default_str();
     a->add_option("--reference", acc.reference, "a program `REF MESH.obj CURVES.txt -o PREFIX` writing PREFIX.labels.npy");
     a->add_option("--work", acc.work, "a folder for the reference's files (default: a temporary one)");
     a->add_flag("--quiet", acc.quiet, "the summary only");
@@ -668,12 +975,24 @@ int main(int argc, char** argv) {
     bl->add_option("--seeds", seeds, "cases (seeds 1…N)")->check(CLI::Range(1, 1000))->capture_default_str();
     double bl_cut = 0.3;
     bl->add_option("--cut", bl_cut, "share of each loop cut away (in 3 gaps)")->check(CLI::Range(0.0, 0.9))->capture_default_str();
+    std::string bl_around = "tube";
+    bl->add_option("--around", bl_around, "the nonbounding loop goes around the tube or the hole (the outer equator)")
+        ->check(CLI::IsMember({"tube", "hole"}))->capture_default_str();
     bl->add_option("--reference", bl_reference, "a program `REF MESH.obj CURVES.txt -o PREFIX` writing PREFIX.labels.npy");
     bl->add_option("--work", bl_work, "a folder for the reference's files (default: a temporary one)");
+    Section71Args s71;
+    CLI::App* th = app.add_subcommand("section71", "the thesis' §7.1 comparison: level sets of Laplacian eigenfunctions "
+                                                   "with offsets, half deleted; inside/outside of SWN, SHM's sign, a reference");
+    th->add_option("--meshes", s71.meshes, "meshes (genus 0 and 1 in turn), five cases each")->check(CLI::Range(1, 1000))->capture_default_str();
+    th->add_option("--reference", s71.reference, "a program `REF MESH.obj CURVES.txt -o PREFIX` writing PREFIX.labels.npy");
+    th->add_option("--work", s71.work, "a folder for the reference's files (default: a temporary one)");
+    th->add_flag("--quiet", s71.quiet, "the summary only");
+    th->add_flag("--close-gaps,!--no-close-gaps", s71.options.close_gaps, "SwnOptions::close_gaps")->capture_default_str();
     CLI11_PARSE(app, argc, argv);
     try {
         if (*a) return accuracy(acc);
-        if (*bl) return broken_loops(seeds, bl_cut, bl_reference, bl_work);
+        if (*bl) return broken_loops(seeds, bl_cut, bl_around == "hole", bl_reference, bl_work);
+        if (*th) return section71(s71);
         if (*t) return timing(timing_sizes, clp_max);
         return write_case(case_name, prefix, write_sizes);
     } catch (const std::exception& e) {

@@ -246,6 +246,10 @@ void add_swn(CLI::App& app) {
                   "0: the program's default (reduced 0.3, full 0.001)")
         ->check(finite_number())->check(CLI::Range(0.0, 1.0))
         ->capture_default_str();
+    s->add_flag("--close-gaps,!--no-close-gaps", a->options.close_gaps,
+                "Join the curves' ends across their gaps before the residual step (on by default: broken loops around "
+                "handles; --no-close-gaps: the program on the broken curves as they are; docs/swn.md)")
+        ->capture_default_str();
     s->add_flag("--boundary-aware", a->options.boundary_aware,
                 "On meshes with boundary: labels near the boundary like free-space winding numbers (thesis §6.2)");
     s->add_option("--loops", a->loops, "Also write the curve decomposition as .obj polylines (groups bounding, "
