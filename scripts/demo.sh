@@ -98,6 +98,16 @@ dt_curves=("$out/dt-region.txt" "$out/dt-handle-1.txt" "$out/dt-handle-2.txt")
 "$gsd" -v swn "$swn_mesh" --curves "${dt_curves[@]}" -o "$out/swn-labels.npy" --w "$out/swn-w.npy" \
   --loops "$out/swn-loops.obj" --render "$out/swn.png"
 "$gsd" swn "$swn_mesh" --curves "${dt_curves[@]}" --method shm -o "$out/swn-shm-labels.npy" --render "$out/swn-shm.png"
+# A small loop and the outer equator (around the hole), half of each cut away: SWN closes the
+# gaps before reading which loop bounds nothing (the default); without, it reads them the wrong way.
+gaps_mesh="$out/torus-40.obj"
+"$gsd" mesh torus -r 40 -o "$gaps_mesh"
+"$gsd" curve "$gaps_mesh" --sphere 0.4 0.45 0.15 0.15 --break 0.5 --reverse 1 --seed 3 -o "$out/gaps-loop.txt"
+"$gsd" curve "$gaps_mesh" --plane 0 0 1 0.01 --near 0.7 0 0 --break 0.5 --reverse 1 --seed 13 -o "$out/gaps-equator.txt"
+"$gsd" swn "$gaps_mesh" --curves "$out/gaps-loop.txt" "$out/gaps-equator.txt" -o "$out/gaps-labels.npy" \
+  --render "$out/swn-gaps-closed.png"
+"$gsd" swn "$gaps_mesh" --curves "$out/gaps-loop.txt" "$out/gaps-equator.txt" --no-close-gaps \
+  -o "$out/gaps-open-labels.npy" --render "$out/swn-gaps-open.png"
 
 cat <<MSG
 
@@ -139,4 +149,5 @@ SWN on a double torus (input: $swn_mesh; a region's boundary and a loop around e
   w per corner         $out/swn-w.npy
   curve decomposition  $out/swn-loops.obj     (groups bounding, nonbounding, completed)
   pictures             $out/swn.png (SWN)  $out/swn-shm.png (the sign of the surface SHM)
+  broken loops, gaps closed (default) or not: $out/swn-gaps-closed.png, $out/swn-gaps-open.png
 MSG
