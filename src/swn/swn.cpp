@@ -671,8 +671,10 @@ std::vector<double> closed_chain(const Topology& t, const std::vector<double>& c
         return out;
     };
     std::vector<double> closed = chain;
-    // A few nearest tails per head settle almost every end; the rest look again among what is left.
-    for (int reach : {6, 1 << 30}) {
+    // A few nearest tails per head settle almost every end. The rest look again among the tails
+    // left (an unclear head may have become clear), further but bounded: each search is a
+    // Dijkstra over the mesh around the head.
+    for (int reach : {6, 64}) {
         for (const Candidate& c : candidates(reach)) {
             const long k = std::min(capacity[c.head], -capacity[c.tail]);
             if (k <= 0) continue;
