@@ -544,6 +544,15 @@ std::vector<double> closed_chain(const Topology& t, const std::vector<double>& c
     std::vector<long> capacity(V, 0);  // ends still to join, signed like end_sign
     for (std::size_t v = 0; v < V; ++v) capacity[v] = std::lround(end_sign[v]);
     const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
+    // Heads in a piece of the mesh with no tail (curves that end on its boundary) can join
+    // nothing: they are left out rather than searched for across the whole piece each.
+    detail::DisjointSets connected(V);
+    for (std::size_t e = 0; e < T.edge_count(); ++e) connected.join(T.edges[e][0], T.edges[e][1]);
+    std::vector<std::uint8_t> has_tail(V, 0);
+    for (std::uint32_t v = 0; v < V; ++v)
+        if (capacity[v] < 0) has_tail[connected.find(v)] = 1;
+    for (std::uint32_t v = 0; v < V; ++v)
+        if (capacity[v] > 0 && !has_tail[connected.find(v)]) capacity[v] = 0;
     // The curves' direction at each end: from a few edges back along the curve (staircases along
     // mesh edges turn at every vertex) to the end, or from the end a few edges on.
     auto x = [&](std::uint32_t v) -> Eigen::Vector3d { return t.polygons.vertices.row(v).transpose(); };
