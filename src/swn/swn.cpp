@@ -443,6 +443,61 @@ std::vector<std::uint8_t> reversed_run_detours(const Topology& t, const std::vec
     return out;
 }
 
+/// Shortest paths along edges from one start at a time; the scratch is kept between starts and
+/// only what a search reached is reset.
+class EdgeSearch {
+public:
+    explicit EdgeSearch(const Triangulation& T)
+        : T_(T), dist_(T.vertex_count, std::numeric_limits<double>::infinity()), via_(T.vertex_count, kNone) {}
+    void start(std::uint32_t s) {
+        for (std::uint32_t v : touched_) dist_[v] = std::numeric_limits<double>::infinity();
+        touched_.clear();
+        heap_ = {};
+        dist_[s] = 0;
+        touched_.push_back(s);
+        heap_.push({0.0, s});
+    }
+    /// The next vertex settled (nearest first) and its distance; false when none is left.
+    bool next(double& d, std::uint32_t& v) {
+        while (!heap_.empty()) {
+            const auto [dd, vv] = heap_.top();
+            heap_.pop();
+            if (dd > dist_[vv]) continue;
+            d = dd;
+            v = vv;
+            return true;
+        }
+        return false;
+    }
+    /// Offers w, through edge e, from v settled at distance d.
+    void relax(double d, std::uint32_t w, std::uint32_t e) {
+        const double nd = d + T_.edge_lengths[e];
+        if (nd < dist_[w]) {
+            if (std::isinf(dist_[w])) touched_.push_back(w);
+            dist_[w] = nd;
+            via_[w] = e;
+            heap_.push({nd, w});
+        }
+    }
+    /// The edges of the path from the start to v, v's end first.
+    std::vector<std::uint32_t> path_to(std::uint32_t v, std::uint32_t start) const {
+        std::vector<std::uint32_t> edges;
+        for (std::uint32_t u = v; u != start;) {
+            const std::uint32_t e = via_[u];
+            edges.push_back(e);
+            u = T_.edges[e][0] == u ? T_.edges[e][1] : T_.edges[e][0];
+        }
+        return edges;
+    }
+
+private:
+    using Item = std::pair<double, std::uint32_t>;
+    const Triangulation& T_;
+    std::vector<double> dist_;
+    std::vector<std::uint32_t> via_, touched_;
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> heap_;
+};
+
 /// Where the full program's jumps may leave the curves: shortest paths along edges (Dijkstra,
 /// edge lengths) from each interior curve end to the nearest few ends of the opposite sign, and
 /// to the nearest vertex of another piece of the curves (a broken loop can be completed into
@@ -468,23 +523,17 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
     }
     const std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> nbr = edge_neighbours(T);
     constexpr int kEnds = 3;  // opposite ends reached from each end
-    std::vector<double> dist(V, std::numeric_limits<double>::infinity());
-    std::vector<std::uint32_t> via(V, kNone), touched;
-    using Item = std::pair<double, std::uint32_t>;
+    EdgeSearch search(T);
     for (std::uint32_t start = 0; start < V; ++start) {
         if (std::abs(end_sign[start]) < 0.5) continue;
         const bool sign = end_sign[start] > 0;
         const std::uint32_t own = pieces.find(start);
-        std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-        dist[start] = 0;
-        touched.push_back(start);
-        heap.push({0.0, start});
+        search.start(start);
         int ends = 0;
         bool other_piece = false;
-        while (!heap.empty() && (ends < kEnds || !other_piece)) {
-            const auto [d, v] = heap.top();
-            heap.pop();
-            if (d > dist[v]) continue;
+        double d = 0;
+        std::uint32_t v = 0;
+        while ((ends < kEnds || !other_piece) && search.next(d, v)) {
             bool take = false;
             if (v != start && std::abs(end_sign[v]) >= 0.5 && (end_sign[v] > 0) != sign && ends < kEnds) {
                 ++ends;
@@ -495,23 +544,9 @@ std::vector<std::uint8_t> completion_paths(const Topology& t, const std::vector<
                 take = true;
             }
             if (take)
-                for (std::uint32_t u = v; u != start;) {
-                    const std::uint32_t e = via[u];
-                    on_path[e] = 1;
-                    u = T.edges[e][0] == u ? T.edges[e][1] : T.edges[e][0];
-                }
-            for (const auto& [w, e] : nbr[v]) {
-                const double nd = d + T.edge_lengths[e];
-                if (nd < dist[w]) {
-                    if (std::isinf(dist[w])) touched.push_back(w);
-                    dist[w] = nd;
-                    via[w] = e;
-                    heap.push({nd, w});
-                }
-            }
+                for (std::uint32_t e : search.path_to(v, start)) on_path[e] = 1;
+            for (const auto& [w, e] : nbr[v]) search.relax(d, w, e);
         }
-        for (std::uint32_t v : touched) dist[v] = std::numeric_limits<double>::infinity();
-        touched.clear();
     }
     return on_path;
 }
@@ -611,9 +646,7 @@ std::vector<double> closed_chain(const Topology& t, const std::vector<double>& c
         std::uint32_t head, tail;
         std::vector<std::uint32_t> edges;  // the path, head to tail
     };
-    std::vector<double> dist(V, std::numeric_limits<double>::infinity());
-    std::vector<std::uint32_t> via(V, kNone), touched;
-    using Item = std::pair<double, std::uint32_t>;
+    EdgeSearch search(T);
     constexpr double kClearJoin = 2.0;  // the second best join of a head scores this much worse, or it stays open
     // From each head with ends left, the `reach` nearest tails with ends left, scored.
     auto candidates = [&](int reach) {
@@ -621,28 +654,20 @@ std::vector<double> closed_chain(const Topology& t, const std::vector<double>& c
         for (std::uint32_t head = 0; head < V; ++head) {
             if (capacity[head] <= 0) continue;
             const std::size_t first = out.size();
-            std::priority_queue<Item, std::vector<Item>, std::greater<>> heap;
-            dist[head] = 0;
-            touched.push_back(head);
-            heap.push({0.0, head});
+            search.start(head);
             int found = 0;
             // The ring around the head's own piece is closed to the path (but for the end of the
             // piece near the head): else the way back along the piece to its own start is often
             // as short as the way across the gap.
             const std::vector<std::uint32_t> closed_off = beside_piece(head);
             for (std::uint32_t v : closed_off) blocked[v] = 1;
-            while (!heap.empty() && found < reach) {
-                const auto [d, v] = heap.top();
-                heap.pop();
-                if (d > dist[v]) continue;
+            double d = 0;
+            std::uint32_t v = 0;
+            while (found < reach && search.next(d, v)) {
                 if (capacity[v] < 0 && v != head) {
-                    Candidate c{0, head, v, {}};
+                    Candidate c{0, head, v, search.path_to(v, head)};
                     std::vector<std::uint32_t> path{v};  // vertices, tail to head
-                    for (std::uint32_t u = v; u != head;) {
-                        c.edges.push_back(via[u]);
-                        u = T.edges[via[u]][0] == u ? T.edges[via[u]][1] : T.edges[via[u]][0];
-                        path.push_back(u);
-                    }
+                    for (std::uint32_t e : c.edges) path.push_back(T.edges[e][0] == path.back() ? T.edges[e][1] : T.edges[e][0]);
                     std::reverse(c.edges.begin(), c.edges.end());
                     std::reverse(path.begin(), path.end());
                     // The path's own direction a few edges from either end (not the chord: a
@@ -658,18 +683,10 @@ std::vector<double> closed_chain(const Topology& t, const std::vector<double>& c
                 for (const auto& [w, e] : nbr[v]) {
                     // Leave a head forward, along the curve arriving there.
                     if (v == head && (x(w) - x(head)).dot(tangent[head]) <= 0 && tangent[head].squaredNorm() > 0) continue;
-                    const double nd = d + T.edge_lengths[e];
-                    if (nd < dist[w]) {
-                        if (std::isinf(dist[w])) touched.push_back(w);
-                        dist[w] = nd;
-                        via[w] = e;
-                        heap.push({nd, w});
-                    }
+                    search.relax(d, w, e);
                 }
             }
-            for (std::uint32_t v : touched) dist[v] = std::numeric_limits<double>::infinity();
-            touched.clear();
-            for (std::uint32_t v : closed_off) blocked[v] = 0;
+            for (std::uint32_t u : closed_off) blocked[u] = 0;
             // A head whose two best joins score alike has no clear continuation (half of a loop
             // around a tube: across the gap or around the other way): it stays open.
             auto mine = out.begin() + std::ptrdiff_t(first);
