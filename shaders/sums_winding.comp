@@ -153,81 +153,214 @@ void main() {
     if (valid) outv[q] = vec2(w_far + w_near, cut ? -1.0 : float(terms));
 }
 #else
-// The walk shaped for llvmpipe, which runs the body of every `if` whether a lane takes it or
-// not, every loop's body at least once, and a subgroup vote as a loop over the lanes. So each
-// lane walks the tree on its own (the same stackless order: a texel fetch gathers 8 lanes'
-// nodes as fast as one), and the walk only lists the nodes the lane accepted and the leaves it
-// opened; the sums run in loops of their own every ROUND steps, where every pass is work for
-// some lane. Each lane sums the same terms as the walk above, in another order.
-const uint ROUND = 32u;  // walk steps between the sums: each list holds at most this many
+// The walk shaped for llvmpipe, which runs a subgroup as one SIMD thread (8 lanes of 32 bits
+// with AVX2), runs the body of every `if` whether a lane takes it or not, and gathers a load lane
+// by lane inside any loop even when every lane reads one address. So here the lanes are not the
+// queries: a workgroup (one subgroup) sums Q = 8 Morton-adjacent queries, each lane holds all
+// eight in registers (as two vec4 per axis: every per-query step is four-wide vector code, no
+// loop), and the lanes share out the tree's nodes. This is the CPU's packet walk
+// (SumTree::winding_lanes) with a node's record read once for the packet, not once per query.
+//
+// The walk keeps a stack in shared memory of inner nodes whose two children some of the queries
+// need tested, with those queries' bits. Each round every lane pops an entry, tests both children
+// against the eight queries, and pushes: a child with the queries that accept its expansion onto
+// the far list, a leaf with the queries that opened it onto the leaf list, an inner child with
+// those queries back onto the stack (the places from one prefix sum over the subgroup). The lists
+// are summed when they fill and at the end, an entry a lane: a far entry's expansion for the
+// eight queries, or a leaf's elements exactly. Each query sums the terms the CPU's float walk
+// sums (the same count: test_gpu), in another order; a query's sum depends on the seven others
+// of its group, so the host streams whole groups (StreamJob::granule) and results do not depend
+// on the chunk size.
+const uint Q = 8u;             // queries a workgroup sums: the bits of an entry's mask
+const uint STACK = 1024u;      // entries (parent << 8 | queries); a walk needing more is cut
+const uint FAR = 256u, LEAVES = 128u;
+const uint WIDEST = 64u;      // lanes a subgroup may have: each has its own slots past the ends
+shared uint stack_entries[STACK + 2u * WIDEST];
+shared uint far_entries[FAR + 2u * WIDEST];
+shared uint leaf_entries[LEAVES + 2u * WIDEST];
+
+// Shared memory between the rounds: the workgroup is one subgroup (gpu::loop_capped_workgroup).
+void sync_subgroup() {
+    subgroupMemoryBarrierShared();
+    subgroupBarrier();
+}
+
+// The queries whose bit is set in m from bit `first` on, as a bvec4.
+bvec4 bits4(uint m, uint first) {
+    return notEqual((uvec4(m) >> uvec4(first, first + 1u, first + 2u, first + 3u)) & 1u, uvec4(0u));
+}
+
+// winding_expansion above, for four queries at once (d = x − c per axis).
+vec4 expansion4(vec4 e0, vec4 e1, vec4 e2, vec4 e3, vec4 e4, vec4 e5, vec4 dx, vec4 dy, vec4 dz) {
+    vec4 xx = dx * dx, yy = dy * dy, zz = dz * dz;
+    vec4 ir = inversesqrt(xx + yy + zz), ir2 = ir * ir;
+    vec4 linear = e0.x + e0.y * dx + e0.z * dy + e0.w * dz;
+    vec4 second = e1.x * dx + e1.y * dy + e1.z * dz + e1.w * xx + e2.x * yy + e2.y * zz + dx * (e2.z * dy + e2.w * dz) +
+                  e3.x * dy * dz;
+    vec4 third = dx * (e3.y * xx + e4.z * yy + e5.x * zz + e5.z * dy * dz) + dy * (e3.z * yy + e4.x * xx + e5.y * zz) +
+                 dz * (e3.w * zz + e4.y * xx + e4.w * yy);
+    return ir * ir2 * (linear + ir2 * (second + ir2 * third));
+}
+
+// element_winding above, for four queries at once.
+vec4 element4(vec4 X, vec4 Y, vec4 Z, vec4 ea, vec4 eb, vec4 ec) {
+    vec4 w = vec4(0.0);
+    bool point = ELEMENT_KINDS == 2 || (ELEMENT_KINDS == 3 && ea.xyz == eb.xyz && ea.xyz == ec.xyz);
+    if (ELEMENT_KINDS != 1) {  // a point's dipole
+        vec4 yx = ea.x - X, yy = ea.y - Y, yz = ea.z - Z;
+        vec4 r2 = max(yx * yx + yy * yy + yz * yz, vec4(1e-37));
+        w = (ea.w * yx + eb.w * yy + ec.w * yz) / (FOUR_PI * r2 * sqrt(r2));
+    }
+    if (ELEMENT_KINDS != 2) {  // a triangle's solid angle
+        vec4 ax = ea.x - X, ay = ea.y - Y, az = ea.z - Z;
+        vec4 bx = eb.x - X, by = eb.y - Y, bz = eb.z - Z;
+        vec4 cx = ec.x - X, cy = ec.y - Y, cz = ec.z - Z;
+        vec4 la = sqrt(ax * ax + ay * ay + az * az), lb = sqrt(bx * bx + by * by + bz * bz), lc = sqrt(cx * cx + cy * cy + cz * cz);
+        vec4 num = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx);
+        vec4 den = la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la +
+                   (cx * ax + cy * ay + cz * az) * lb;
+        vec4 t = atan(num, den) * (2.0 / FOUR_PI);
+        w = point ? w : t;
+    }
+    return w;
+}
+
+// The queries (of eight) farther from c than the node's reach: d² computed as the CPU's walk does.
+uint accepting(vec4 test, vec4 X0, vec4 Y0, vec4 Z0, vec4 X1, vec4 Y1, vec4 Z1) {
+    vec4 dx = X0 - test.x, dy = Y0 - test.y, dz = Z0 - test.z;
+    uvec4 a = uvec4(greaterThan(dx * dx + dy * dy + dz * dz, vec4(test.w))) << uvec4(0u, 1u, 2u, 3u);
+    dx = X1 - test.x, dy = Y1 - test.y, dz = Z1 - test.z;
+    uvec4 b = uvec4(greaterThan(dx * dx + dy * dy + dz * dz, vec4(test.w))) << uvec4(4u, 5u, 6u, 7u);
+    a |= b;
+    return a.x | a.y | a.z | a.w;
+}
 
 void main() {
-    uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
-    bool walking = q < pc.count;
-    vec3 x = walking ? qs[q].xyz : vec3(0.0);
+    const uint S = gl_WorkGroupSize.x, lane = gl_LocalInvocationID.x;
     // Push constants read inside a loop are gathered lane by lane; read them once.
-    const uint first_leaf = pc.first_leaf, group_cap = pc.group_cap, records = pc.node_count;
-    float w_far = 0.0, w_near = 0.0;
-    uint terms = 0u, node = 0u;
+    const uint count = pc.count, first_leaf = pc.first_leaf, group_cap = pc.group_cap, records = pc.node_count;
+    const uint base = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * Q;
+    // The eight queries, every lane all of them (one address for all lanes: one load each).
+    const uint last = count - 1u;
+    vec4 q0 = qs[min(base, last)], q1 = qs[min(base + 1u, last)], q2 = qs[min(base + 2u, last)], q3 = qs[min(base + 3u, last)];
+    vec4 q4 = qs[min(base + 4u, last)], q5 = qs[min(base + 5u, last)], q6 = qs[min(base + 6u, last)], q7 = qs[min(base + 7u, last)];
+    const vec4 X0 = vec4(q0.x, q1.x, q2.x, q3.x), Y0 = vec4(q0.y, q1.y, q2.y, q3.y), Z0 = vec4(q0.z, q1.z, q2.z, q3.z);
+    const vec4 X1 = vec4(q4.x, q5.x, q6.x, q7.x), Y1 = vec4(q4.y, q5.y, q6.y, q7.y), Z1 = vec4(q4.z, q5.z, q6.z, q7.z);
+    const uint live = (1u << min(Q, count - base)) - 1u;  // the group's queries that exist
+
+    vec4 w_far0 = vec4(0.0), w_far1 = vec4(0.0), w_near0 = vec4(0.0), w_near1 = vec4(0.0);
+    uvec4 terms0 = uvec4(0u), terms1 = uvec4(0u);  // this lane's share of each query's terms
+    // The root, tested by every lane at once (one address: one load); the walk below takes the
+    // children of an inner node together.
+    uint top = 0u, n_far = 0u, n_leaves = 0u;
+    {
+        uint accepted = accepting(NODE(0u), X0, Y0, Z0, X1, Y1, Z1) & live, rest = live & ~accepted;
+        if (lane == 0u) {
+            far_entries[0] = accepted;
+            leaf_entries[0] = rest;
+            stack_entries[0] = rest;
+        }
+        n_far = accepted != 0u ? 1u : 0u;
+        n_leaves = rest != 0u && first_leaf == 0u ? 1u : 0u;
+        top = rest != 0u && first_leaf != 0u ? 1u : 0u;
+    }
     uint iters = 0u;  // the subgroup's loop iterations, all loops together (uniform)
     bool cut = false;
-    uint accepted_nodes[ROUND], opened_leaves[ROUND];
+    sync_subgroup();
     while (true) {
-        // The round's walk may take ROUND + 1 iterations and its sums the rest of the host's
-        // allowance (sums_gpu.cpp), so a round starts only below the cap.
-        if (group_cap > 0u && iters >= group_cap) {
-            cut = walking;  // lanes whose walk is over have their whole sum
-            break;
-        }
-        iters += ROUND + 2u;
-        uint n_accepted = 0u, n_opened = 0u;
-        for (uint step = 0u; step < ROUND; ++step) {
-            if (!walking) break;
-            vec4 test = NODE(node);  // (c, reach²)
-            vec3 d = x - test.xyz;
-            bool accepted = dot(d, d) > test.w;
-            bool leaf = node >= first_leaf;
-            // Every lane writes, and the counts say which entries hold: a masked write is a
-            // branch per lane for llvmpipe, and an unpredictable one.
-            accepted_nodes[n_accepted] = node;
-            opened_leaves[n_opened] = node;
-            n_accepted += accepted ? 1u : 0u;
-            n_opened += !accepted && leaf ? 1u : 0u;
-            if (!accepted && !leaf) {
-                node = 2u * node + 1u;
-            } else {
-                node = next_in_depth_first(node);
-                walking = node != 0u;
+        // Walk until the stack is empty or a list could overflow in the next round. A stack
+        // entry is an inner node whose two children its queries need tested.
+        while (top > 0u && n_far + 2u * S <= FAR && n_leaves + 2u * S <= LEAVES) {
+            if ((group_cap > 0u && iters >= group_cap) || top + S > STACK) {
+                cut = true;
+                break;
             }
+            ++iters;
+            uint take = min(top, S);
+            uint entry = stack_entries[top - 1u - min(lane, take - 1u)];
+            sync_subgroup();  // every pop read before a push overwrites it
+            top -= take;
+            uint parent = entry >> 8u, queries = lane < take ? entry & 0xffu : 0u;
+            uint a = 2u * parent + 1u, b = a + 1u;
+            uint accepted_a = accepting(NODE(a), X0, Y0, Z0, X1, Y1, Z1) & queries;
+            uint accepted_b = accepting(NODE(b), X0, Y0, Z0, X1, Y1, Z1) & queries;
+            uint rest_a = queries & ~accepted_a, rest_b = queries & ~accepted_b;
+            bool leaf_a = a >= first_leaf, leaf_b = b >= first_leaf;
+            bool far_a = accepted_a != 0u, far_b = accepted_b != 0u;
+            bool opened_leaf_a = rest_a != 0u && leaf_a, opened_leaf_b = rest_b != 0u && leaf_b;
+            bool inner_a = rest_a != 0u && !leaf_a, inner_b = rest_b != 0u && !leaf_b;
+            // Places on the three lists from one prefix sum: counts in 10-bit fields.
+            uint pushes = (far_a ? 1u : 0u) + (far_b ? 1u : 0u) + (opened_leaf_a ? 1u << 10u : 0u) + (opened_leaf_b ? 1u << 10u : 0u) +
+                          (inner_a ? 1u << 20u : 0u) + (inner_b ? 1u << 20u : 0u);
+            uint before = subgroupExclusiveAdd(pushes), total = subgroupAdd(pushes);
+            // Every lane writes, lanes with nothing to push to slots of their own past the list's
+            // end: llvmpipe stores lane by lane, and a masked store branches on every lane's bit.
+            uint at = n_far + (before & 0x3ffu), junk = 2u * lane;
+            far_entries[far_a ? at : FAR + junk] = a << 8u | accepted_a;
+            far_entries[far_b ? at + (far_a ? 1u : 0u) : FAR + junk + 1u] = b << 8u | accepted_b;
+            at = n_leaves + ((before >> 10u) & 0x3ffu);
+            leaf_entries[opened_leaf_a ? at : LEAVES + junk] = a << 8u | rest_a;
+            leaf_entries[opened_leaf_b ? at + (opened_leaf_a ? 1u : 0u) : LEAVES + junk + 1u] = b << 8u | rest_b;
+            at = top + (before >> 20u);  // b below a: a's children are tested first
+            stack_entries[inner_b ? at : STACK + junk] = b << 8u | rest_b;
+            stack_entries[inner_a ? at + (inner_b ? 1u : 0u) : STACK + junk + 1u] = a << 8u | rest_a;
+            n_far += total & 0x3ffu;
+            n_leaves += (total >> 10u) & 0x3ffu;
+            top += total >> 20u;
+            sync_subgroup();
         }
-        // The accepted nodes' expansions.
-        uint passes = subgroupMax(n_accepted);
-        iters += passes + 1u;
-        for (uint i = 0u; i < passes; ++i) {
-            uint a = accepted_nodes[min(i, ROUND - 1u)], r = records + 7u * a;
-            vec3 d = x - NODE(a).xyz;
-            float e = winding_expansion(NODE(r + 1u), NODE(r + 2u), NODE(r + 3u), NODE(r + 4u), NODE(r + 5u), NODE(r + 6u),
-                                        d, inversesqrt(dot(d, d)));
-            if (i < n_accepted) w_far += e;
-        }
-        terms += n_accepted;
-        // The opened leaves' elements, exactly.
-        passes = subgroupMax(n_opened);
-        iters += passes + 1u;
-        for (uint i = 0u; i < passes; ++i) {
-            uvec2 range = i < n_opened ? floatBitsToUint(NODE(records + 7u * opened_leaves[min(i, ROUND - 1u)]).xy) : uvec2(0u);
-            uint count = range.y - range.x;
-            uint longest = subgroupMax(count);
-            iters += longest + 1u;
-            for (uint j = 0u; j < longest; ++j) {
-                uint e = 3u * (j < count ? range.x + j : 0u);
-                float v = element_winding(x, ELEM(e), ELEM(e + 1u), ELEM(e + 2u));
-                if (j < count) w_near += v;
+        if (cut) break;
+        bool done = top == 0u;
+        // The far list's expansions, an entry a lane, for the eight queries.
+        if (done || n_far + 2u * S > FAR) {
+            iters += (n_far + S - 1u) / S + 1u;
+            for (uint i = 0u; i < n_far; i += S) {
+                uint k = i + lane;
+                uint entry = far_entries[min(k, n_far - 1u)];
+                uint node = entry >> 8u, queries = k < n_far ? entry & 0xffu : 0u;
+                vec4 c = NODE(node);
+                uint r = records + 7u * node;
+                vec4 e0 = NODE(r + 1u), e1 = NODE(r + 2u), e2 = NODE(r + 3u), e3 = NODE(r + 4u), e4 = NODE(r + 5u), e5 = NODE(r + 6u);
+                bvec4 b0 = bits4(queries, 0u), b1 = bits4(queries, 4u);
+                w_far0 += mix(vec4(0.0), expansion4(e0, e1, e2, e3, e4, e5, X0 - c.x, Y0 - c.y, Z0 - c.z), b0);
+                w_far1 += mix(vec4(0.0), expansion4(e0, e1, e2, e3, e4, e5, X1 - c.x, Y1 - c.y, Z1 - c.z), b1);
+                terms0 += uvec4(b0);
+                terms1 += uvec4(b1);
             }
-            terms += count;
+            n_far = 0u;
         }
-        if (!subgroupAny(walking)) break;
+        // The leaf list's elements, exactly: a leaf a lane, its elements in turn.
+        if (done || n_leaves + 2u * S > LEAVES) {
+            iters += (n_leaves + S - 1u) / S + 1u;
+            for (uint i = 0u; i < n_leaves; i += S) {
+                uint k = i + lane;
+                uint entry = leaf_entries[min(k, n_leaves - 1u)];
+                uint queries = k < n_leaves ? entry & 0xffu : 0u;
+                uvec2 range = floatBitsToUint(NODE(records + 7u * (entry >> 8u)).xy);
+                uint elements = queries != 0u ? range.y - range.x : 0u;
+                uint longest = subgroupMax(elements);
+                iters += longest + 1u;
+                for (uint j = 0u; j < longest; ++j) {
+                    uint e = j < elements ? 3u * (range.x + j) : 0u;
+                    vec4 ea = ELEM(e), eb = ELEM(e + 1u), ec = ELEM(e + 2u);
+                    bvec4 b0 = bits4(j < elements ? queries : 0u, 0u), b1 = bits4(j < elements ? queries : 0u, 4u);
+                    w_near0 += mix(vec4(0.0), element4(X0, Y0, Z0, ea, eb, ec), b0);
+                    w_near1 += mix(vec4(0.0), element4(X1, Y1, Z1, ea, eb, ec), b1);
+                    terms0 += uvec4(b0);
+                    terms1 += uvec4(b1);
+                }
+            }
+            n_leaves = 0u;
+        }
+        if (done) break;
     }
-    if (q < pc.count) outv[q] = vec2(w_far + w_near, cut ? -1.0 : float(terms));
+    // Each query's sum over the lanes; lane j writes query j.
+    vec4 w0 = subgroupAdd(w_far0 + w_near0), w1 = subgroupAdd(w_far1 + w_near1);
+    uvec4 t0 = subgroupAdd(terms0), t1 = subgroupAdd(terms1);
+    for (uint j = lane; j < Q; j += S) {
+        float w = j < 4u ? w0[j & 3u] : w1[j & 3u];
+        uint t = j < 4u ? t0[j & 3u] : t1[j & 3u];
+        if (base + j < count) outv[base + j] = vec2(w, cut ? -1.0 : float(t));
+    }
 }
 #endif

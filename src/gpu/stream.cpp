@@ -43,6 +43,10 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     const std::size_t widest = std::max(job.in_bytes, job.out_bytes);
     std::size_t chunk = std::min(job.chunk, std::size_t(c.max_binding_bytes()) / widest);
     chunk = std::max<std::size_t>(1, std::min(chunk, job.count));
+    // Every chunk but the last starts on a multiple of the granule, so a kernel that sums items
+    // in groups forms the same groups whatever the chunk size.
+    const std::size_t granule = std::max<std::size_t>(1, job.granule);
+    if (chunk < job.count) chunk = std::max(granule, chunk / granule * granule);
 
     struct Slot {
         Buffer up, in, out, down;

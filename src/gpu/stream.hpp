@@ -15,6 +15,10 @@ struct StreamJob {
     std::size_t in_bytes = 0;    ///< per item, uploaded
     std::size_t out_bytes = 0;   ///< per item, read back
     std::size_t chunk = 65536;   ///< items per chunk (capped by the device's binding range)
+    /// Chunks hold a multiple of this many items (rounded down, at least one granule): for
+    /// kernels whose workgroups take items in fixed groups, so that results do not depend on
+    /// the chunk size.
+    std::size_t granule = 1;
     /// Writes items [first, first + n) into dst (host memory of n·in_bytes).
     std::function<void(std::size_t first, std::size_t n, void* dst)> fill;
     /// Records the kernels that read `in` and write `out` for n items (ranges are bound whole).

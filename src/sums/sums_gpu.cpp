@@ -169,13 +169,21 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
     const std::uint32_t workgroup = gpu::loop_capped_workgroup(*ctx);
-    // Software devices: the walk that lists and sums apart, the tree and the elements read as
-    // texel buffers (bindings 0 and 1).
-    const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding, {d.element_kinds}, workgroup);
+    // Software devices: 8 queries a workgroup, the lanes sharing out the tree's nodes (the tree
+    // and the elements read as texel buffers, bindings 0 and 1). Its stack entries hold a node
+    // index in 24 bits, and each lane has its own spare slots (64 lanes at most): past those,
+    // the GPUs' kernel.
+    const bool fits_shaped = d.node_count < (1u << 24) && workgroup <= 64;
+    const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding, {d.element_kinds}, workgroup,
+                                       gpu::software_shaped(*ctx) && fits_shaped);
     const bool shaped = k.texel_bindings.all() != 0;
     // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
-    // elements, or (software-shaped) a round's sums: 32 expansions and 32 leaves.
-    const std::uint32_t step = shaped ? 1024u + 32u * (d.widest_leaf + 1u) : 64u + d.widest_leaf;
+    // elements, or (software-shaped) a round and the sums of both lists (at most 65 chunks of
+    // expansions and 33 of leaves, with 4 lanes or more).
+    const std::uint32_t step = shaped ? 1024u + 34u * (d.widest_leaf + 2u) : 64u + d.widest_leaf;
+    // The software-shaped kernel sums 8 queries a workgroup, whatever its width; the GPUs' one
+    // query an invocation.
+    const std::size_t per_group = shaped ? 8 : k.workgroup;
     const std::uint32_t limit = gpu::software_loop_cap(*ctx);  // 0 on hardware: no limit
     const std::uint32_t cap = limit == 0 ? 0u : limit > step ? limit - step : 1u;
     const auto n = std::size_t(queries.rows());
@@ -200,6 +208,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     job.out_bytes = 8;
     job.stage = "winding";
     job.chunk = opt.chunk_size ? opt.chunk_size : gpu::default_chunk(*ctx);
+    job.granule = shaped ? per_group : 1;
     // Fill and drain gather and scatter through the order, in parallel: one thread waits on
     // memory for most of a random access, and at 10⁷ queries that was most of a run.
     job.fill = [&](std::size_t first, std::size_t m, void* dst) {
@@ -223,7 +232,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& o, std::size_t m) {
         const WindingPush push{std::uint32_t(m), d.first_leaf, cap, d.node_count};
         rec.dispatch(k, {{&d.nodes}, {&d.elements}, {&in, 0, m * 16}, {&o, 0, m * 8}}, &push, sizeof(push),
-                     std::uint32_t((m + k.workgroup - 1) / k.workgroup));
+                     std::uint32_t((m + per_group - 1) / per_group));
     };
     job.drain = [&](std::size_t first, std::size_t m, const void* src) {
         const float* r = static_cast<const float*>(src);
