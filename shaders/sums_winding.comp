@@ -171,7 +171,7 @@ void main() {
 // sums (the same count: test_gpu), in another order; a query's sum depends on the seven others
 // of its group, so the host streams whole groups (StreamJob::granule) and results do not depend
 // on the chunk size.
-const uint Q = 8u;             // queries a workgroup sums: the bits of an entry's mask
+const uint Q = 8u;             // queries a workgroup sums: the bits of an entry's mask (sums_gpu.cpp: kSoftwareGroup)
 const uint STACK = 1024u;      // entries (parent << 8 | queries); a walk needing more is cut
 const uint FAR = 256u, LEAVES = 128u;
 const uint WIDEST = 64u;      // lanes a subgroup may have: each has its own slots past the ends

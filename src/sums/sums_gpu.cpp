@@ -181,9 +181,10 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     // elements, or (software-shaped) a round and the sums of both lists (at most 65 chunks of
     // expansions and 33 of leaves, with 4 lanes or more).
     const std::uint32_t step = shaped ? 1024u + 34u * (d.widest_leaf + 2u) : 64u + d.widest_leaf;
-    // The software-shaped kernel sums 8 queries a workgroup, whatever its width; the GPUs' one
-    // query an invocation.
-    const std::size_t per_group = shaped ? 8 : k.workgroup;
+    // The software-shaped kernel sums a group of queries a workgroup, whatever its width (its Q);
+    // the GPUs' one query an invocation.
+    constexpr std::size_t kSoftwareGroup = 8;
+    const std::size_t per_group = shaped ? kSoftwareGroup : k.workgroup;
     const std::uint32_t limit = gpu::software_loop_cap(*ctx);  // 0 on hardware: no limit
     const std::uint32_t cap = limit == 0 ? 0u : limit > step ? limit - step : 1u;
     const auto n = std::size_t(queries.rows());
