@@ -24,7 +24,9 @@ vec4 axis_cell(uint a, uint c, uint part) { return axis_table[4u * (pc.axes_off[
 #endif
 #endif
 
-uint index_of(uvec3 c, uvec3 d) { return (c.x * d.y + c.y) * d.z + c.z; }
+// Cell c of a level of d cells whose rows are stored `zstride` cells apart (pc.zstride,
+// pc.ozstride: the software build pads rows to whole quads, below).
+uint index_of(uvec3 c, uvec3 d, uint zstride) { return (c.x * d.y + c.y) * zstride + c.z; }
 
 // The kernels take rows of cells along z: a workgroup's x lanes walk along a row and its y
 // lanes take consecutive rows j of one slab i (gl_WorkGroupID.z), so that no division finds a
@@ -39,3 +41,32 @@ uvec3 row_cell(out bool inside) {
     c.yz = min(c.yz, pc.dims.yz - 1u);
     return c;
 }
+
+#ifdef GSD_SOFTWARE_SHAPED
+// The software build's stencil kernels (mg_smooth, mg_residual, mg_update, mg_refine) take four
+// cells a lane: a quad, cells 4q … 4q+3 of a row, read as one vec4 texel (the levels' rows are
+// stored padded to whole quads, pc.zstride, and the padding holds zeros). On llvmpipe a vec4
+// texel fetch is eight 16-byte loads, while a float texel fetch is a hardware gather, several
+// times as slow a value (the gathers were a third of the solve's samples in perf); and a lane's
+// addressing and couplings are paid once for four cells. The couplings come from the push
+// constants (every axis of every level is regular but for its last cell), not the axis table.
+// `inside` is false on lanes past the level's end; they work on its last quad and store nothing.
+uvec3 quad_cell(out bool inside) {
+    uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, 4u * gl_GlobalInvocationID.x);
+    inside = c.z < pc.dims.z && c.y < pc.dims.y;
+    c.y = min(c.y, pc.dims.y - 1u);
+    c.z = min(c.z, pc.zstride - 4u);
+    return c;
+}
+// Cell i's size along axis a, and its link to cell i + 1 (0 from the last cell).
+float size_at(uint a, uint i) { return i + 1u == pc.dims[a] ? pc.last_size[a] : pc.cell_size[a]; }
+float link_at(uint a, uint i) { return i + 1u < pc.dims[a] ? (i + 2u == pc.dims[a] ? pc.last_link[a] : pc.link[a]) : 0.0; }
+float link_before(uint a, uint i) { return i > 0u ? link_at(a, i - 1u) : 0.0; }
+// The same along z for the four cells k of a quad.
+vec4 sizes_z(uvec4 k) { return mix(vec4(pc.cell_size[2]), vec4(pc.last_size[2]), equal(k + 1u, uvec4(pc.dims.z))); }
+vec4 links_z(uvec4 k) {
+    vec4 l = mix(vec4(pc.link[2]), vec4(pc.last_link[2]), equal(k + 2u, uvec4(pc.dims.z)));
+    return mix(vec4(0.0), l, lessThan(k + 1u, uvec4(pc.dims.z)));
+}
+
+#endif

@@ -19,14 +19,14 @@ layout(std430, binding = 3) writeonly buffer EFOut { float ef_out[]; };
 
 // The two z sources of the coarse row (ci, cj).
 float along_z(uint ci, uint cj, uvec2 ck, vec2 wk) {
-    uint row = (ci * pc.odims.y + cj) * pc.odims.z;
+    uint row = (ci * pc.odims.y + cj) * pc.ozstride;
     return wk.x * ec_at(row + ck.x) + wk.y * ec_at(row + ck.y);
 }
 
 void main() {
     bool inside;
     uvec3 c = row_cell(inside);
-    uint p = index_of(c, pc.dims);
+    uint p = index_of(c, pc.dims, pc.zstride);
     vec4 x = axis_cell(0u, c.x, 1u), y = axis_cell(1u, c.y, 1u), z = axis_cell(2u, c.z, 1u);  // (c0, c1, w0, w1)
     uvec2 ci = uvec2(x.xy), cj = uvec2(y.xy), ck = uvec2(z.xy);
     float s = x.z * (y.z * along_z(ci.x, cj.x, ck, z.zw) + y.w * along_z(ci.x, cj.y, ck, z.zw)) +

@@ -3,42 +3,26 @@
 #extension GL_KHR_shader_subgroup_arithmetic : require
 // Mixed-precision refinement on the finest level (uniform cells): r = b − Aφ in float64, stored
 // as float32 for the next cycle, and one partial sum of r² per workgroup for the residual norm.
-// Rows of cells along z (mg_common.glsl).
+// Rows of cells along z (mg_common.glsl; the software build a quad a lane, φ and b read as two
+// doubles a texel).
 #define MG_NO_AXIS_TABLE
 #include "mg_common.glsl"
 #ifdef GSD_SOFTWARE_SHAPED
-layout(binding = 0) uniform usamplerBuffer phi_texels;  // a double as two words
-layout(binding = 1) uniform usamplerBuffer b_texels;
-double phi_at(uint q) { return packDouble2x32(texelFetch(phi_texels, int(q)).xy); }
-double b_at(uint q) { return packDouble2x32(texelFetch(b_texels, int(q)).xy); }
+layout(binding = 0) uniform usamplerBuffer phi_pairs;
+layout(binding = 1) uniform usamplerBuffer b_pairs;
+layout(std430, binding = 2) writeonly buffer R { vec4 r_quads[]; };
 #else
 layout(std430, binding = 0) readonly buffer Phi { double phi[]; };
 layout(std430, binding = 1) readonly buffer B { double b[]; };
-double phi_at(uint q) { return phi[q]; }
-double b_at(uint q) { return b[q]; }
-#endif
 layout(std430, binding = 2) writeonly buffer R { float r[]; };
+#endif
 layout(std430, binding = 3) writeonly buffer Partial { double partial[]; };
 
 shared double sums[256];
 
-// The two terms of Aφ along one axis at cell p (a missing neighbour is p itself: 0).
-double along(double here, uint p, uint step, uint c, uint n, float inv_h2) {
-    uint below = c > 0u ? p - step : p, above = c + 1u < n ? p + step : p;
-    return double(inv_h2) * ((here - phi_at(below)) + (here - phi_at(above)));
-}
-
-void main() {
-    uvec3 d = pc.dims;
-    bool inside;
-    uvec3 c = row_cell(inside);
-    uint p = index_of(c, d);
-    double here = phi_at(p);
-    double Aphi = along(here, p, d.y * d.z, c.x, d.x, pc.inv_h2.x) + along(here, p, d.z, c.y, d.y, pc.inv_h2.y) +
-                  along(here, p, 1u, c.z, d.z, pc.inv_h2.z);
-    double res = inside ? b_at(p) - Aphi : 0.0;
-    if (inside) r[p] = float(res);
-    double own = subgroupAdd(res * res);
+// One partial sum of r² per workgroup (`own`: this lane's part).
+void add_partial(double own) {
+    own = subgroupAdd(own);
     if (subgroupElect()) sums[gl_SubgroupID] = own;
     barrier();
     uint l = gl_LocalInvocationIndex;
@@ -49,3 +33,54 @@ void main() {
         partial[group] = total;
     }
 }
+
+#ifdef GSD_SOFTWARE_SHAPED
+// The quad at texel q of φ (or b): two texels of two doubles.
+dvec4 quad_of(usamplerBuffer pairs, uint q) {
+    uvec4 a = texelFetch(pairs, int(2u * q)), b = texelFetch(pairs, int(2u * q + 1u));
+    return dvec4(packDouble2x32(a.xy), packDouble2x32(a.zw), packDouble2x32(b.xy), packDouble2x32(b.zw));
+}
+
+void main() {
+    uvec3 d = pc.dims;
+    bool inside;
+    uvec3 c = quad_cell(inside);
+    uint first = index_of(c, d, pc.zstride), q = first / 4u;
+    uint slab = d.y * pc.zstride / 4u, row = pc.zstride / 4u;
+    dvec4 here = quad_of(phi_pairs, q);
+    // Aφ's terms along x and y: the quads beside (a missing one: the quad itself, 0) ...
+    dvec4 x = (here - quad_of(phi_pairs, c.x > 0u ? q - slab : q)) + (here - quad_of(phi_pairs, c.x + 1u < d.x ? q + slab : q));
+    dvec4 y = (here - quad_of(phi_pairs, c.y > 0u ? q - row : q)) + (here - quad_of(phi_pairs, c.y + 1u < d.y ? q + row : q));
+    // ... and along z, each cell's neighbours in the row (a missing one: the cell itself).
+    uvec4 before_pair = texelFetch(phi_pairs, int(c.z > 0u ? 2u * q - 1u : 2u * q));
+    uvec4 after_pair = texelFetch(phi_pairs, int(c.z + 4u < pc.zstride ? 2u * q + 2u : 2u * q));
+    double before = c.z > 0u ? packDouble2x32(before_pair.zw) : here.x, after = packDouble2x32(after_pair.xy);
+    uvec4 k = c.z + uvec4(0u, 1u, 2u, 3u);
+    dvec4 next = mix(dvec4(here.yzw, after), here, greaterThanEqual(k + 1u, uvec4(d.z)));
+    dvec4 z = (here - dvec4(before, here.xyz)) + (here - next);
+    dvec4 Aphi = double(pc.inv_h2.x) * x + double(pc.inv_h2.y) * y + double(pc.inv_h2.z) * z;
+    dvec4 res = quad_of(b_pairs, q) - Aphi;
+    res = mix(dvec4(0.0), res, lessThan(k, uvec4(d.z)));  // the padding: 0
+    if (inside) r_quads[q] = vec4(res);
+    add_partial(inside ? dot(res, res) : 0.0);
+}
+#else
+// The two terms of Aφ along one axis at cell p (a missing neighbour is p itself: 0).
+double along(double here, uint p, uint step, uint c, uint n, float inv_h2) {
+    uint below = c > 0u ? p - step : p, above = c + 1u < n ? p + step : p;
+    return double(inv_h2) * ((here - phi[below]) + (here - phi[above]));
+}
+
+void main() {
+    uvec3 d = pc.dims;
+    bool inside;
+    uvec3 c = row_cell(inside);
+    uint p = index_of(c, d, pc.zstride);
+    double here = phi[p];
+    double Aphi = along(here, p, d.y * pc.zstride, c.x, d.x, pc.inv_h2.x) + along(here, p, pc.zstride, c.y, d.y, pc.inv_h2.y) +
+                  along(here, p, 1u, c.z, d.z, pc.inv_h2.z);
+    double res = inside ? b[p] - Aphi : 0.0;
+    if (inside) r[p] = float(res);
+    add_partial(res * res);
+}
+#endif

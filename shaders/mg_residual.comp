@@ -1,27 +1,47 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
-// t = r − A e on one level (rows of cells along z, mg_common.glsl).
+// t = r − A e on one level (rows of cells along z, mg_common.glsl; the software build a quad a
+// lane, e bound twice: as quads and as cells).
+#ifdef GSD_SOFTWARE_SHAPED
+#define MG_NO_AXIS_TABLE  // the couplings come from the push constants
+#endif
 #include "mg_common.glsl"
 #ifdef GSD_SOFTWARE_SHAPED
-layout(binding = 1) uniform samplerBuffer r_texels;
-layout(binding = 2) uniform samplerBuffer e_texels;
-float r_at(uint q) { return texelFetch(r_texels, int(q)).x; }
-float e_at(uint q) { return texelFetch(e_texels, int(q)).x; }
+layout(binding = 0) uniform samplerBuffer r_quads;
+layout(binding = 1) uniform samplerBuffer e_quads;
+layout(binding = 2) uniform samplerBuffer e_cells;
+layout(std430, binding = 3) writeonly buffer T { vec4 t_quads[]; };
 #else
 layout(std430, binding = 1) readonly buffer R { float r[]; };
 layout(std430, binding = 2) readonly buffer E { float e[]; };
-float r_at(uint q) { return r[q]; }
-float e_at(uint q) { return e[q]; }
-#endif
 layout(std430, binding = 3) writeonly buffer T { float t[]; };
+#endif
 #include "mg_row.glsl"
+
+#ifdef GSD_SOFTWARE_SHAPED
+vec4 e_quad(uint t) { return texelFetch(e_quads, int(t)); }
 
 void main() {
     bool inside;
-    uvec3 c = row_cell(inside);
-    uint p = index_of(c, pc.dims);
-    Stencil s = stencil(c, p);
-    float ep = e_at(p), Ae = 0.0;
-    for (int n = 0; n < 6; ++n) Ae += s.w[n] * (ep - e_at(s.q[n]));
-    if (inside) t[p] = r_at(p) - Ae;
+    uvec3 c = quad_cell(inside);
+    QuadStencil s = quad_stencil(c);
+    vec4 e = e_quad(s.t[0]);
+    uint first = s.row + c.z;
+    float before = texelFetch(e_cells, int(c.z > 0u ? first - 1u : first)).x;
+    float after = texelFetch(e_cells, int(c.z + 4u < pc.zstride ? first + 4u : first)).x;
+    vec4 Ae = s.w[0] * (e - e_quad(s.t[1])) + s.w[1] * (e - e_quad(s.t[2])) + s.w[2] * (e - e_quad(s.t[3])) +
+              s.w[3] * (e - e_quad(s.t[4])) + s.w[4] * (e - vec4(before, e.xyz)) + s.w[5] * (e - vec4(e.yzw, after));
+    // The padding's residual is 0: its r and e are, and its cells' z couplings.
+    if (inside) t_quads[s.t[0]] = texelFetch(r_quads, int(s.t[0])) - Ae;
 }
+#else
+void main() {
+    bool inside;
+    uvec3 c = row_cell(inside);
+    uint p = index_of(c, pc.dims, pc.zstride);
+    Stencil s = stencil(c, p);
+    float ep = e[p], Ae = 0.0;
+    for (int n = 0; n < 6; ++n) Ae += s.w[n] * (ep - e[s.q[n]]);
+    if (inside) t[p] = r[p] - Ae;
+}
+#endif

@@ -15,7 +15,7 @@ layout(std430, binding = 2) writeonly buffer R { float rc[]; };
 
 // Σ over the z slots of the finer level's row (ix, iy).
 float gather_z(uint ix, uint iy, uvec4 iz, vec4 wz) {
-    uint row = (ix * pc.odims.y + iy) * pc.odims.z;
+    uint row = (ix * pc.odims.y + iy) * pc.ozstride;
     return dot(wz, vec4(t_at(row + iz.x), t_at(row + iz.y), t_at(row + iz.z), t_at(row + iz.w)));
 }
 
@@ -32,5 +32,5 @@ void main() {
     vec4 wx = axis_cell(0u, c.x, 3u), wy = axis_cell(1u, c.y, 3u), wz = axis_cell(2u, c.z, 3u);
     float s = dot(wx, vec4(gather_yz(ix.x, iy, wy, iz, wz), gather_yz(ix.y, iy, wy, iz, wz),
                            gather_yz(ix.z, iy, wy, iz, wz), gather_yz(ix.w, iy, wy, iz, wz)));
-    if (inside) rc[index_of(c, pc.dims)] = s;
+    if (inside) rc[index_of(c, pc.dims, pc.zstride)] = s;
 }

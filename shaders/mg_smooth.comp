@@ -2,35 +2,62 @@
 #extension GL_GOOGLE_include_directive : require
 // One red-black Gauss–Seidel sweep of one color: e_p = (r_p + Σ c e_q) / Σ c. Rows of cells
 // along z as mg_common.glsl's row_cell, but a row's lanes take its cells of this color only
-// (k = 2·x + parity), so that no lane idles on the other color. e is bound twice: read (the other color's cells)
-// and written (this color's); no cell is both in one sweep.
+// (k = 2·x + parity), so that no lane idles on the other color. The software build takes a
+// quad a lane (mg_common.glsl) and updates its two cells of this color. e is bound twice or
+// three times: read (the other color's cells) and written (this color's); no cell is both in
+// one sweep.
+#ifdef GSD_SOFTWARE_SHAPED
+#define MG_NO_AXIS_TABLE  // the couplings come from the push constants
+#endif
 #include "mg_common.glsl"
 #ifdef GSD_SOFTWARE_SHAPED
-layout(binding = 1) uniform samplerBuffer r_texels;
-layout(binding = 2) uniform samplerBuffer e_texels;
-float r_at(uint q) { return texelFetch(r_texels, int(q)).x; }
-float e_at(uint q) { return texelFetch(e_texels, int(q)).x; }
+layout(binding = 0) uniform samplerBuffer r_quads;
+layout(binding = 1) uniform samplerBuffer e_quads;
+layout(binding = 2) uniform samplerBuffer e_cells;
 #else
 layout(std430, binding = 1) readonly buffer R { float r[]; };
 layout(std430, binding = 2) readonly buffer E { float e[]; };
-float r_at(uint q) { return r[q]; }
-float e_at(uint q) { return e[q]; }
 #endif
 layout(std430, binding = 3) writeonly buffer EOut { float e_out[]; };
 #include "mg_row.glsl"
 
+#ifdef GSD_SOFTWARE_SHAPED
+vec4 e_quad(uint t) { return texelFetch(e_quads, int(t)); }
+
+void main() {
+    bool inside;
+    uvec3 c = quad_cell(inside);
+    QuadStencil s = quad_stencil(c);
+    vec4 e = e_quad(s.t[0]);
+    uint first = s.row + c.z;  // the quad's first cell; the cells before and after it (any cell
+                               // where there is none: its coupling is 0)
+    float before = texelFetch(e_cells, int(c.z > 0u ? first - 1u : first)).x;
+    float after = texelFetch(e_cells, int(c.z + 4u < pc.zstride ? first + 4u : first)).x;
+    vec4 sum = texelFetch(r_quads, int(s.t[0])) + s.w[0] * e_quad(s.t[1]) + s.w[1] * e_quad(s.t[2]) +
+               s.w[2] * e_quad(s.t[3]) + s.w[3] * e_quad(s.t[4]) + s.w[4] * vec4(before, e.xyz) +
+               s.w[5] * vec4(e.yzw, after);
+    vec4 diag = s.w[0] + s.w[1] + s.w[2] + s.w[3] + s.w[4] + s.w[5];
+    // This color's two cells of the quad: k ≡ i + j + color (mod 2), the quad starting even.
+    uint odd = (c.x + c.y + pc.color) & 1u;
+    vec2 num = odd == 0u ? sum.xz : sum.yw, den = odd == 0u ? diag.xz : diag.yw;
+    uint k = c.z + odd;
+    if (inside && den.x > 0.0 && k < pc.dims.z) e_out[s.row + k] = num.x / den.x;
+    if (inside && den.y > 0.0 && k + 2u < pc.dims.z) e_out[s.row + k + 2u] = num.y / den.y;
+}
+#else
 void main() {
     uvec3 d = pc.dims;
     uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, 2u * gl_GlobalInvocationID.x);
     c.z += (c.x + c.y + pc.color) & 1u;
     bool inside = c.z < d.z && c.y < d.y;
     c.yz = min(c.yz, d.yz - 1u);  // past the grid: a real cell, nothing stored
-    uint p = index_of(c, d);
+    uint p = index_of(c, d, pc.zstride);
     Stencil s = stencil(c, p);
-    float sum = r_at(p), diag = 0.0;
+    float sum = r[p], diag = 0.0;
     for (int n = 0; n < 6; ++n) {
-        sum += s.w[n] * e_at(s.q[n]);
+        sum += s.w[n] * e[s.q[n]];
         diag += s.w[n];
     }
     if (inside && diag > 0.0) e_out[p] = sum / diag;
 }
+#endif

@@ -5,7 +5,9 @@
 //
 // Rules that keep the two layouts one: scalars (uint, float) only, except GSD_ALIGNED_VEC3
 // members (a 3-vector on a 16-byte boundary followed by a 4-byte scalar, as std430 places a
-// uvec3/vec3; the host's alignas says the same). No bool (GLSL's is 4 bytes, C++'s 1).
+// uvec3/vec3; the host's alignas says the same) and arrays of scalars (std430 strides them 4
+// bytes, as C++ does). No bool (GLSL's is 4 bytes, C++'s 1). At most 128 bytes (Vulkan's
+// guaranteed push-constant range).
 #ifndef GSD_PUSH_CONSTANTS_H
 #define GSD_PUSH_CONSTANTS_H
 
@@ -103,15 +105,21 @@ struct MultigridPush {
     GSD_ALIGNED_VEC3 uvec3 dims;  // this level
     uint color;                   // red-black color for the smoother
     GSD_ALIGNED_VEC3 uvec3 axes_off;  // where this level's x, y, z tables start, in cells
-    uint pad0;
+    uint zstride;                     // cells stored per row of this level (≥ dims.z)
     GSD_ALIGNED_VEC3 uvec3 odims;  // the other level (coarser for prolongation, finer for restriction)
-    uint pad1;
+    uint ozstride;                 // cells stored per row of the other level
     GSD_ALIGNED_VEC3 uvec3 oaxes_off;
     uint pad2;
     GSD_ALIGNED_VEC3 vec3 inv_h2;  // 1/Δ² of the finest grid per axis
     uint pad3;
+    // This level's axes (x, y, z) for the software build's stencils: every cell of an axis has
+    // cell_size and every link (Hierarchy's AxisLevel::link) is `link`, except the last cell's
+    // size and the last link (between the last two cells).
+    float cell_size[3];
+    float link[3];
+    float last_size[3];
+    float last_link[3];
 };
-
 // field_combine.comp (src/field/field_gpu.cpp)
 struct CombinePush {
     uint count;        // queries
@@ -148,10 +156,12 @@ static_assert(sizeof(SdfNearestPush) == 12);
 static_assert(sizeof(CombinePush) == 16);
 static_assert(sizeof(SharpenPush) == 64 && offsetof(SharpenPush, inv_h) == 16 && offsetof(SharpenPush, rows) == 28 &&
               offsetof(SharpenPush, keep_sign) == 48 && offsetof(SharpenPush, inv_count) == 52);
-static_assert(sizeof(MultigridPush) == 80 && offsetof(MultigridPush, color) == 12 &&
-              offsetof(MultigridPush, axes_off) == 16 && offsetof(MultigridPush, odims) == 32 &&
+static_assert(sizeof(MultigridPush) == 128 && offsetof(MultigridPush, color) == 12 &&
+              offsetof(MultigridPush, axes_off) == 16 && offsetof(MultigridPush, zstride) == 28 &&
+              offsetof(MultigridPush, odims) == 32 && offsetof(MultigridPush, ozstride) == 44 &&
               offsetof(MultigridPush, oaxes_off) == 48 && offsetof(MultigridPush, inv_h2) == 64 &&
-              offsetof(MultigridPush, pad3) == 76);
+              offsetof(MultigridPush, cell_size) == 80 && offsetof(MultigridPush, link) == 92 &&
+              offsetof(MultigridPush, last_size) == 104 && offsetof(MultigridPush, last_link) == 116);
 }  // namespace gsd::kernels
 #endif
 

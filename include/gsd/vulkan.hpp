@@ -43,12 +43,19 @@ struct Kernel;
 /// by what one texel of the view is. A plain mask means vec4s.
 struct TexelBindings {
     constexpr TexelBindings(std::uint32_t vec4_mask = 0) : vec4(vec4_mask) {}  // NOLINT: a mask is the common case
-    constexpr TexelBindings(std::uint32_t vec4_mask, std::uint32_t float1_mask, std::uint32_t double1_mask = 0)
-        : vec4(vec4_mask), float1(float1_mask), double1(double1_mask) {}
+    constexpr TexelBindings(std::uint32_t vec4_mask, std::uint32_t float1_mask, std::uint32_t double1_mask = 0,
+                            std::uint32_t double2_mask = 0)
+        : vec4(vec4_mask), float1(float1_mask), double1(double1_mask), double2(double2_mask) {}
     std::uint32_t vec4 = 0;     ///< a vec4 of float32 (R32G32B32A32_SFLOAT): trees, tables
     std::uint32_t float1 = 0;   ///< one float32 (R32_SFLOAT): a grid's values
     std::uint32_t double1 = 0;  ///< one float64, fetched as a uvec2 (R32G32_UINT) for packDouble2x32
-    constexpr std::uint32_t all() const { return vec4 | float1 | double1; }
+    std::uint32_t double2 = 0;  ///< two float64, fetched as a uvec4 (R32G32B32A32_UINT)
+    constexpr std::uint32_t all() const { return vec4 | float1 | double1 | double2; }
+    /// Whether no binding has two formats.
+    constexpr bool disjoint() const {
+        return (vec4 & float1) == 0 && (vec4 & double1) == 0 && (vec4 & double2) == 0 && (float1 & double1) == 0 &&
+               (float1 & double2) == 0 && (double1 & double2) == 0;
+    }
 };
 
 struct DeviceFunctions;

@@ -547,11 +547,11 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     State& st = *s_;
     if (workgroup == 0) workgroup = st.workgroup;
     const TexelBindings& t = texel_bindings;
-    if ((t.vec4 & t.float1) != 0 || (t.vec4 & t.double1) != 0 || (t.float1 & t.double1) != 0 ||
-        (bindings < 32 && (t.all() >> bindings) != 0))
+    if (!t.disjoint() || (bindings < 32 && (t.all() >> bindings) != 0))
         throw Error("gpu", "kernel " + shader + ": its texel bindings overlap or name a binding it does not have");
     std::string key = shader + "@" + std::to_string(workgroup) + "/" + std::to_string(texel_bindings.vec4) + "." +
-                      std::to_string(texel_bindings.float1) + "." + std::to_string(texel_bindings.double1);
+                      std::to_string(texel_bindings.float1) + "." + std::to_string(texel_bindings.double1) + "." +
+                      std::to_string(texel_bindings.double2);
     for (auto c : constants) key.append(",").append(std::to_string(c));
     std::lock_guard<std::mutex> lock(st.kernels_mutex);
     if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
@@ -796,6 +796,7 @@ VkBufferView Recorder::texel_view(const Kernel& k, const Binding& b, std::uint32
     VkDeviceSize texel = 16;
     if ((t.float1 >> binding) & 1u) format = VK_FORMAT_R32_SFLOAT, texel = 4;
     if ((t.double1 >> binding) & 1u) format = VK_FORMAT_R32G32_UINT, texel = 8;
+    if ((t.double2 >> binding) & 1u) format = VK_FORMAT_R32G32B32A32_UINT, texel = 16;
     if (b.size == 0) throw Error("gpu", "kernel " + k.name + ": a texel binding needs a buffer gsd owns");
     const VkDeviceSize bytes = b.range == VK_WHOLE_SIZE ? (b.size - b.offset) / texel * texel : b.range;
     if (b.offset % std::max<VkDeviceSize>(lim.minTexelBufferOffsetAlignment, 1) != 0 || bytes == 0 || bytes % texel != 0 ||

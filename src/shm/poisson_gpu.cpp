@@ -3,7 +3,9 @@
 // the CPU reference (grid_poisson.cpp), in float32; the finest level's solution and residual
 // are float64, so each cycle is one step of mixed-precision iterative refinement and the
 // solver reaches relative residuals far below float32's. One submission per cycle; the only
-// read-back per cycle is one partial sum per workgroup for the residual norm.
+// read-back per cycle is one partial sum per workgroup for the residual norm. On software
+// devices the stencil kernels take four cells a lane (shaders/mg_common.glsl): every level but
+// the coarsest stores its rows padded to whole quads, the padding holding zeros.
 #include "shm/poisson_gpu.hpp"
 
 #include "gpu/runtime.hpp"
@@ -55,6 +57,31 @@ AxisCell axis_cell(const AxisLevel& ax, int i) {
 
 using MgPush = kernels::MultigridPush;  // `Push` in shaders/mg_common.glsl
 
+// An axis of a level as the software build's stencils take it from the push constants: every
+// cell of `size` and every link `link`, but the last cell and the last link.
+struct RegularAxis {
+    float size = 0, link = 0, last_size = 0, last_link = 0;
+};
+
+RegularAxis regular_axis(const AxisLevel& ax) {
+    const auto n = std::size_t(ax.n);
+    RegularAxis r;
+    r.size = float(ax.size[0]);
+    r.last_size = float(ax.size[n - 1]);
+    if (n >= 2) r.link = float(ax.link[0]), r.last_link = float(ax.link[n - 2]);
+    return r;
+}
+
+// Whether regular_axis describes the axis exactly (Hierarchy coarsens so that only an odd
+// last cell differs; checked, not assumed).
+bool is_regular(const AxisLevel& ax) {
+    const RegularAxis r = regular_axis(ax);
+    const auto n = std::size_t(ax.n);
+    for (std::size_t i = 0; i + 1 < n; ++i)
+        if (float(ax.size[i]) != r.size || (i + 2 < n && float(ax.link[i]) != r.link)) return false;
+    return true;
+}
+
 class VulkanMultigrid final : public GpuMultigrid {
 public:
     VulkanMultigrid(std::shared_ptr<gpu::Context> ctx, const Hierarchy& h, bool software)
@@ -73,36 +100,46 @@ public:
         axes_ = gpu::upload(c, axes.data(), axes.size() * sizeof(AxisCell));
         std::vector<float> pinv(H_.coarse_pinv.begin(), H_.coarse_pinv.end());
         pinv_ = gpu::upload(c, pinv.data(), pinv.size() * 4);
-        for (const Level& lv : H_.levels) {
-            const std::size_t n = lv.count();
+        for (std::size_t l = 0; l < H_.levels.size(); ++l) {
+            const auto nz = std::uint32_t(H_.levels[l].axis[2].n);
+            stride_.push_back(software_ && l + 1 < H_.levels.size() ? (nz + 3) / 4 * 4 : nz);
+            const std::size_t n = cells(l);
             r_.emplace_back(c, n * 4, gpu::Memory::Device);
             e_.emplace_back(c, n * 4, gpu::Memory::Device);
             t_.emplace_back(c, n * 4, gpu::Memory::Device);
             save_.emplace_back(c, n * 4, gpu::Memory::Device);
         }
-        const std::size_t n0 = H_.levels[0].count();
-        phi_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
-        b_ = gpu::Buffer(c, n0 * 8, gpu::Memory::Device);
+        phi_ = gpu::Buffer(c, cells(0) * 8, gpu::Memory::Device);
+        b_ = gpu::Buffer(c, cells(0) * 8, gpu::Memory::Device);
         // mg_refine's workgroups (run_rows), one partial sum each.
         const MgPush fine = push_for(0, 0);
-        const RowGroups g = row_groups(fine, fine.dims[2]);
+        const RowGroups g = row_groups(fine, row_lanes(0));
         groups0_ = g.x * g.y * g.z;
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
+        // The padding of the rows stays 0 (no kernel stores there): the quads read it.
+        gpu::Recorder rec(c);
+        rec.begin();
+        for (std::size_t l = 0; l < H_.levels.size(); ++l)
+            for (const gpu::Buffer* b : {&r_[l], &e_[l], &t_[l], &save_[l]}) rec.fill_zero(*b, 0, cells(l) * 4);
+        rec.fill_zero(phi_, 0, cells(0) * 8);
+        rec.fill_zero(b_, 0, cells(0) * 8);
+        rec.submit();
+        rec.wait();
     }
 
     std::vector<double> solve(const std::vector<double>& b, double tol, int max_cycles, std::vector<double>* history,
                               bool f_cycle, const ProgressFn& progress) override {
         gpu::Context& c = *ctx_;
-        const std::size_t n0 = H_.levels[0].count();
+        const std::size_t n0 = H_.levels[0].count(), stored = cells(0);
         {
-            gpu::Buffer staging(c, n0 * 8, gpu::Memory::Upload);
-            gpu::copy_bytes(staging.mapped(), b.data(), n0 * 8);
+            gpu::Buffer staging(c, stored * 8, gpu::Memory::Upload);
+            to_rows(b.data(), static_cast<double*>(staging.mapped()));
             gpu::Recorder rec(c);
             rec.begin();
-            rec.copy(staging, 0, b_, 0, n0 * 8);
-            rec.fill_zero(phi_, 0, n0 * 8);
-            rec.fill_zero(e_[0], 0, n0 * 4);
+            rec.copy(staging, 0, b_, 0, stored * 8);
+            rec.fill_zero(phi_, 0, stored * 8);
+            rec.fill_zero(e_[0], 0, stored * 4);
             rec.barrier();
             record_refine(rec, false);
             rec.submit();
@@ -122,27 +159,57 @@ public:
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
         std::vector<double> phi(n0);
-        gpu::download(c, phi_, phi.data(), n0 * 8);
+        if (stored == n0) {
+            gpu::download(c, phi_, phi.data(), n0 * 8);
+        } else {
+            std::vector<double> rows(stored);
+            gpu::download(c, phi_, rows.data(), stored * 8);
+            from_rows(rows.data(), phi.data());
+        }
         const double mean = std::accumulate(phi.begin(), phi.end(), 0.0) / double(n0);
         for (double& v : phi) v -= mean;
         return phi;
     }
 
 private:
+    // Cells stored for level l (its rows `stride_[l]` cells apart).
+    std::size_t cells(std::size_t l) const {
+        const Level& lv = H_.levels[l];
+        return std::size_t(lv.axis[0].n) * std::size_t(lv.axis[1].n) * stride_[l];
+    }
+    // The finest level's values from the natural order into stored rows (the padding 0), and back.
+    void to_rows(const double* natural, double* rows) const {
+        const std::size_t nz = std::size_t(H_.levels[0].axis[2].n), count = H_.levels[0].count() / nz;
+        for (std::size_t r = 0; r < count; ++r) {
+            std::copy_n(natural + r * nz, nz, rows + r * stride_[0]);
+            std::fill(rows + r * stride_[0] + nz, rows + (r + 1) * stride_[0], 0.0);
+        }
+    }
+    void from_rows(const double* rows, double* natural) const {
+        const std::size_t nz = std::size_t(H_.levels[0].axis[2].n), count = H_.levels[0].count() / nz;
+        for (std::size_t r = 0; r < count; ++r) std::copy_n(rows + r * stride_[0], nz, natural + r * nz);
+    }
+
     MgPush push_for(std::size_t l, std::size_t other) const {
         MgPush p{};
+        p.zstride = stride_[l];
+        p.ozstride = stride_[other];
         for (int a = 0; a < 3; ++a) {
-            p.dims[a] = std::uint32_t(H_.levels[l].axis[std::size_t(a)].n);
+            const AxisLevel& ax = H_.levels[l].axis[std::size_t(a)];
+            p.dims[a] = std::uint32_t(ax.n);
             p.axes_off[a] = axes_off_[l][std::size_t(a)];
             p.odims[a] = std::uint32_t(H_.levels[other].axis[std::size_t(a)].n);
             p.oaxes_off[a] = axes_off_[other][std::size_t(a)];
             p.inv_h2[a] = float(H_.inv_h2[std::size_t(a)]);
+            const RegularAxis r = regular_axis(ax);
+            p.cell_size[a] = r.size, p.link[a] = r.link, p.last_size[a] = r.last_size, p.last_link[a] = r.last_link;
         }
         return p;
     }
 
-    std::uint32_t groups(std::size_t l) const {
-        return std::uint32_t((H_.levels[l].count() + ctx_->workgroup_size() - 1) / ctx_->workgroup_size());
+    // Lanes along a row of level l for the stencil kernels: its quads on a software device.
+    std::uint32_t row_lanes(std::size_t l) const {
+        return software_ ? stride_[l] / 4 : std::uint32_t(H_.levels[l].axis[2].n);
     }
 
     // The stencil kernels take rows of cells along z (x: `cells` of a row, y: rows j, z: slabs
@@ -191,14 +258,20 @@ private:
     void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color) {
         MgPush p = push_for(l, l);
         p.color = color;
-        const std::uint32_t cells = (p.dims[2] + 1) / 2;  // the row's cells of one color
-        // e twice: read (the other color) and written (this one).
-        run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, cells);
+        // e read (the other color) and written (this one); on a software device read twice, as
+        // quads and as cells. GPUs' lanes take the row's cells of one color.
+        if (software_)
+            run_rows(rec, gpu::kernel_table::mg_smooth, {{&r_[l]}, {&e_[l]}, {&e_[l]}, {&e_[l]}}, p, row_lanes(l));
+        else
+            run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, (p.dims[2] + 1) / 2);
     }
 
     void residual(gpu::Recorder& rec, std::size_t l) {
         const MgPush p = push_for(l, l);
-        run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, p.dims[2]);
+        if (software_)
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
+        else
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
     }
 
     void record_cycle(gpu::Recorder& rec, std::size_t l, bool f_cycle) {
@@ -211,7 +284,7 @@ private:
             rec.barrier();
             return;
         }
-        rec.fill_zero(e_[l], 0, H_.levels[l].count() * 4);
+        rec.fill_zero(e_[l], 0, cells(l) * 4);
         rec.barrier();
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 0); smooth(rec, l, 1); }
         residual(rec, l);
@@ -222,15 +295,16 @@ private:
         record_cycle(rec, l + 1, f_cycle);
         if (f_cycle && l + 2 <= last) {
             // F-cycle: one more V-cycle on level l+1 against its remaining residual.
-            const std::size_t c = l + 1, bytes = H_.levels[c].count() * 4;
+            const std::size_t c = l + 1, bytes = cells(c) * 4;
             residual(rec, c);
             rec.copy(e_[c], 0, save_[c], 0, bytes);
             rec.copy(t_[c], 0, r_[c], 0, bytes);
             rec.barrier();
             record_cycle(rec, c, false);
             const gpu::Kernel& add = gpu::kernel(*ctx_, gpu::kernel_table::mg_add);
-            const kernels::CountPush push_m{std::uint32_t(H_.levels[c].count())};
-            rec.dispatch(add, {{&e_[c]}, {&save_[c]}}, &push_m, sizeof(push_m), groups(c));
+            const kernels::CountPush push_m{std::uint32_t(cells(c))};
+            rec.dispatch(add, {{&e_[c]}, {&save_[c]}}, &push_m, sizeof(push_m),
+                         std::uint32_t((cells(c) + add.workgroup - 1) / add.workgroup));
             rec.barrier();
         }
         {
@@ -246,9 +320,9 @@ private:
     void record_refine(gpu::Recorder& rec, bool with_correction) {
         const MgPush p = push_for(0, 0);
         if (with_correction) {
-            run_rows(rec, gpu::kernel_table::mg_update, {{&phi_}, {&e_[0]}, {&phi_}}, p, p.dims[2]);  // φ read and written
+            run_rows(rec, gpu::kernel_table::mg_update, {{&phi_}, {&e_[0]}, {&phi_}}, p, row_lanes(0));  // φ read and written
         }
-        run_rows(rec, gpu::kernel_table::mg_refine, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, p.dims[2]);
+        run_rows(rec, gpu::kernel_table::mg_refine, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, row_lanes(0));
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
         rec.barrier();
     }
@@ -263,6 +337,7 @@ private:
     std::shared_ptr<gpu::Context> ctx_;
     const Hierarchy& H_;
     std::vector<std::array<std::uint32_t, 3>> axes_off_;
+    std::vector<std::uint32_t> stride_;  // cells stored per row of each level
     bool software_;  // the kernels shaped for software devices (gpu::software_shaped)
     gpu::Buffer axes_, pinv_, phi_, b_, partial_, partial_down_;
     std::vector<gpu::Buffer> r_, e_, t_, save_;
@@ -303,8 +378,14 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
             for (std::size_t i = 0; i + 1 < ax.offsets.size(); ++i)
                 if (ax.offsets[i + 1] - ax.offsets[i] > kMaxTaps)
                     throw Error("shm", "internal: a restriction gathers more than 4 cells per axis");
-    // The software build reads the finest grid's φ and b through texel buffers.
-    const bool software = gpu::software_shaped(*ctx) && n0 <= ctx->limits().maxTexelBufferElements;
+    // The software build reads the grids through texel buffers, the cells' couplings from the
+    // push constants (regular axes), and pads every level's rows but the coarsest's to quads.
+    const std::uint64_t padded = std::uint64_t(h.levels[0].axis[0].n) * std::uint64_t(h.levels[0].axis[1].n) *
+                                 std::uint64_t((nz + 3) / 4 * 4);
+    bool software = gpu::software_shaped(*ctx) && h.levels.size() >= 2 && padded <= ctx->limits().maxTexelBufferElements &&
+                    padded * 8 <= ctx->max_binding_bytes();
+    for (const Level& lv : h.levels)
+        for (const AxisLevel& ax : lv.axis) software = software && is_regular(ax);
     return std::make_unique<VulkanMultigrid>(ctx, h, software);
 }
 
