@@ -45,11 +45,12 @@ inline constexpr KernelSpec torus_net{"torus_net", 7, sizeof(CountPush), {0b1u}}
 // The multigrid (src/shm/poisson_gpu.cpp). GPUs: the stencils read the axis table (binding 0)
 // and the grids as storage buffers. The software builds of the stencils take a quad (4 cells) a
 // lane and read the grids as vec4s and, for the cells beside a quad, floats; φ and b as pairs
-// of doubles; the transfers read the axis table as vec4s and the grids as floats.
+// of doubles. The prolongation takes a quad a lane too and reads all as vec4s; the restriction
+// reads the axis table as vec4s and the grid as floats.
 inline constexpr KernelSpec mg_smooth{"mg_smooth", 4, sizeof(MultigridPush), {0b11u, 0b100u}};
 inline constexpr KernelSpec mg_residual{"mg_residual", 4, sizeof(MultigridPush), {0b11u, 0b100u}};
 inline constexpr KernelSpec mg_restrict{"mg_restrict", 3, sizeof(MultigridPush), {0b1u, 0b10u}};
-inline constexpr KernelSpec mg_prolong{"mg_prolong", 4, sizeof(MultigridPush), {0b1u, 0b110u}};
+inline constexpr KernelSpec mg_prolong{"mg_prolong", 4, sizeof(MultigridPush), {0b111u}};
 inline constexpr KernelSpec mg_update{"mg_update", 3, sizeof(MultigridPush), {0b10u, 0u, 0u, 0b1u}};
 inline constexpr KernelSpec mg_refine{"mg_refine", 4, sizeof(MultigridPush), {0u, 0u, 0u, 0b11u}};
 inline constexpr KernelSpec mg_coarse{"mg_coarse", 3, sizeof(CountPush)};

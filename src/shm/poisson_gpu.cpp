@@ -4,8 +4,9 @@
 // are float64, so each cycle is one step of mixed-precision iterative refinement and the
 // solver reaches relative residuals far below float32's. One submission per cycle; the only
 // read-back per cycle is one partial sum per workgroup for the residual norm. On software
-// devices the stencil kernels take four cells a lane (shaders/mg_common.glsl): every level but
-// the coarsest stores its rows padded to whole quads, the padding holding zeros.
+// devices the stencil kernels and the prolongation take four cells a lane
+// (shaders/mg_common.glsl): every level stores its rows padded to whole quads, the padding
+// holding zeros.
 #include "shm/poisson_gpu.hpp"
 
 #include "gpu/runtime.hpp"
@@ -98,17 +99,16 @@ public:
             axes_off_.push_back(off);
         }
         axes_ = gpu::upload(c, axes.data(), axes.size() * sizeof(AxisCell));
-        std::vector<float> pinv(H_.coarse_pinv.begin(), H_.coarse_pinv.end());
-        pinv_ = gpu::upload(c, pinv.data(), pinv.size() * 4);
         for (std::size_t l = 0; l < H_.levels.size(); ++l) {
             const auto nz = std::uint32_t(H_.levels[l].axis[2].n);
-            stride_.push_back(software_ && l + 1 < H_.levels.size() ? (nz + 3) / 4 * 4 : nz);
+            stride_.push_back(software_ ? (nz + 3) / 4 * 4 : nz);
             const std::size_t n = cells(l);
             r_.emplace_back(c, n * 4, gpu::Memory::Device);
             e_.emplace_back(c, n * 4, gpu::Memory::Device);
             t_.emplace_back(c, n * 4, gpu::Memory::Device);
             save_.emplace_back(c, n * 4, gpu::Memory::Device);
         }
+        upload_coarse_pinv();
         phi_ = gpu::Buffer(c, cells(0) * 8, gpu::Memory::Device);
         b_ = gpu::Buffer(c, cells(0) * 8, gpu::Memory::Device);
         // mg_refine's workgroups (run_rows), one partial sum each.
@@ -172,6 +172,18 @@ public:
     }
 
 private:
+    // The coarsest level's dense pseudo-inverse over its stored cells (0 on the padding's rows
+    // and columns, so that the padding stays 0), as float32.
+    void upload_coarse_pinv() {
+        const std::size_t last = H_.levels.size() - 1, m = H_.levels[last].count(), stored = cells(last);
+        const auto nz = std::size_t(H_.levels[last].axis[2].n);
+        auto at = [&](std::size_t p) { return p / nz * stride_[last] + p % nz; };  // natural -> stored
+        std::vector<float> pinv(stored * stored, 0.0f);
+        for (std::size_t p = 0; p < m; ++p)
+            for (std::size_t q = 0; q < m; ++q) pinv[at(p) * stored + at(q)] = float(H_.coarse_pinv[p * m + q]);
+        pinv_ = gpu::upload(*ctx_, pinv.data(), pinv.size() * 4);
+    }
+
     // Cells stored for level l (its rows `stride_[l]` cells apart).
     std::size_t cells(std::size_t l) const {
         const Level& lv = H_.levels[l];
@@ -278,7 +290,7 @@ private:
         const std::size_t last = H_.levels.size() - 1;
         if (l == last) {
             const gpu::Kernel& k = gpu::kernel(*ctx_, gpu::kernel_table::mg_coarse);
-            const std::uint32_t m = std::uint32_t(H_.levels[l].count());
+            const auto m = std::uint32_t(cells(l));  // the padding's rows of A⁺ are 0
             const kernels::CountPush push_m{m};
             rec.dispatch(k, {{&pinv_}, {&r_[l]}, {&e_[l]}}, &push_m, sizeof(push_m), (m + k.workgroup - 1) / k.workgroup);
             rec.barrier();
@@ -310,7 +322,7 @@ private:
         {
             const MgPush p = push_for(l, l + 1);
             // e of level l twice: read and written (each cell its own).
-            run_rows(rec, gpu::kernel_table::mg_prolong, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, p.dims[2]);
+            run_rows(rec, gpu::kernel_table::mg_prolong, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, row_lanes(l));
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
     }
@@ -379,10 +391,10 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
                 if (ax.offsets[i + 1] - ax.offsets[i] > kMaxTaps)
                     throw Error("shm", "internal: a restriction gathers more than 4 cells per axis");
     // The software build reads the grids through texel buffers, the cells' couplings from the
-    // push constants (regular axes), and pads every level's rows but the coarsest's to quads.
+    // push constants (regular axes), and pads every level's rows to quads.
     const std::uint64_t padded = std::uint64_t(h.levels[0].axis[0].n) * std::uint64_t(h.levels[0].axis[1].n) *
                                  std::uint64_t((nz + 3) / 4 * 4);
-    bool software = gpu::software_shaped(*ctx) && h.levels.size() >= 2 && padded <= ctx->limits().maxTexelBufferElements &&
+    bool software = gpu::software_shaped(*ctx) && padded <= ctx->limits().maxTexelBufferElements &&
                     padded * 8 <= ctx->max_binding_bytes();
     for (const Level& lv : h.levels)
         for (const AxisLevel& ax : lv.axis) software = software && is_regular(ax);
