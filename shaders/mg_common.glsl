@@ -58,6 +58,11 @@ uvec3 quad_cell(out bool inside) {
     c.z = min(c.z, pc.zstride - 4u);
     return c;
 }
+// The quad at texel q of a float64 grid read two doubles a texel (φ, b).
+dvec4 double_quad(usamplerBuffer pairs, uint q) {
+    uvec4 a = texelFetch(pairs, int(2u * q)), b = texelFetch(pairs, int(2u * q + 1u));
+    return dvec4(packDouble2x32(a.xy), packDouble2x32(a.zw), packDouble2x32(b.xy), packDouble2x32(b.zw));
+}
 // Cell i's size along axis a, and its link to cell i + 1 (0 from the last cell).
 float size_at(uint a, uint i) { return i + 1u == pc.dims[a] ? pc.last_size[a] : pc.cell_size[a]; }
 float link_at(uint a, uint i) { return i + 1u < pc.dims[a] ? (i + 2u == pc.dims[a] ? pc.last_link[a] : pc.link[a]) : 0.0; }

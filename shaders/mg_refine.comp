@@ -35,22 +35,16 @@ void add_partial(double own) {
 }
 
 #ifdef GSD_SOFTWARE_SHAPED
-// The quad at texel q of φ (or b): two texels of two doubles.
-dvec4 quad_of(usamplerBuffer pairs, uint q) {
-    uvec4 a = texelFetch(pairs, int(2u * q)), b = texelFetch(pairs, int(2u * q + 1u));
-    return dvec4(packDouble2x32(a.xy), packDouble2x32(a.zw), packDouble2x32(b.xy), packDouble2x32(b.zw));
-}
-
 void main() {
     uvec3 d = pc.dims;
     bool inside;
     uvec3 c = quad_cell(inside);
     uint first = index_of(c, d, pc.zstride), q = first / 4u;
     uint slab = d.y * pc.zstride / 4u, row = pc.zstride / 4u;
-    dvec4 here = quad_of(phi_pairs, q);
+    dvec4 here = double_quad(phi_pairs, q);
     // Aφ's terms along x and y: the quads beside (a missing one: the quad itself, 0) ...
-    dvec4 x = (here - quad_of(phi_pairs, c.x > 0u ? q - slab : q)) + (here - quad_of(phi_pairs, c.x + 1u < d.x ? q + slab : q));
-    dvec4 y = (here - quad_of(phi_pairs, c.y > 0u ? q - row : q)) + (here - quad_of(phi_pairs, c.y + 1u < d.y ? q + row : q));
+    dvec4 x = (here - double_quad(phi_pairs, c.x > 0u ? q - slab : q)) + (here - double_quad(phi_pairs, c.x + 1u < d.x ? q + slab : q));
+    dvec4 y = (here - double_quad(phi_pairs, c.y > 0u ? q - row : q)) + (here - double_quad(phi_pairs, c.y + 1u < d.y ? q + row : q));
     // ... and along z, each cell's neighbours in the row (a missing one: the cell itself).
     uvec4 before_pair = texelFetch(phi_pairs, int(c.z > 0u ? 2u * q - 1u : 2u * q));
     uvec4 after_pair = texelFetch(phi_pairs, int(c.z + 4u < pc.zstride ? 2u * q + 2u : 2u * q));
@@ -59,7 +53,7 @@ void main() {
     dvec4 next = mix(dvec4(here.yzw, after), here, greaterThanEqual(k + 1u, uvec4(d.z)));
     dvec4 z = (here - dvec4(before, here.xyz)) + (here - next);
     dvec4 Aphi = double(pc.inv_h2.x) * x + double(pc.inv_h2.y) * y + double(pc.inv_h2.z) * z;
-    dvec4 res = quad_of(b_pairs, q) - Aphi;
+    dvec4 res = double_quad(b_pairs, q) - Aphi;
     res = mix(dvec4(0.0), res, lessThan(k, uvec4(d.z)));  // the padding: 0
     if (inside) r_quads[q] = vec4(res);
     add_partial(inside ? dot(res, res) : 0.0);

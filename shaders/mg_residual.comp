@@ -19,18 +19,13 @@ layout(std430, binding = 3) writeonly buffer T { float t[]; };
 #include "mg_row.glsl"
 
 #ifdef GSD_SOFTWARE_SHAPED
-vec4 e_quad(uint t) { return texelFetch(e_quads, int(t)); }
-
 void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
     QuadStencil s = quad_stencil(c);
-    vec4 e = e_quad(s.t[0]);
-    uint first = s.row + c.z;
-    float before = texelFetch(e_cells, int(c.z > 0u ? first - 1u : first)).x;
-    float after = texelFetch(e_cells, int(c.z + 4u < pc.zstride ? first + 4u : first)).x;
-    vec4 Ae = s.w[0] * (e - e_quad(s.t[1])) + s.w[1] * (e - e_quad(s.t[2])) + s.w[2] * (e - e_quad(s.t[3])) +
-              s.w[3] * (e - e_quad(s.t[4])) + s.w[4] * (e - vec4(before, e.xyz)) + s.w[5] * (e - vec4(e.yzw, after));
+    QuadValues e = quad_values(s, c);
+    vec4 Ae = vec4(0.0);
+    for (int n = 0; n < 6; ++n) Ae += s.w[n] * (e.here - e.beside[n]);
     // The padding's residual is 0: its r and e are, and its cells' z couplings.
     if (inside) t_quads[s.t[0]] = texelFetch(r_quads, int(s.t[0])) - Ae;
 }

@@ -31,8 +31,8 @@ Stencil stencil(uvec3 c, uint p) {
 // The 7-point stencil of the quad at cell c (c.z = 4q), as `stencil` above for each of its
 // cells: the couplings toward the six neighbours (−x, +x, −y, +y, −z, +z), and the texel
 // indices of the quad (t[0]) and of the quads beside it across x and y (t[1] … t[4]; a missing
-// one is the quad itself, coupling 0). Its cells' z neighbours inside the quad are its own
-// lanes; the two outside it, `before` and `after`, are read apart.
+// one is the quad itself, coupling 0). The kernel declares e_quads and e_cells (e as vec4s and
+// as floats) before including this file.
 struct QuadStencil {
     vec4 w[6];
     uint t[5];
@@ -61,5 +61,24 @@ QuadStencil quad_stencil(uvec3 c) {
     s.t[3] = c.y > 0u ? q - row : q;
     s.t[4] = c.y + 1u < d.y ? q + row : q;
     return s;
+}
+
+// e over the quad (`here`) and at each of its cells' six neighbours, in the stencil's order.
+// Across z the neighbours are the quad's own cells but for the two outside it, read as floats
+// (any cell where there is none: its coupling is 0).
+struct QuadValues {
+    vec4 here, beside[6];
+};
+
+QuadValues quad_values(QuadStencil s, uvec3 c) {
+    QuadValues v;
+    v.here = texelFetch(e_quads, int(s.t[0]));
+    for (int n = 0; n < 4; ++n) v.beside[n] = texelFetch(e_quads, int(s.t[n + 1]));
+    uint first = s.row + c.z;
+    float before = texelFetch(e_cells, int(c.z > 0u ? first - 1u : first)).x;
+    float after = texelFetch(e_cells, int(c.z + 4u < pc.zstride ? first + 4u : first)).x;
+    v.beside[4] = vec4(before, v.here.xyz);
+    v.beside[5] = vec4(v.here.yzw, after);
+    return v;
 }
 #endif

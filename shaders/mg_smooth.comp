@@ -22,21 +22,16 @@ layout(std430, binding = 3) writeonly buffer EOut { float e_out[]; };
 #include "mg_row.glsl"
 
 #ifdef GSD_SOFTWARE_SHAPED
-vec4 e_quad(uint t) { return texelFetch(e_quads, int(t)); }
-
 void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
     QuadStencil s = quad_stencil(c);
-    vec4 e = e_quad(s.t[0]);
-    uint first = s.row + c.z;  // the quad's first cell; the cells before and after it (any cell
-                               // where there is none: its coupling is 0)
-    float before = texelFetch(e_cells, int(c.z > 0u ? first - 1u : first)).x;
-    float after = texelFetch(e_cells, int(c.z + 4u < pc.zstride ? first + 4u : first)).x;
-    vec4 sum = texelFetch(r_quads, int(s.t[0])) + s.w[0] * e_quad(s.t[1]) + s.w[1] * e_quad(s.t[2]) +
-               s.w[2] * e_quad(s.t[3]) + s.w[3] * e_quad(s.t[4]) + s.w[4] * vec4(before, e.xyz) +
-               s.w[5] * vec4(e.yzw, after);
-    vec4 diag = s.w[0] + s.w[1] + s.w[2] + s.w[3] + s.w[4] + s.w[5];
+    QuadValues e = quad_values(s, c);
+    vec4 sum = texelFetch(r_quads, int(s.t[0])), diag = vec4(0.0);
+    for (int n = 0; n < 6; ++n) {
+        sum += s.w[n] * e.beside[n];
+        diag += s.w[n];
+    }
     // This color's two cells of the quad: k ≡ i + j + color (mod 2), the quad starting even.
     uint odd = (c.x + c.y + pc.color) & 1u;
     vec2 num = odd == 0u ? sum.xz : sum.yw, den = odd == 0u ? diag.xz : diag.yw;

@@ -14,9 +14,7 @@ void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
     uint q = index_of(c, pc.dims, pc.zstride) / 4u;
-    uvec4 a = texelFetch(phi_pairs, int(2u * q)), b = texelFetch(phi_pairs, int(2u * q + 1u));
-    dvec4 updated = dvec4(packDouble2x32(a.xy), packDouble2x32(a.zw), packDouble2x32(b.xy), packDouble2x32(b.zw)) +
-                    dvec4(texelFetch(e_quads, int(q)));
+    dvec4 updated = double_quad(phi_pairs, q) + dvec4(texelFetch(e_quads, int(q)));
     if (inside) phi_out[q] = updated;  // the padding stays 0: its e is
 }
 #else
