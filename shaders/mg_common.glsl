@@ -25,7 +25,8 @@ vec4 axis_cell(uint a, uint c, uint part) { return axis_table[4u * (pc.axes_off[
 #endif
 
 // Cell c of a level of d cells whose rows are stored `zstride` cells apart (pc.zstride,
-// pc.ozstride: the software build pads rows to whole quads, below).
+// pc.ozstride; the GPUs' build: the cell's index. The software build pads the rows and orders
+// each row's cells in blocks: stored_cell below).
 uint index_of(uvec3 c, uvec3 d, uint zstride) { return (c.x * d.y + c.y) * zstride + c.z; }
 
 // The kernels take rows of cells along z: a workgroup's x lanes walk along a row and its y
@@ -43,21 +44,33 @@ uvec3 row_cell(out bool inside) {
 }
 
 #ifdef GSD_SOFTWARE_SHAPED
-// The software build's stencil kernels (mg_smooth, mg_residual, mg_update, mg_refine) take four
-// cells a lane: a quad, cells 4q … 4q+3 of a row, read as one vec4 texel (the levels' rows are
-// stored padded to whole quads, pc.zstride, and the padding holds zeros). On llvmpipe a vec4
-// texel fetch is eight 16-byte loads, while a float texel fetch is a hardware gather, several
-// times as slow a value (the gathers were a third of the solve's samples in perf); and a lane's
-// addressing and couplings are paid once for four cells. The couplings come from the push
-// constants (every axis of every level is regular but for its last cell), not the axis table.
-// `inside` is false on lanes past the level's end; they work on its last quad and store nothing.
-uvec3 quad_cell(out bool inside) {
-    uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, 4u * gl_GlobalInvocationID.x);
-    inside = c.z < pc.dims.z && c.y < pc.dims.y;
+// The software build's kernels (all but mg_restrict and mg_coarse) take four cells a lane, a
+// quad, read as one vec4 texel. On llvmpipe a vec4 texel fetch is eight 16-byte loads, while a
+// float texel fetch is a hardware gather, several times as slow a value (the gathers were a
+// third of the solve's samples in perf); and a lane's addressing and couplings are paid once for
+// four cells. A quad is four cells of one parity: each row is stored in blocks of 8 cells, the
+// even ones first, then the odd ones (`stored_cell`), so that a red-black sweep's lane reads the
+// other color's quads whole and updates four cells of its own. The rows are padded to whole
+// blocks (pc.zstride), the padding holding zeros. The couplings come from the push constants
+// (every axis of every level is regular but for its last cell), not the axis table.
+
+// Where cell k of the row starting at `row` is stored.
+uint stored_cell(uint row, uint k) { return row + (k & ~7u) + ((k & 1u) << 2u) + ((k & 7u) >> 1u); }
+// The cells of the row's quad at texel tq (of the row): block tq / 2, parity tq & 1.
+uvec4 quad_cells(uint tq) { return (tq >> 1u) * 8u + (tq & 1u) + uvec4(0u, 2u, 4u, 6u); }
+// A lane's quad: c = (i, j, tq), the lane's row and its texel tq there (quad_cell: the lane's
+// x; the smoother: its block's quad of the sweep's color). `inside` is false on lanes past the
+// level's end; they work on its last quad and store nothing.
+uvec3 lane_quad(uint tq, out bool inside) {
+    uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, tq);
+    inside = quad_cells(c.z).x < pc.dims.z && c.y < pc.dims.y;
     c.y = min(c.y, pc.dims.y - 1u);
-    c.z = min(c.z, pc.zstride - 4u);
+    c.z = min(c.z, pc.zstride / 4u - 1u);
     return c;
 }
+uvec3 quad_cell(out bool inside) { return lane_quad(gl_GlobalInvocationID.x, inside); }
+// The texel of the lane's quad c.
+uint quad_texel(uvec3 c) { return (c.x * pc.dims.y + c.y) * (pc.zstride / 4u) + c.z; }
 // The quad at texel q of a float64 grid read two doubles a texel (φ, b).
 dvec4 double_quad(usamplerBuffer pairs, uint q) {
     uvec4 a = texelFetch(pairs, int(2u * q)), b = texelFetch(pairs, int(2u * q + 1u));

@@ -10,36 +10,54 @@ layout(binding = 1) uniform samplerBuffer ec_quads;
 layout(binding = 2) uniform samplerBuffer ef_quads;
 layout(std430, binding = 3) writeonly buffer EFOut { vec4 ef_out[]; };
 
-// The fine quad of cells 4q … 4q+3 of a row interpolates from coarse cells 2q−1 … 2q+2 (a fine
-// cell's sources lie around its parent: Hierarchy's `link`). Those four of the coarse row
-// (ci, cj), from two vec4 texels; the row's ends clamp (cells before or past the row go unused).
-vec4 window(uint ci, uint cj, uint q) {
-    uint row = (ci * pc.odims.y + cj) * pc.ozstride / 4u, last = row + pc.ozstride / 4u - 1u;
-    uint first = row + (q > 0u ? (2u * q - 1u) / 4u : 0u);
-    vec4 a = texelFetch(ec_quads, int(first)), b = texelFetch(ec_quads, int(min(first + 1u, last)));
-    if (q == 0u) return vec4(a.x, a.xyz);
-    return (q & 1u) == 0u ? vec4(a.w, b.xyz) : vec4(a.yzw, b.x);
+// A fine quad's cells 8b + p + 2m (mg_common.glsl) interpolate from coarse cells 4b − 1 … 4b + 4
+// (a fine cell's sources lie around its parent: Hierarchy's `link`). Those six of the coarse row
+// (ci, cj), as (lo, hi): the coarse block 4b falls in (B = b / 2), its even quad E and odd quad O,
+// and for even b the odd quad before it (P), for odd b the even quad after it (N):
+//   b even: P.w, E.x, O.x, E.y, O.y, E.z        b odd: O.y, E.z, O.z, E.w, O.w, N.x
+// The row's ends clamp (cells before or past the row go unused).
+struct Window {
+    vec4 lo;
+    vec2 hi;
+};
+
+Window window(uint ci, uint cj, uint b) {
+    uint quads = pc.ozstride / 4u, row = (ci * pc.odims.y + cj) * quads, e = row + 2u * (b >> 1u);
+    vec4 E = texelFetch(ec_quads, int(e)), O = texelFetch(ec_quads, int(e + 1u));
+    bool odd = (b & 1u) != 0u;
+    vec4 X = texelFetch(ec_quads, int(odd ? min(e + 2u, row + quads - 1u) : max(e, row + 1u) - 1u));
+    Window w;
+    w.lo = odd ? vec4(O.y, E.z, O.z, E.w) : vec4(X.w, E.x, O.x, E.y);
+    w.hi = odd ? vec2(O.w, X.x) : vec2(O.y, E.z);
+    return w;
 }
-// Entry o (0 … 3) of w, without an indexed read (llvmpipe's goes through memory lane by lane).
-float pick(vec4 w, uint o) { return o == 0u ? w.x : o == 1u ? w.y : o == 2u ? w.z : w.w; }
-// Fine cell k of the quad whose window (interpolated in x and y) is xy, starting at coarse cell
+// Entry o (0 … 5) of a window, without an indexed read (llvmpipe's goes through memory lane by
+// lane).
+float pick(Window w, uint o) {
+    return o < 4u ? (o == 0u ? w.lo.x : o == 1u ? w.lo.y : o == 2u ? w.lo.z : w.lo.w) : (o == 4u ? w.hi.x : w.hi.y);
+}
+// Fine cell k of the quad whose window (interpolated in x and y) is w, starting at coarse cell
 // base; 0 in the padding.
-float along_z(vec4 xy, uint base, uint k) {
+float along_z(Window w, uint base, uint k) {
     vec4 z = axis_cell(2u, min(k, pc.dims.z - 1u), 1u);  // (c0, c1, w0, w1)
-    float s = z.z * pick(xy, uint(z.x) - base) + z.w * pick(xy, uint(z.y) - base);
+    float s = z.z * pick(w, uint(z.x) - base) + z.w * pick(w, uint(z.y) - base);
     return k < pc.dims.z ? s : 0.0;
 }
 
 void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
-    uint q = index_of(c, pc.dims, pc.zstride) / 4u, cq = c.z / 4u;
+    uint b = c.z >> 1u;
     vec4 x = axis_cell(0u, c.x, 1u), y = axis_cell(1u, c.y, 1u);  // (c0, c1, w0, w1)
     uvec2 ci = uvec2(x.xy), cj = uvec2(y.xy);
-    vec4 xy = x.z * (y.z * window(ci.x, cj.x, cq) + y.w * window(ci.x, cj.y, cq)) +
-              x.w * (y.z * window(ci.y, cj.x, cq) + y.w * window(ci.y, cj.y, cq));
-    uint base = 2u * cq - 1u;  // the window's first coarse cell (wraps at cq = 0, as the sources do)
-    vec4 s = vec4(along_z(xy, base, c.z), along_z(xy, base, c.z + 1u), along_z(xy, base, c.z + 2u), along_z(xy, base, c.z + 3u));
+    Window w00 = window(ci.x, cj.x, b), w01 = window(ci.x, cj.y, b), w10 = window(ci.y, cj.x, b), w11 = window(ci.y, cj.y, b);
+    Window xy;  // the window interpolated in x and y
+    xy.lo = x.z * (y.z * w00.lo + y.w * w01.lo) + x.w * (y.z * w10.lo + y.w * w11.lo);
+    xy.hi = x.z * (y.z * w00.hi + y.w * w01.hi) + x.w * (y.z * w10.hi + y.w * w11.hi);
+    uint base = 4u * b - 1u;  // the window's first coarse cell (wraps at b = 0, as the sources do)
+    uvec4 k = quad_cells(c.z);
+    vec4 s = vec4(along_z(xy, base, k.x), along_z(xy, base, k.y), along_z(xy, base, k.z), along_z(xy, base, k.w));
+    uint q = quad_texel(c);
     vec4 updated = texelFetch(ef_quads, int(q)) + s;
     if (inside) ef_out[q] = updated;
 }

@@ -39,19 +39,19 @@ void main() {
     uvec3 d = pc.dims;
     bool inside;
     uvec3 c = quad_cell(inside);
-    uint first = index_of(c, d, pc.zstride), q = first / 4u;
-    uint slab = d.y * pc.zstride / 4u, row = pc.zstride / 4u;
+    uint q = quad_texel(c), row = pc.zstride / 4u, slab = d.y * row;
     dvec4 here = double_quad(phi_pairs, q);
     // Aφ's terms along x and y: the quads beside (a missing one: the quad itself, 0) ...
     dvec4 x = (here - double_quad(phi_pairs, c.x > 0u ? q - slab : q)) + (here - double_quad(phi_pairs, c.x + 1u < d.x ? q + slab : q));
     dvec4 y = (here - double_quad(phi_pairs, c.y > 0u ? q - row : q)) + (here - double_quad(phi_pairs, c.y + 1u < d.y ? q + row : q));
-    // ... and along z, each cell's neighbours in the row (a missing one: the cell itself).
-    uvec4 before_pair = texelFetch(phi_pairs, int(c.z > 0u ? 2u * q - 1u : 2u * q));
-    uvec4 after_pair = texelFetch(phi_pairs, int(c.z + 4u < pc.zstride ? 2u * q + 2u : 2u * q));
-    double before = c.z > 0u ? packDouble2x32(before_pair.zw) : here.x, after = packDouble2x32(after_pair.xy);
-    uvec4 k = c.z + uvec4(0u, 1u, 2u, 3u);
-    dvec4 next = mix(dvec4(here.yzw, after), here, greaterThanEqual(k + 1u, uvec4(d.z)));
-    dvec4 z = (here - dvec4(before, here.xyz)) + (here - next);
+    // ... and along z, each cell's neighbours in the row, from the other parity's quads before
+    // and after (as mg_row.glsl's quad_neighbours; a missing one: the cell itself).
+    dvec4 before = double_quad(phi_pairs, c.z > 0u ? q - 1u : q), after = double_quad(phi_pairs, c.z + 1u < row ? q + 1u : q);
+    bool odd = (c.z & 1u) != 0u;
+    uvec4 k = quad_cells(c.z);
+    dvec4 prev = mix(odd ? before : dvec4(before.w, after.xyz), here, equal(k, uvec4(0u)));
+    dvec4 next = mix(odd ? dvec4(before.yzw, after.x) : after, here, greaterThanEqual(k + 1u, uvec4(d.z)));
+    dvec4 z = (here - prev) + (here - next);
     dvec4 Aphi = double(pc.inv_h2.x) * x + double(pc.inv_h2.y) * y + double(pc.inv_h2.z) * z;
     dvec4 res = double_quad(b_pairs, q) - Aphi;
     res = mix(dvec4(0.0), res, lessThan(k, uvec4(d.z)));  // the padding: 0

@@ -1,7 +1,7 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 // t = r − A e on one level (rows of cells along z, mg_common.glsl; the software build a quad a
-// lane, e bound twice: as quads and as cells).
+// lane).
 #ifdef GSD_SOFTWARE_SHAPED
 #define MG_NO_AXIS_TABLE  // the couplings come from the push constants
 #endif
@@ -9,8 +9,7 @@
 #ifdef GSD_SOFTWARE_SHAPED
 layout(binding = 0) uniform samplerBuffer r_quads;
 layout(binding = 1) uniform samplerBuffer e_quads;
-layout(binding = 2) uniform samplerBuffer e_cells;
-layout(std430, binding = 3) writeonly buffer T { vec4 t_quads[]; };
+layout(std430, binding = 2) writeonly buffer T { vec4 t_quads[]; };
 #else
 layout(std430, binding = 1) readonly buffer R { float r[]; };
 layout(std430, binding = 2) readonly buffer E { float e[]; };
@@ -23,11 +22,11 @@ void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
     QuadStencil s = quad_stencil(c);
-    QuadValues e = quad_values(s, c);
+    vec4 e[6] = quad_neighbours(s, c), here = texelFetch(e_quads, int(s.t[0]));
     vec4 Ae = vec4(0.0);
-    for (int n = 0; n < 6; ++n) Ae += s.w[n] * (e.here - e.beside[n]);
-    // The padding's residual is 0: its r and e are, and its cells' z couplings.
-    if (inside) t_quads[s.t[0]] = texelFetch(r_quads, int(s.t[0])) - Ae;
+    for (int n = 0; n < 6; ++n) Ae += s.w[n] * (here - e[n]);
+    vec4 t = mix(vec4(0.0), texelFetch(r_quads, int(s.t[0])) - Ae, lessThan(s.k, uvec4(pc.dims.z)));
+    if (inside) t_quads[s.t[0]] = t;  // the padding: 0
 }
 #else
 void main() {

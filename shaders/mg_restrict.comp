@@ -13,7 +13,8 @@ float t_at(uint q) { return t[q]; }
 #endif
 layout(std430, binding = 2) writeonly buffer R { float rc[]; };
 
-// Σ over the z slots of the finer level's row (ix, iy).
+// Σ over the z slots of the finer level's row (ix, iy). The software build's z table holds
+// where the cells are stored in their row (mg_common.glsl's blocks), not their indices.
 float gather_z(uint ix, uint iy, uvec4 iz, vec4 wz) {
     uint row = (ix * pc.odims.y + iy) * pc.ozstride;
     return dot(wz, vec4(t_at(row + iz.x), t_at(row + iz.y), t_at(row + iz.z), t_at(row + iz.w)));
@@ -32,5 +33,10 @@ void main() {
     vec4 wx = axis_cell(0u, c.x, 3u), wy = axis_cell(1u, c.y, 3u), wz = axis_cell(2u, c.z, 3u);
     float s = dot(wx, vec4(gather_yz(ix.x, iy, wy, iz, wz), gather_yz(ix.y, iy, wy, iz, wz),
                            gather_yz(ix.z, iy, wy, iz, wz), gather_yz(ix.w, iy, wy, iz, wz)));
-    if (inside) rc[index_of(c, pc.dims, pc.zstride)] = s;
+#ifdef GSD_SOFTWARE_SHAPED
+    uint at = stored_cell((c.x * pc.dims.y + c.y) * pc.zstride, c.z);
+#else
+    uint at = index_of(c, pc.dims, pc.zstride);
+#endif
+    if (inside) rc[at] = s;
 }

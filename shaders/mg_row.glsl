@@ -28,57 +28,54 @@ Stencil stencil(uvec3 c, uint p) {
 }
 
 #else
-// The 7-point stencil of the quad at cell c (c.z = 4q), as `stencil` above for each of its
-// cells: the couplings toward the six neighbours (−x, +x, −y, +y, −z, +z), and the texel
-// indices of the quad (t[0]) and of the quads beside it across x and y (t[1] … t[4]; a missing
-// one is the quad itself, coupling 0). The kernel declares e_quads and e_cells (e as vec4s and
-// as floats) before including this file.
+// The 7-point stencil of the lane's quad c = (i, j, tq) (mg_common.glsl), as `stencil` above for
+// each of its cells: the couplings toward the six neighbours (−x, +x, −y, +y, −z, +z), and the
+// texels of the quad (t[0]), of the quads beside it across x and y (t[1] … t[4]: the same cells
+// of the rows beside) and of the other parity's quads before and after it in the row (t[5],
+// t[6]: its cells' neighbours along z). A missing one is the quad itself, with coupling 0.
 struct QuadStencil {
     vec4 w[6];
-    uint t[5];
-    uint row;  // the first cell of the quad's row
+    uint t[7];
+    uvec4 k;  // its cells
 };
 
 QuadStencil quad_stencil(uvec3 c) {
     uvec3 d = pc.dims;
-    uvec4 k = c.z + uvec4(0u, 1u, 2u, 3u);
+    QuadStencil s;
+    s.k = quad_cells(c.z);
     float sx = size_at(0u, c.x), sy = size_at(1u, c.y);
-    vec4 sz = sizes_z(k);
+    vec4 sz = sizes_z(s.k);
     vec4 yz = sy * sz, zx = sz * sx;
     float xy = sx * sy;
-    QuadStencil s;
     s.w[0] = yz * link_before(0u, c.x);
     s.w[1] = yz * link_at(0u, c.x);
     s.w[2] = zx * link_before(1u, c.y);
     s.w[3] = zx * link_at(1u, c.y);
-    s.w[4] = xy * mix(vec4(0.0), links_z(k - 1u), greaterThan(k, uvec4(0u)));
-    s.w[5] = xy * links_z(k);
-    s.row = (c.x * d.y + c.y) * pc.zstride;
-    uint q = (s.row + c.z) / 4u, slab = d.y * pc.zstride / 4u, row = pc.zstride / 4u;
+    s.w[4] = xy * mix(vec4(0.0), links_z(s.k - 1u), greaterThan(s.k, uvec4(0u)));
+    s.w[5] = xy * links_z(s.k);
+    uint q = quad_texel(c), row = pc.zstride / 4u, slab = d.y * row;
     s.t[0] = q;
     s.t[1] = c.x > 0u ? q - slab : q;
     s.t[2] = c.x + 1u < d.x ? q + slab : q;
     s.t[3] = c.y > 0u ? q - row : q;
     s.t[4] = c.y + 1u < d.y ? q + row : q;
+    s.t[5] = c.z > 0u ? q - 1u : q;
+    s.t[6] = c.z + 1u < row ? q + 1u : q;
     return s;
 }
 
-// e over the quad (`here`) and at each of its cells' six neighbours, in the stencil's order.
-// Across z the neighbours are the quad's own cells but for the two outside it, read as floats
-// (any cell where there is none: its coupling is 0).
-struct QuadValues {
-    vec4 here, beside[6];
-};
-
-QuadValues quad_values(QuadStencil s, uvec3 c) {
-    QuadValues v;
-    v.here = texelFetch(e_quads, int(s.t[0]));
-    for (int n = 0; n < 4; ++n) v.beside[n] = texelFetch(e_quads, int(s.t[n + 1]));
-    uint first = s.row + c.z;
-    float before = texelFetch(e_cells, int(c.z > 0u ? first - 1u : first)).x;
-    float after = texelFetch(e_cells, int(c.z + 4u < pc.zstride ? first + 4u : first)).x;
-    v.beside[4] = vec4(before, v.here.xyz);
-    v.beside[5] = vec4(v.here.yzw, after);
+// e at each of the quad's cells' six neighbours, in the stencil's order. Along z: an even quad's
+// cells 8b + 2m have the odd cells 8b + 2m ± 1 beside them, the odd quad of the block after
+// (t[6]) but for the first, the last of the block before's (t[5]); an odd quad's, the even quad
+// before (t[5]) and, for the last, the first of the block after's (t[6]). The kernel declares
+// e_quads (e as vec4s) before including this file.
+vec4[6] quad_neighbours(QuadStencil s, uvec3 c) {
+    vec4 v[6];
+    for (int n = 0; n < 4; ++n) v[n] = texelFetch(e_quads, int(s.t[n + 1]));
+    vec4 before = texelFetch(e_quads, int(s.t[5])), after = texelFetch(e_quads, int(s.t[6]));
+    bool odd = (c.z & 1u) != 0u;
+    v[4] = odd ? before : vec4(before.w, after.xyz);
+    v[5] = odd ? vec4(before.yzw, after.x) : after;
     return v;
 }
 #endif

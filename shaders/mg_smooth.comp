@@ -3,8 +3,8 @@
 // One red-black Gauss–Seidel sweep of one color: e_p = (r_p + Σ c e_q) / Σ c. Rows of cells
 // along z as mg_common.glsl's row_cell, but a row's lanes take its cells of this color only
 // (k = 2·x + parity), so that no lane idles on the other color. The software build takes a
-// quad a lane (mg_common.glsl) and updates its two cells of this color. e is bound twice or
-// three times: read (the other color's cells) and written (this color's); no cell is both in
+// block of the row a lane and updates its quad of this color's cells (mg_common.glsl). e is
+// bound twice: read (the other color's cells) and written (this color's); no cell is both in
 // one sweep.
 #ifdef GSD_SOFTWARE_SHAPED
 #define MG_NO_AXIS_TABLE  // the couplings come from the push constants
@@ -12,32 +12,31 @@
 #include "mg_common.glsl"
 #ifdef GSD_SOFTWARE_SHAPED
 layout(binding = 0) uniform samplerBuffer r_quads;
-layout(binding = 1) uniform samplerBuffer e_quads;
-layout(binding = 2) uniform samplerBuffer e_cells;
+layout(binding = 1) uniform samplerBuffer e_quads;  // the other color's cells
+layout(std430, binding = 2) writeonly buffer EOut { vec4 e_out[]; };  // this color's
 #else
 layout(std430, binding = 1) readonly buffer R { float r[]; };
 layout(std430, binding = 2) readonly buffer E { float e[]; };
-#endif
 layout(std430, binding = 3) writeonly buffer EOut { float e_out[]; };
+#endif
 #include "mg_row.glsl"
 
 #ifdef GSD_SOFTWARE_SHAPED
 void main() {
+    // A lane per block of the row: its quad of this color's cells (k ≡ i + j + color mod 2).
+    uint odd = (gl_WorkGroupID.z + gl_GlobalInvocationID.y + pc.color) & 1u;
     bool inside;
-    uvec3 c = quad_cell(inside);
+    uvec3 c = lane_quad(2u * gl_GlobalInvocationID.x + odd, inside);
     QuadStencil s = quad_stencil(c);
-    QuadValues e = quad_values(s, c);
+    vec4 e[6] = quad_neighbours(s, c);
     vec4 sum = texelFetch(r_quads, int(s.t[0])), diag = vec4(0.0);
     for (int n = 0; n < 6; ++n) {
-        sum += s.w[n] * e.beside[n];
+        sum += s.w[n] * e[n];
         diag += s.w[n];
     }
-    // This color's two cells of the quad: k ≡ i + j + color (mod 2), the quad starting even.
-    uint odd = (c.x + c.y + pc.color) & 1u;
-    vec2 num = odd == 0u ? sum.xz : sum.yw, den = odd == 0u ? diag.xz : diag.yw;
-    uint k = c.z + odd;
-    if (inside && den.x > 0.0 && k < pc.dims.z) e_out[s.row + k] = num.x / den.x;
-    if (inside && den.y > 0.0 && k + 2u < pc.dims.z) e_out[s.row + k + 2u] = num.y / den.y;
+    // The padding stays 0 (a cell with no neighbour at all, alone in its grid, too).
+    vec4 updated = mix(vec4(0.0), sum / diag, lessThan(s.k, uvec4(pc.dims.z)));
+    if (inside) e_out[s.t[0]] = mix(vec4(0.0), updated, greaterThan(diag, vec4(0.0)));
 }
 #else
 void main() {

@@ -13,7 +13,7 @@ layout(std430, binding = 2) writeonly buffer PhiOut { dvec4 phi_out[]; };
 void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
-    uint q = index_of(c, pc.dims, pc.zstride) / 4u;
+    uint q = quad_texel(c);  // φ and e stored alike
     dvec4 updated = double_quad(phi_pairs, q) + dvec4(texelFetch(e_quads, int(q)));
     if (inside) phi_out[q] = updated;  // the padding stays 0: its e is
 }

@@ -23,7 +23,12 @@ struct KernelSpec {
     std::uint32_t push_bytes;  ///< sizeof its push struct
     /// Its software build's texel-buffer bindings; none: one build serves every device.
     TexelBindings texels = {};
+    /// Its software build's binding count where it differs (0: `bindings`).
+    std::uint32_t software_bindings = 0;
     constexpr bool has_software_build() const { return texels.all() != 0; }
+    constexpr std::uint32_t bindings_of(bool software) const {
+        return software && software_bindings ? software_bindings : bindings;
+    }
 };
 
 namespace kernel_table {
@@ -44,11 +49,12 @@ inline constexpr KernelSpec torus_net_knn{"torus_net_knn", 4, sizeof(TorusNetKnn
 inline constexpr KernelSpec torus_net{"torus_net", 7, sizeof(CountPush), {0b1u}};
 // The multigrid (src/shm/poisson_gpu.cpp). GPUs: the stencils read the axis table (binding 0)
 // and the grids as storage buffers. The software builds of the stencils take a quad (4 cells) a
-// lane and read the grids as vec4s and, for the cells beside a quad, floats; φ and b as pairs
-// of doubles. The prolongation takes a quad a lane too and reads all as vec4s; the restriction
-// reads the axis table as vec4s and the grid as floats.
-inline constexpr KernelSpec mg_smooth{"mg_smooth", 4, sizeof(MultigridPush), {0b11u, 0b100u}};
-inline constexpr KernelSpec mg_residual{"mg_residual", 4, sizeof(MultigridPush), {0b11u, 0b100u}};
+// lane (the rows stored in blocks of even and odd cells, shaders/mg_common.glsl) and read the
+// grids as vec4s, φ and b as pairs of doubles; the smoother and the residual need no axis
+// table (3 bindings). The prolongation takes a quad a lane too and reads all as vec4s; the
+// restriction reads the axis table as vec4s and the grid as floats.
+inline constexpr KernelSpec mg_smooth{"mg_smooth", 4, sizeof(MultigridPush), {0b11u}, 3};
+inline constexpr KernelSpec mg_residual{"mg_residual", 4, sizeof(MultigridPush), {0b11u}, 3};
 inline constexpr KernelSpec mg_restrict{"mg_restrict", 3, sizeof(MultigridPush), {0b1u, 0b10u}};
 inline constexpr KernelSpec mg_prolong{"mg_prolong", 4, sizeof(MultigridPush), {0b111u}};
 inline constexpr KernelSpec mg_update{"mg_update", 3, sizeof(MultigridPush), {0b10u, 0u, 0u, 0b1u}};

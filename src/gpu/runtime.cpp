@@ -934,7 +934,7 @@ const Kernel& kernel(Context& ctx, const KernelSpec& spec, std::initializer_list
     if (software && !spec.has_software_build())
         throw Error("gpu", std::string("kernel ") + spec.shader + " has no build for software devices");
     if (software)
-        return ctx.kernel(std::string(spec.shader) + "_software", spec.bindings, spec.push_bytes, constants, workgroup,
+        return ctx.kernel(std::string(spec.shader) + "_software", spec.bindings_of(true), spec.push_bytes, constants, workgroup,
                           spec.texels);
     return ctx.kernel(spec.shader, spec.bindings, spec.push_bytes, constants, workgroup);
 }

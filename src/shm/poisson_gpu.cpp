@@ -5,8 +5,8 @@
 // solver reaches relative residuals far below float32's. One submission per cycle; the only
 // read-back per cycle is one partial sum per workgroup for the residual norm. On software
 // devices the stencil kernels and the prolongation take four cells a lane
-// (shaders/mg_common.glsl): every level stores its rows padded to whole quads, the padding
-// holding zeros.
+// (shaders/mg_common.glsl): every level stores each row in blocks of 8 cells, even ones then odd
+// ones (`stored_cell`), padded to whole blocks, the padding holding zeros.
 #include "shm/poisson_gpu.hpp"
 
 #include "gpu/runtime.hpp"
@@ -58,6 +58,11 @@ AxisCell axis_cell(const AxisLevel& ax, int i) {
 
 using MgPush = kernels::MultigridPush;  // `Push` in shaders/mg_common.glsl
 
+// Where the software build stores cell k of a row (`stored_cell` in shaders/mg_common.glsl):
+// blocks of 8 cells, the 4 even ones then the 4 odd ones.
+constexpr std::size_t stored_cell(std::size_t k) { return (k & ~std::size_t(7)) + ((k & 1) << 2) + ((k & 7) >> 1); }
+constexpr std::uint32_t kBlock = 8;
+
 // An axis of a level as the software build's stencils take it from the push constants: every
 // cell of `size` and every link `link`, but the last cell and the last link.
 struct RegularAxis {
@@ -94,14 +99,20 @@ public:
             std::array<std::uint32_t, 3> off{};
             for (std::size_t a = 0; a < 3; ++a) {
                 off[a] = std::uint32_t(axes.size());
-                for (int i = 0; i < lv.axis[a].n; ++i) axes.push_back(axis_cell(lv.axis[a], i));
+                for (int i = 0; i < lv.axis[a].n; ++i) {
+                    AxisCell cell = axis_cell(lv.axis[a], i);
+                    // The restriction gathers z cells where the software build stores them.
+                    if (software_ && a == 2)
+                        for (float& g : cell.g) g = float(stored_cell(std::size_t(g)));
+                    axes.push_back(cell);
+                }
             }
             axes_off_.push_back(off);
         }
         axes_ = gpu::upload(c, axes.data(), axes.size() * sizeof(AxisCell));
         for (std::size_t l = 0; l < H_.levels.size(); ++l) {
             const auto nz = std::uint32_t(H_.levels[l].axis[2].n);
-            stride_.push_back(software_ ? (nz + 3) / 4 * 4 : nz);
+            stride_.push_back(software_ ? (nz + kBlock - 1) / kBlock * kBlock : nz);
             const std::size_t n = cells(l);
             r_.emplace_back(c, n * 4, gpu::Memory::Device);
             e_.emplace_back(c, n * 4, gpu::Memory::Device);
@@ -159,7 +170,7 @@ public:
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
         std::vector<double> phi(n0);
-        if (stored == n0) {
+        if (!software_) {  // stored as they are
             gpu::download(c, phi_, phi.data(), n0 * 8);
         } else {
             std::vector<double> rows(stored);
@@ -177,7 +188,7 @@ private:
     void upload_coarse_pinv() {
         const std::size_t last = H_.levels.size() - 1, m = H_.levels[last].count(), stored = cells(last);
         const auto nz = std::size_t(H_.levels[last].axis[2].n);
-        auto at = [&](std::size_t p) { return p / nz * stride_[last] + p % nz; };  // natural -> stored
+        auto at = [&](std::size_t p) { return p / nz * stride_[last] + cell_in_row(p % nz); };  // natural -> stored
         std::vector<float> pinv(stored * stored, 0.0f);
         for (std::size_t p = 0; p < m; ++p)
             for (std::size_t q = 0; q < m; ++q) pinv[at(p) * stored + at(q)] = float(H_.coarse_pinv[p * m + q]);
@@ -189,17 +200,19 @@ private:
         const Level& lv = H_.levels[l];
         return std::size_t(lv.axis[0].n) * std::size_t(lv.axis[1].n) * stride_[l];
     }
+    // Where cell k of a row is stored, from the row's start.
+    std::size_t cell_in_row(std::size_t k) const { return software_ ? stored_cell(k) : k; }
     // The finest level's values from the natural order into stored rows (the padding 0), and back.
     void to_rows(const double* natural, double* rows) const {
         const std::size_t nz = std::size_t(H_.levels[0].axis[2].n), count = H_.levels[0].count() / nz;
-        for (std::size_t r = 0; r < count; ++r) {
-            std::copy_n(natural + r * nz, nz, rows + r * stride_[0]);
-            std::fill(rows + r * stride_[0] + nz, rows + (r + 1) * stride_[0], 0.0);
-        }
+        std::fill(rows, rows + cells(0), 0.0);
+        for (std::size_t r = 0; r < count; ++r)
+            for (std::size_t k = 0; k < nz; ++k) rows[r * stride_[0] + cell_in_row(k)] = natural[r * nz + k];
     }
     void from_rows(const double* rows, double* natural) const {
         const std::size_t nz = std::size_t(H_.levels[0].axis[2].n), count = H_.levels[0].count() / nz;
-        for (std::size_t r = 0; r < count; ++r) std::copy_n(rows + r * stride_[0], nz, natural + r * nz);
+        for (std::size_t r = 0; r < count; ++r)
+            for (std::size_t k = 0; k < nz; ++k) natural[r * nz + k] = rows[r * stride_[0] + cell_in_row(k)];
     }
 
     MgPush push_for(std::size_t l, std::size_t other) const {
@@ -270,10 +283,10 @@ private:
     void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color) {
         MgPush p = push_for(l, l);
         p.color = color;
-        // e read (the other color) and written (this one); on a software device read twice, as
-        // quads and as cells. GPUs' lanes take the row's cells of one color.
+        // e read (the other color) and written (this one). The lanes take the row's cells of one
+        // color: on a software device a block's quad of them a lane.
         if (software_)
-            run_rows(rec, gpu::kernel_table::mg_smooth, {{&r_[l]}, {&e_[l]}, {&e_[l]}, {&e_[l]}}, p, row_lanes(l));
+            run_rows(rec, gpu::kernel_table::mg_smooth, {{&r_[l]}, {&e_[l]}, {&e_[l]}}, p, stride_[l] / kBlock);
         else
             run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, (p.dims[2] + 1) / 2);
     }
@@ -281,7 +294,7 @@ private:
     void residual(gpu::Recorder& rec, std::size_t l) {
         const MgPush p = push_for(l, l);
         if (software_)
-            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
         else
             run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
     }
@@ -391,9 +404,9 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
                 if (ax.offsets[i + 1] - ax.offsets[i] > kMaxTaps)
                     throw Error("shm", "internal: a restriction gathers more than 4 cells per axis");
     // The software build reads the grids through texel buffers, the cells' couplings from the
-    // push constants (regular axes), and pads every level's rows to quads.
+    // push constants (regular axes), and pads every level's rows to whole blocks of 8 cells.
     const std::uint64_t padded = std::uint64_t(h.levels[0].axis[0].n) * std::uint64_t(h.levels[0].axis[1].n) *
-                                 std::uint64_t((nz + 3) / 4 * 4);
+                                 std::uint64_t((nz + kBlock - 1) / kBlock * kBlock);
     bool software = gpu::software_shaped(*ctx) && padded <= ctx->limits().maxTexelBufferElements &&
                     padded * 8 <= ctx->max_binding_bytes();
     for (const Level& lv : h.levels)
