@@ -60,10 +60,11 @@ uint stored_cell(uint row, uint k) { return row + (k & ~7u) + ((k & 1u) << 2u) +
 uvec4 quad_cells(uint tq) { return (tq >> 1u) * 8u + (tq & 1u) + uvec4(0u, 2u, 4u, 6u); }
 // A lane's quad: c = (i, j, tq), the lane's row and its texel tq there (quad_cell: the lane's
 // x; the smoother: its block's quad of the sweep's color). `inside` is false on lanes past the
-// level's end; they work on its last quad and store nothing.
+// row's stored quads or the level's rows; they work on its last quad and store nothing. A quad
+// of the padding alone is stored (zeros), so that no buffer needs clearing first.
 uvec3 lane_quad(uint tq, out bool inside) {
     uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, tq);
-    inside = quad_cells(c.z).x < pc.dims.z && c.y < pc.dims.y;
+    inside = c.z < pc.zstride / 4u && c.y < pc.dims.y;
     c.y = min(c.y, pc.dims.y - 1u);
     c.z = min(c.z, pc.zstride / 4u - 1u);
     return c;

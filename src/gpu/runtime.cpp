@@ -9,6 +9,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cctype>
 #include <cstdio>
 #include <cstdlib>
@@ -462,6 +463,9 @@ Context::State::~State() {
         std::fprintf(stderr, "gsd: device time on %s (GSD_GPU_PROFILE):\n", info.name.c_str());
         for (const auto& [name, t] : device_ns)
             std::fprintf(stderr, "gsd:   %-16s %10.3f ms in %zu\n", name.c_str(), t.first * 1e-6, t.second);
+        std::fprintf(stderr, "gsd: host time creating pipelines (GSD_GPU_PROFILE):\n");
+        for (const auto& [name, t] : pipeline_ns)
+            std::fprintf(stderr, "gsd:   %-16s %10.3f ms in %zu\n", name.c_str(), t.first * 1e-6, t.second);
     }
     if (!device) return;
     if (!vk.vkDestroyPipelineCache) {  // the device's commands failed to load: only it to free
@@ -605,7 +609,14 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     ci.stage.pName = "main";
     ci.stage.pSpecializationInfo = &spec;
     ci.layout = k->layout;
+    const auto start = std::chrono::steady_clock::now();
     check(st.vk.vkCreateComputePipelines(st.device, st.cache, 1, &ci, nullptr, &k->pipeline), "vkCreateComputePipelines");
+    if (st.profile) {
+        std::lock_guard<std::mutex> plock(st.profile_mutex);
+        auto& t = st.pipeline_ns[shader];
+        t.first += std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - start).count();
+        ++t.second;
+    }
     return *(st.kernels[key] = std::move(k));
 }
 

@@ -145,6 +145,9 @@ struct Context::State {
     double timestamp_ns = 1;  ///< nanoseconds per timestamp tick
     std::mutex profile_mutex;
     std::map<std::string, std::pair<double, std::size_t>> device_ns;  ///< kernel → (ns, count)
+    /// Host time creating pipelines (profile only): kernel → (ns, count). On software devices
+    /// the driver compiles the shader here, which a short run pays in full.
+    std::map<std::string, std::pair<double, std::size_t>> pipeline_ns;
     ~State();
 };
 

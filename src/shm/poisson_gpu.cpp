@@ -15,8 +15,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <numeric>
+#include <string>
+#include <utility>
 
 namespace gsd::shm {
 
@@ -117,24 +120,36 @@ public:
             r_.emplace_back(c, n * 4, gpu::Memory::Device);
             e_.emplace_back(c, n * 4, gpu::Memory::Device);
             t_.emplace_back(c, n * 4, gpu::Memory::Device);
-            save_.emplace_back(c, n * 4, gpu::Memory::Device);
+            // The F-cycle's second correction, on the levels between the finest and the coarsest.
+            save_.emplace_back();
+            if (l > 0 && l + 1 < H_.levels.size()) save_.back() = gpu::Buffer(c, n * 4, gpu::Memory::Device);
         }
         upload_coarse_pinv();
-        phi_ = gpu::Buffer(c, cells(0) * 8, gpu::Memory::Device);
-        b_ = gpu::Buffer(c, cells(0) * 8, gpu::Memory::Device);
+        // A software device's memory is the host's: φ and b are read and written in place there
+        // (no staging buffer, no copy).
+        const gpu::Memory grid_memory = software_ ? gpu::Memory::Download : gpu::Memory::Device;
+        phi_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
+        b_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
         // mg_refine's workgroups (run_rows), one partial sum each.
         const MgPush fine = push_for(0, 0);
         const RowGroups g = row_groups(fine, row_lanes(0));
         groups0_ = g.x * g.y * g.z;
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
-        // The padding of the rows stays 0 (no kernel stores there): the quads read it.
+        // The restriction stores no padding, which the quads read: r of the coarser levels starts
+        // at 0 and stays so there. Every other kernel stores 0 in the padding, and every cell is
+        // stored before it is read (e by a level's first half-sweep, which does not read it), so
+        // nothing else is cleared: on a software device a clear is one thread's memset.
         gpu::Recorder rec(c);
         rec.begin();
-        for (std::size_t l = 0; l < H_.levels.size(); ++l)
-            for (const gpu::Buffer* b : {&r_[l], &e_[l], &t_[l], &save_[l]}) rec.fill_zero(*b, 0, cells(l) * 4);
-        rec.fill_zero(phi_, 0, cells(0) * 8);
-        rec.fill_zero(b_, 0, cells(0) * 8);
+        for (std::size_t l = 1; l < H_.levels.size(); ++l) rec.fill_zero(r_[l], 0, cells(l) * 4);
+        // $GSD_GPU_POISON=1 (tests): what no kernel needs cleared starts as NaN instead of
+        // whatever the allocation held, so that a kernel reading a value before one is stored
+        // shows in the result.
+        if (const char* v = std::getenv("GSD_GPU_POISON"); v && v[0] == '1')
+            for (std::size_t l = 0; l < H_.levels.size(); ++l)
+                for (const gpu::Buffer* b : {&e_[l], &t_[l], &save_[l]})
+                    if (b->handle()) rec.fill(*b, 0, cells(l) * 4, 0x7fc00000u);  // float32 quiet NaN
         rec.submit();
         rec.wait();
     }
@@ -144,13 +159,13 @@ public:
         gpu::Context& c = *ctx_;
         const std::size_t n0 = H_.levels[0].count(), stored = cells(0);
         {
-            gpu::Buffer staging(c, stored * 8, gpu::Memory::Upload);
-            to_rows(b.data(), static_cast<double*>(staging.mapped()));
+            gpu::Buffer staging;
+            if (!b_.mapped()) staging = gpu::Buffer(c, stored * 8, gpu::Memory::Upload);
+            to_rows(b.data(), static_cast<double*>(b_.mapped() ? b_.mapped() : staging.mapped()));
             gpu::Recorder rec(c);
             rec.begin();
-            rec.copy(staging, 0, b_, 0, stored * 8);
+            if (staging.handle()) rec.copy(staging, 0, b_, 0, stored * 8);
             rec.fill_zero(phi_, 0, stored * 8);
-            rec.fill_zero(e_[0], 0, stored * 4);
             rec.barrier();
             record_refine(rec, false);
             rec.submit();
@@ -166,12 +181,17 @@ public:
             rec.submit();
             rec.wait();
             rel = std::sqrt(partial_sum()) / bnorm;
+            if (!std::isfinite(rel))  // never quietly: the loop would stop as if converged
+                throw Error("shm", "the device's multigrid produced a non-finite residual (cycle " + std::to_string(it + 1) +
+                                       " on " + ctx_->info().name + "); rerun with --device cpu");
             if (history) history->push_back(rel);
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
         std::vector<double> phi(n0);
         if (!software_) {  // stored as they are
             gpu::download(c, phi_, phi.data(), n0 * 8);
+        } else if (phi_.mapped()) {  // in place, in rows of blocks
+            from_rows(static_cast<const double*>(phi_.mapped()), phi.data());
         } else {
             std::vector<double> rows(stored);
             gpu::download(c, phi_, rows.data(), stored * 8);
@@ -280,9 +300,11 @@ private:
         rec.barrier();
     }
 
-    void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color) {
+    // One half-sweep of `color`; `first`: the level's first of a cycle, which takes e as 0.
+    void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color, bool first = false) {
         MgPush p = push_for(l, l);
         p.color = color;
+        p.first_sweep = first ? 1 : 0;
         // e read (the other color) and written (this one). The lanes take the row's cells of one
         // color: on a software device a block's quad of them a lane.
         if (software_)
@@ -291,12 +313,13 @@ private:
             run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, (p.dims[2] + 1) / 2);
     }
 
-    void residual(gpu::Recorder& rec, std::size_t l) {
+    // t = r − A e on level l into `t` (which may be r itself: each cell reads its own r only).
+    void residual(gpu::Recorder& rec, std::size_t l, const gpu::Buffer& t) {
         const MgPush p = push_for(l, l);
         if (software_)
-            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&t}}, p, row_lanes(l));
         else
-            run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t_[l]}}, p, row_lanes(l));
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t}}, p, row_lanes(l));
     }
 
     void record_cycle(gpu::Recorder& rec, std::size_t l, bool f_cycle) {
@@ -309,23 +332,22 @@ private:
             rec.barrier();
             return;
         }
-        rec.fill_zero(e_[l], 0, cells(l) * 4);
-        rec.barrier();
-        for (int s = 0; s < 2; ++s) { smooth(rec, l, 0); smooth(rec, l, 1); }
-        residual(rec, l);
+        for (int s = 0; s < 2; ++s) { smooth(rec, l, 0, s == 0); smooth(rec, l, 1); }
+        residual(rec, l, t_[l]);
         {
             const MgPush p = push_for(l + 1, l);
             run_rows(rec, gpu::kernel_table::mg_restrict, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
         }
         record_cycle(rec, l + 1, f_cycle);
         if (f_cycle && l + 2 <= last) {
-            // F-cycle: one more V-cycle on level l+1 against its remaining residual.
-            const std::size_t c = l + 1, bytes = cells(c) * 4;
-            residual(rec, c);
-            rec.copy(e_[c], 0, save_[c], 0, bytes);
-            rec.copy(t_[c], 0, r_[c], 0, bytes);
-            rec.barrier();
+            // F-cycle: one more V-cycle on level l+1 against its remaining residual, which
+            // replaces r there (r is not read again this cycle); its correction goes into
+            // save, then e += save.
+            const std::size_t c = l + 1;
+            residual(rec, c, r_[c]);
+            std::swap(e_[c], save_[c]);
             record_cycle(rec, c, false);
+            std::swap(e_[c], save_[c]);
             const gpu::Kernel& add = gpu::kernel(*ctx_, gpu::kernel_table::mg_add);
             const kernels::CountPush push_m{std::uint32_t(cells(c))};
             rec.dispatch(add, {{&e_[c]}, {&save_[c]}}, &push_m, sizeof(push_m),
