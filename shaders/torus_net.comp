@@ -1,5 +1,6 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
 // TorusNet stage 2 (docs/torusnet.md, "GPU kernels"): one workgroup per point. From the K
 // tokens written by torus_net_knn.comp (or given neighborhoods), the workgroup builds the token
 // features and the scale m, runs the transformer with every activation in a workspace of POOL
@@ -127,57 +128,56 @@ void put(int o, vec4 v, int mode) {
 // out[r][c] (=, +=, = gelu) bias[c] + Σ_i A[r][i]·B[i][c] for r < R, c < N; all in vec4s:
 // A in the workspace (row stride lda), I4 = inputs / 4; B in the weights (weights = true) or
 // the workspace, row-major (row stride ldb); bias in the weights (bias < 0: none); out in the
-// workspace (row stride ldo). An invocation computes rt rows × TC vec4 columns; R is a
-// multiple of rt (TR, or 1 for token 0 alone); N % 4 == 0. rt must be a constant at each call
-// site so the tile loops unroll into registers.
-void gemm(int a, int lda, int R, int rt, int I4, bool weights, int b, int ldb, int bias, int N, int o, int ldo,
+// workspace (row stride ldo). An invocation computes TR rows × TC vec4 columns (a constant, so
+// the tile loops unroll into registers); R is a multiple of TR; N % 4 == 0.
+void gemm(int a, int lda, int R, int I4, bool weights, int b, int ldb, int bias, int N, int o, int ldo,
           int mode) {
     int n4 = N / 4;
     int nct = (n4 + TC - 1) / TC;
-    int tiles = (R / rt) * nct;
+    int tiles = (R / TR) * nct;
     for (int tile = tid; tile < tiles; tile += WG) {
-        int r0 = (tile / nct) * rt, c0 = (tile % nct) * TC;
+        int r0 = (tile / nct) * TR, c0 = (tile % nct) * TC;
         vec4 acc[TR][TC];
         for (int q = 0; q < TC; ++q) {
             vec4 bq = bias >= 0 && c0 + q < n4 ? WEIGHT(bias + c0 + q) : vec4(0.0);
-            for (int t = 0; t < rt; ++t) acc[t][q] = bq;
+            for (int t = 0; t < TR; ++t) acc[t][q] = bq;
         }
-        for (int i4 = 0; i4 < I4; ++i4) {
+        [[dont_unroll]] for (int i4 = 0; i4 < I4; ++i4) {
             vec4 av[TR];
-            for (int t = 0; t < rt; ++t) av[t] = ld(a + (r0 + t) * lda + i4);
+            for (int t = 0; t < TR; ++t) av[t] = ld(a + (r0 + t) * lda + i4);
             for (int k = 0; k < 4; ++k) {
                 int row = b + (4 * i4 + k) * ldb + c0;
                 for (int q = 0; q < TC; ++q) {
                     vec4 bv = c0 + q < n4 ? (weights ? WEIGHT(row + q) : ld(row + q)) : vec4(0.0);
-                    for (int t = 0; t < rt; ++t) acc[t][q] += av[t][k] * bv;
+                    for (int t = 0; t < TR; ++t) acc[t][q] += av[t][k] * bv;
                 }
             }
         }
-        for (int t = 0; t < rt; ++t)
+        for (int t = 0; t < TR; ++t)
             for (int q = 0; q < TC; ++q)
                 if (c0 + q < n4) put(o + (r0 + t) * ldo + c0 + q, acc[t][q], mode);
     }
 }
 
 // Attention scores S[r][j] = scale · q_r·k_j for r < R, j < K (Q, Kt rows in the workspace,
-// row stride QS, D4 vec4s each); 4 rows × 8 keys per invocation.
-void scores(int R, int rt, float scale) {
-    int tiles = (R / rt) * (K / 8 + (K % 8 == 0 ? 0 : 1));
+// row stride QS, D4 vec4s each); TR rows × 8 keys per invocation.
+void scores(int R, float scale) {
+    int tiles = (R / TR) * (K / 8 + (K % 8 == 0 ? 0 : 1));
     int nct = K / 8 + (K % 8 == 0 ? 0 : 1);
     for (int tile = tid; tile < tiles; tile += WG) {
-        int r0 = (tile / nct) * rt, j0 = (tile % nct) * 8;
+        int r0 = (tile / nct) * TR, j0 = (tile % nct) * 8;
         float acc[TR][8];
-        for (int t = 0; t < rt; ++t)
+        for (int t = 0; t < TR; ++t)
             for (int q = 0; q < 8; ++q) acc[t][q] = 0.0;
-        for (int x4 = 0; x4 < D4; ++x4) {
+        [[dont_unroll]] for (int x4 = 0; x4 < D4; ++x4) {
             vec4 qv[TR];
-            for (int t = 0; t < rt; ++t) qv[t] = ld(T + (r0 + t) * QS + x4);
+            for (int t = 0; t < TR; ++t) qv[t] = ld(T + (r0 + t) * QS + x4);
             for (int q = 0; q < 8; ++q) {
                 vec4 kv = j0 + q < K ? ld(T + (j0 + q) * QS + D4 + x4) : vec4(0.0);
-                for (int t = 0; t < rt; ++t) acc[t][q] += dot(qv[t], kv);
+                for (int t = 0; t < TR; ++t) acc[t][q] += dot(qv[t], kv);
             }
         }
-        for (int t = 0; t < rt; ++t) {
+        for (int t = 0; t < TR; ++t) {
             int s = SC + (r0 + t) * SS + j0 / 4;
             st(s, scale * vec4(acc[t][0], acc[t][1], acc[t][2], acc[t][3]));
             if (j0 + 4 < K) st(s + 1, scale * vec4(acc[t][4], acc[t][5], acc[t][6], acc[t][7]));
@@ -190,10 +190,10 @@ void scores(int R, int rt, float scale) {
 void layer_norm(int src, int dst, int R, int g) {
     for (int r = tid; r < R; r += WG) {
         vec4 s = vec4(0.0);
-        for (int c = 0; c < W4; ++c) s += ld(src + r * XS + c);
+        [[dont_unroll]] for (int c = 0; c < W4; ++c) s += ld(src + r * XS + c);
         float mean = (s.x + s.y + s.z + s.w) / float(W);
         vec4 v = vec4(0.0);
-        for (int c = 0; c < W4; ++c) {
+        [[dont_unroll]] for (int c = 0; c < W4; ++c) {
             vec4 e = ld(src + r * XS + c) - mean;
             v += e * e;
         }
@@ -233,7 +233,7 @@ float features(uint g) {
     for (int j = 1 + tid; j < K; j += WG) {
         float dj = dist[j];
         int rank = 0;
-        for (int i = 1; i < K; ++i) rank += (dist[i] < dj || (dist[i] == dj && i < j)) ? 1 : 0;
+        [[dont_unroll]] for (int i = 1; i < K; ++i) rank += (dist[i] < dj || (dist[i] == dj && i < j)) ? 1 : 0;
         if (rank == (K - 2) / 2) median_max[0] = dj;
         if (rank == K - 2) median_max[1] = dj;
     }
@@ -258,49 +258,46 @@ float features(uint g) {
 }
 
 // One block. In the last block only token 0 leaves, so its query row, attention row and MLP are
-// computed for row 0 only (R = 1); keys and values still come from every token.
-void block(int base, bool last) {
-    int R = last ? 1 : K, rt = last ? 1 : TR;
+// computed for its first TR rows only (R, the rows that go on: one row tile); keys and values
+// still come from every token. Both kinds of block are this one code (R a runtime value): the
+// pipeline's compile time (llvmpipe's, on every run) grows with the shader's code.
+void block(int base, int R) {
     layer_norm(X, Y, K, base + N1_G);
     float scale = inversesqrt(float(D));
-    for (int h = 0; h < H; ++h) {
+    [[dont_unroll]] for (int h = 0; h < H; ++h) {
         int qkv = base + QKV + h * QKV_HEAD, qkv_b = qkv + W * 3 * D4;
-        // q | k | v of head h: [K][3D] at T (q for rows < R only).
-        if (last) {
-            gemm(Y, XS, 1, 1, W4, true, qkv, 3 * D4, qkv_b, D, T, QS, 0);
-            gemm(Y, XS, K, TR, W4, true, qkv + D4, 3 * D4, qkv_b + D4, 2 * D, T + D4, QS, 0);
-        } else {
-            gemm(Y, XS, K, TR, W4, true, qkv, 3 * D4, qkv_b, 3 * D, T, QS, 0);
-        }
+        // q of head h for rows < R, k | v for every row: [K][3D] at T.
+        gemm(Y, XS, R, W4, true, qkv, 3 * D4, qkv_b, D, T, QS, 0);
+        gemm(Y, XS, K, W4, true, qkv + D4, 3 * D4, qkv_b + D4, 2 * D, T + D4, QS, 0);
         sync();
         // Scores q_r·k_j / √D, softmax over j, then o_r = Σ_j a_rj v_j into q's columns.
-        scores(R, rt, scale);
+        scores(R, scale);
         sync();
         for (int r = tid; r < R; r += WG) {
             vec4 mx4 = vec4(-3.0e38);
-            for (int j4 = 0; j4 < K4; ++j4) mx4 = max(mx4, ld(SC + r * SS + j4));
+            [[dont_unroll]] for (int j4 = 0; j4 < K4; ++j4) mx4 = max(mx4, ld(SC + r * SS + j4));
             float mx = max(max(mx4.x, mx4.y), max(mx4.z, mx4.w));
             vec4 sum4 = vec4(0.0);
-            for (int j4 = 0; j4 < K4; ++j4) {
+            [[dont_unroll]] for (int j4 = 0; j4 < K4; ++j4) {
                 vec4 e = exp(ld(SC + r * SS + j4) - mx);
                 st(SC + r * SS + j4, e);
                 sum4 += e;
             }
             float inv = 1.0 / (sum4.x + sum4.y + sum4.z + sum4.w);
-            for (int j4 = 0; j4 < K4; ++j4) st(SC + r * SS + j4, ld(SC + r * SS + j4) * inv);
+            [[dont_unroll]] for (int j4 = 0; j4 < K4; ++j4) st(SC + r * SS + j4, ld(SC + r * SS + j4) * inv);
         }
         sync();
-        gemm(SC, SS, R, rt, K4, false, T + 2 * D4, QS, -1, D, T, QS, 0);
+        gemm(SC, SS, R, K4, false, T + 2 * D4, QS, -1, D, T, QS, 0);
         sync();
         // x += o_h · proj[hD … hD+D) (the bias once, with head 0).
-        gemm(T, QS, R, rt, D4, true, base + PR_W + h * D * W4, W4, h == 0 ? base + PR_B : -1, W, X, XS, 1);
+        gemm(T, QS, R, D4, true, base + PR_W + h * D * W4, W4, h == 0 ? base + PR_B : -1, W, X, XS, 1);
         sync();
     }
     layer_norm(X, Y, R, base + N2_G);
-    for (int c0 = 0; c0 < F; c0 += FC) {
-        gemm(Y, XS, R, rt, W4, true, base + F1_W + c0 / 4, F4, base + F1_B + c0 / 4, FC, T, HS, 2);
+    [[dont_unroll]] for (int c0 = 0; c0 < F; c0 += FC) {
+        gemm(Y, XS, R, W4, true, base + F1_W + c0 / 4, F4, base + F1_B + c0 / 4, FC, T, HS, 2);
         sync();
-        gemm(T, HS, R, rt, FC4, true, base + F2_W + c0 * W4, W4, c0 == 0 ? base + F2_B : -1, W, X, XS, 1);
+        gemm(T, HS, R, FC4, true, base + F2_W + c0 * W4, W4, c0 == 0 ? base + F2_B : -1, W, X, XS, 1);
         sync();
     }
 }
@@ -313,12 +310,10 @@ void main() {
 
     float m = features(g);
     // x = LayerNorm(embed(features)): the embedding into Y, normalized into X.
-    gemm(T, FS, K, TR, 2, true, E_W, W4, E_B, W, Y, XS, 0);
+    gemm(T, FS, K, 2, true, E_W, W4, E_B, W, Y, XS, 0);
     sync();
     layer_norm(Y, X, K, EN_G);
-    // Two call sites, so that `last` (and the tile heights) are constants in each.
-    for (int b = 0; b < B - 1; ++b) block(BLK0 + b * BLK, false);
-    block(BLK0 + (B - 1) * BLK, true);
+    [[dont_unroll]] for (int b = 0; b < B; ++b) block(BLK0 + b * BLK, b + 1 < B ? K : TR);
     // z = LayerNorm(x_0), r = head(z), rescaled by m.
     layer_norm(X, Y, 1, FN_G);
     if (tid < 6) {

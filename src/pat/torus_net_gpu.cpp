@@ -208,17 +208,17 @@ std::uint64_t net_loop_iterations(const NetPlan& p, std::uint64_t wg) {
     auto scores = [&](U R, U rt) { return passes((R / rt) * ((K + 7) / 8)) * (D4 + 1); };
     auto layer_norm = [&](U R) { return passes(R) * (2 * W4 + 2) + passes(R * W4); };
     auto softmax = [&](U R) { return passes(R) * (3 * K4 + 3); };
-    auto block = [&](bool last) {
-        const U R = last ? 1 : K, rt = last ? 1 : TR;
-        U n = 2 * layer_norm(K) + H;
+    auto block = [&](bool last) {  // the last block's rows that go on: one row tile
+        const U R = last ? TR : K;
+        U n = layer_norm(K) + layer_norm(R) + H + 1;
         for (U h = 0; h < H; ++h) {
-            n += last ? gemm(1, 1, W4, D) + gemm(K, TR, W4, 2 * D) : gemm(K, TR, W4, 3 * D);
-            n += scores(R, rt) + softmax(R) + gemm(R, rt, K4, D) + gemm(R, rt, D4, 4 * W4);
+            n += gemm(R, TR, W4, D) + gemm(K, TR, W4, 2 * D);
+            n += scores(R, TR) + softmax(R) + gemm(R, TR, K4, D) + gemm(R, TR, D4, 4 * W4);
         }
-        return n + (F / FC + 1) * (gemm(R, rt, W4, FC) + gemm(R, rt, FC / 4, 4 * W4));
+        return n + (F / FC + 1) * (gemm(R, TR, W4, FC) + gemm(R, TR, FC / 4, 4 * W4));
     };
     const U features = 2 * passes(K) + passes(K) * (K + 1);
-    const U blocks = U(p.blocks - 1) * block(false) + block(true) + U(p.blocks);
+    const U blocks = U(p.blocks - 1) * block(false) + block(true) + U(p.blocks) + 1;
     return features + gemm(K, TR, 2, 4 * W4) + 2 * layer_norm(K) + blocks + W4 + 1;
 }
 
