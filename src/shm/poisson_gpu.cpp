@@ -272,10 +272,12 @@ private:
         std::uint32_t x = simd;
         while (x < cells && x < widest) x *= 2;
         x = std::min(x, widest);
-        // mg_refine keeps one partial sum per subgroup in shared memory, 256 of them.
+        // mg_refine keeps one partial sum per subgroup in shared memory, 256 of them. The rows
+        // per workgroup do not follow the level's (lanes past its rows idle): llvmpipe compiles
+        // a pipeline for every shape on first use, which a short solve pays for.
         const std::uint32_t most = std::min(kSoftwareInvocations, 256 * simd);
         std::uint32_t y = 1;
-        while (y < rows && x * y * 2 <= most) y *= 2;
+        while (x * y * 2 <= most) y *= 2;
         return {x, y};
     }
 
