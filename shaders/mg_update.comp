@@ -2,7 +2,8 @@
 #extension GL_GOOGLE_include_directive : require
 // φ += e on the finest level, after a cycle (φ in float64). Rows of cells along z
 // (mg_common.glsl; the software build a quad a lane, φ read as two doubles a texel); φ is bound
-// twice, read and written (each cell its own).
+// twice, read and written (each cell its own). pc.first_sweep: φ starts at 0 (the first cycle;
+// φ is not cleared, so not read then).
 #define MG_NO_AXIS_TABLE
 #include "mg_common.glsl"
 #ifdef GSD_SOFTWARE_SHAPED
@@ -14,7 +15,8 @@ void main() {
     bool inside;
     uvec3 c = quad_cell(inside);
     uint q = quad_texel(c);  // φ and e stored alike
-    dvec4 updated = double_quad(phi_pairs, q) + dvec4(texelFetch(e_quads, int(q)));
+    dvec4 phi = pc.first_sweep != 0u ? dvec4(0.0) : double_quad(phi_pairs, q);
+    dvec4 updated = phi + dvec4(texelFetch(e_quads, int(q)));
     if (inside) phi_out[q] = updated;  // the padding stays 0: its e is
 }
 #else
@@ -24,7 +26,7 @@ layout(std430, binding = 2) writeonly buffer PhiOut { double phi_out[]; };
 void main() {
     bool inside;
     uint p = index_of(row_cell(inside), pc.dims, pc.zstride);
-    double updated = phi[p] + double(e[p]);
+    double updated = (pc.first_sweep != 0u ? 0.0 : phi[p]) + double(e[p]);
     if (inside) phi_out[p] = updated;
 }
 #endif

@@ -109,7 +109,7 @@ struct MultigridPush {
     GSD_ALIGNED_VEC3 uvec3 odims;  // the other level (coarser for prolongation, finer for restriction)
     uint ozstride;                 // cells stored per row of the other level
     GSD_ALIGNED_VEC3 uvec3 oaxes_off;
-    uint first_sweep;  // smoother: 1 takes e as 0 (a level's first half-sweep), so e need not be cleared
+    uint first_sweep;  // 1: the smoother takes e as 0 (a level's first half-sweep), mg_update φ (the first cycle)
     GSD_ALIGNED_VEC3 vec3 inv_h2;  // 1/Δ² of the finest grid per axis
     uint pad3;
     // This level's axes (x, y, z) for the software build's stencils: every cell of an axis has

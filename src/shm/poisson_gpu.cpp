@@ -117,7 +117,8 @@ public:
             const auto nz = std::uint32_t(H_.levels[l].axis[2].n);
             stride_.push_back(software_ ? (nz + kBlock - 1) / kBlock * kBlock : nz);
             const std::size_t n = cells(l);
-            r_.emplace_back(c, n * 4, gpu::Memory::Device);
+            // On a software device the finest r is host memory: the first residual is b, written in place.
+            r_.emplace_back(c, n * 4, software_ && l == 0 ? gpu::Memory::Download : gpu::Memory::Device);
             e_.emplace_back(c, n * 4, gpu::Memory::Device);
             t_.emplace_back(c, n * 4, gpu::Memory::Device);
             // The F-cycle's second correction, on the levels between the finest and the coarsest.
@@ -146,10 +147,13 @@ public:
         // $GSD_GPU_POISON=1 (tests): what no kernel needs cleared starts as NaN instead of
         // whatever the allocation held, so that a kernel reading a value before one is stored
         // shows in the result.
-        if (const char* v = std::getenv("GSD_GPU_POISON"); v && v[0] == '1')
+        if (const char* v = std::getenv("GSD_GPU_POISON"); v && v[0] == '1') {
             for (std::size_t l = 0; l < H_.levels.size(); ++l)
                 for (const gpu::Buffer* b : {&e_[l], &t_[l], &save_[l]})
                     if (b->handle()) rec.fill(*b, 0, cells(l) * 4, 0x7fc00000u);  // float32 quiet NaN
+            rec.fill(r_[0], 0, cells(0) * 4, 0x7fc00000u);
+            rec.fill(phi_, 0, cells(0) * 8, 0x7ff80000u);  // a float64 NaN in every word pair
+        }
         rec.submit();
         rec.wait();
     }
@@ -158,26 +162,34 @@ public:
                               bool f_cycle, const ProgressFn& progress) override {
         gpu::Context& c = *ctx_;
         const std::size_t n0 = H_.levels[0].count(), stored = cells(0);
-        {
-            gpu::Buffer staging;
-            if (!b_.mapped()) staging = gpu::Buffer(c, stored * 8, gpu::Memory::Upload);
-            to_rows(b.data(), static_cast<double*>(b_.mapped() ? b_.mapped() : staging.mapped()));
+        const double bnorm = std::sqrt(std::inner_product(b.begin(), b.end(), b.begin(), 0.0));
+        double rel = bnorm > 0 ? 1.0 : 0.0;  // φ = 0: the residual is b
+        if (r_[0].mapped()) {
+            // Host memory (a software device): b, and the first residual r = float(b), in place.
+            // φ is not cleared: the first cycle's update stores φ = e.
+            to_rows(b.data(), static_cast<double*>(b_.mapped()));
+            const double* rows = static_cast<const double*>(b_.mapped());
+            float* r0 = static_cast<float*>(r_[0].mapped());
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(stored); ++i) r0[i] = float(rows[i]);
+        } else {
+            gpu::Buffer staging(c, stored * 8, gpu::Memory::Upload);
+            to_rows(b.data(), static_cast<double*>(staging.mapped()));
             gpu::Recorder rec(c);
             rec.begin();
-            if (staging.handle()) rec.copy(staging, 0, b_, 0, stored * 8);
+            rec.copy(staging, 0, b_, 0, stored * 8);
             rec.fill_zero(phi_, 0, stored * 8);
             rec.barrier();
             record_refine(rec, false);
             rec.submit();
             rec.wait();
+            rel = bnorm > 0 ? std::sqrt(partial_sum()) / bnorm : 0.0;
         }
-        const double bnorm = std::sqrt(std::inner_product(b.begin(), b.end(), b.begin(), 0.0));
-        double rel = bnorm > 0 ? std::sqrt(partial_sum()) / bnorm : 0.0;
         gpu::Recorder rec(c);
         for (int it = 0; it < max_cycles && rel > tol; ++it) {
             rec.begin();
             record_cycle(rec, 0, f_cycle);
-            record_refine(rec, true);
+            record_refine(rec, true, it == 0 && r_[0].mapped());
             rec.submit();
             rec.wait();
             rel = std::sqrt(partial_sum()) / bnorm;
@@ -223,16 +235,24 @@ private:
     // Where cell k of a row is stored, from the row's start.
     std::size_t cell_in_row(std::size_t k) const { return software_ ? stored_cell(k) : k; }
     // The finest level's values from the natural order into stored rows (the padding 0), and back.
+    // Row by row on every core: on a software device these are a solve's largest host parts.
     void to_rows(const double* natural, double* rows) const {
-        const std::size_t nz = std::size_t(H_.levels[0].axis[2].n), count = H_.levels[0].count() / nz;
-        std::fill(rows, rows + cells(0), 0.0);
-        for (std::size_t r = 0; r < count; ++r)
-            for (std::size_t k = 0; k < nz; ++k) rows[r * stride_[0] + cell_in_row(k)] = natural[r * nz + k];
+        const auto nz = std::ptrdiff_t(H_.levels[0].axis[2].n), count = std::ptrdiff_t(H_.levels[0].count()) / nz;
+        const auto stride = std::ptrdiff_t(stride_[0]);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t r = 0; r < count; ++r) {
+            double* row = rows + r * stride;
+            // The padding: the last block, partly filled (cells keep to their block), then the cells.
+            std::fill(row + nz / std::ptrdiff_t(kBlock) * std::ptrdiff_t(kBlock), row + stride, 0.0);
+            for (std::ptrdiff_t k = 0; k < nz; ++k) row[cell_in_row(std::size_t(k))] = natural[r * nz + k];
+        }
     }
     void from_rows(const double* rows, double* natural) const {
-        const std::size_t nz = std::size_t(H_.levels[0].axis[2].n), count = H_.levels[0].count() / nz;
-        for (std::size_t r = 0; r < count; ++r)
-            for (std::size_t k = 0; k < nz; ++k) natural[r * nz + k] = rows[r * stride_[0] + cell_in_row(k)];
+        const auto nz = std::ptrdiff_t(H_.levels[0].axis[2].n), count = std::ptrdiff_t(H_.levels[0].count()) / nz;
+        const auto stride = std::ptrdiff_t(stride_[0]);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t r = 0; r < count; ++r)
+            for (std::ptrdiff_t k = 0; k < nz; ++k) natural[r * nz + k] = rows[r * stride + std::ptrdiff_t(cell_in_row(std::size_t(k)))];
     }
 
     MgPush push_for(std::size_t l, std::size_t other) const {
@@ -364,12 +384,14 @@ private:
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
     }
 
-    // φ += e when `with_correction` (after a cycle), then the residual b − Lφ in float64 and its
-    // partial norms, read back.
-    void record_refine(gpu::Recorder& rec, bool with_correction) {
-        const MgPush p = push_for(0, 0);
+    // φ += e when `with_correction` (after a cycle; φ = e when `phi_zero`, φ not cleared), then
+    // the residual b − Lφ in float64 and its partial norms, read back.
+    void record_refine(gpu::Recorder& rec, bool with_correction, bool phi_zero = false) {
+        MgPush p = push_for(0, 0);
         if (with_correction) {
+            p.first_sweep = phi_zero ? 1 : 0;
             run_rows(rec, gpu::kernel_table::mg_update, {{&phi_}, {&e_[0]}, {&phi_}}, p, row_lanes(0));  // φ read and written
+            p.first_sweep = 0;
         }
         run_rows(rec, gpu::kernel_table::mg_refine, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, row_lanes(0));
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
