@@ -4,8 +4,9 @@
 //   [0] the cell's size in finest cells, its coupling factors toward the previous and the next
 //       cell (1/(Δ² · the distance between their centers); 0 where there is none), unused
 //   [1] prolongation from the coarser level: source cells c0, c1 (as floats) and weights w0, w1
-//   [2] restriction from the finer level: the 4 cells gathered (as floats; spare slots weigh 0)
-//   [3] their weights
+//   [2] restriction from the finer level: the 4 cells gathered (as floats; spare slots weigh 0;
+//       the software build's z table: unused, see [3])
+//   [3] their weights (the software build's z table: the weights of fine cells 2i − 1 … 2i + 2)
 // The build shaped for software devices (GSD_SOFTWARE_SHAPED, gpu::software_shaped) reads the
 // tables and the grids through texel buffers: llvmpipe reads a storage buffer one lane and one
 // scalar at a time, behind a branch each, and a texel buffer as one gather of all its lanes.

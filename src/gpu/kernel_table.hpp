@@ -55,7 +55,7 @@ inline constexpr KernelSpec torus_net{"torus_net", 7, sizeof(CountPush), {0b1u}}
 // restriction reads the axis table as vec4s and the grid as floats.
 inline constexpr KernelSpec mg_smooth{"mg_smooth", 4, sizeof(MultigridPush), {0b11u}, 3};
 inline constexpr KernelSpec mg_residual{"mg_residual", 4, sizeof(MultigridPush), {0b11u}, 3};
-inline constexpr KernelSpec mg_restrict{"mg_restrict", 3, sizeof(MultigridPush), {0b1u, 0b10u}};
+inline constexpr KernelSpec mg_restrict{"mg_restrict", 3, sizeof(MultigridPush), {0b11u}};
 inline constexpr KernelSpec mg_prolong{"mg_prolong", 4, sizeof(MultigridPush), {0b111u}};
 inline constexpr KernelSpec mg_update{"mg_update", 3, sizeof(MultigridPush), {0b10u, 0u, 0u, 0b1u}};
 inline constexpr KernelSpec mg_refine{"mg_refine", 4, sizeof(MultigridPush), {0u, 0u, 0u, 0b11u}};

@@ -4,9 +4,10 @@
 // are float64, so each cycle is one step of mixed-precision iterative refinement and the
 // solver reaches relative residuals far below float32's. One submission per cycle; the only
 // read-back per cycle is one partial sum per workgroup for the residual norm. On software
-// devices the stencil kernels and the prolongation take four cells a lane
-// (shaders/mg_common.glsl): every level stores each row in blocks of 8 cells, even ones then odd
-// ones (`stored_cell`), padded to whole blocks, the padding holding zeros.
+// devices every kernel but the coarsest solve takes four cells a lane (shaders/mg_common.glsl):
+// every level stores each row in blocks of 8 cells, even ones then odd ones (`stored_cell`),
+// padded to whole blocks, the padding holding zeros; nothing is cleared and nothing copied
+// (docs/gpu.md, "No clears, no copies").
 #include "shm/poisson_gpu.hpp"
 
 #include "gpu/runtime.hpp"
@@ -59,6 +60,22 @@ AxisCell axis_cell(const AxisLevel& ax, int i) {
     return e;
 }
 
+// The software build's restriction takes coarse quads (shaders/mg_restrict.comp): along z its
+// table holds, for coarse cell i, the weights of fine cells 2i − 1 + j (j = 0 … 3) at those
+// fixed places, not a list of the cells gathered.
+AxisCell fixed_z_taps(const AxisLevel& ax, int i) {
+    AxisCell e = axis_cell(ax, i);
+    for (int t = 0; t < kMaxTaps; ++t) e.g[t] = 0, e.gw[t] = 0;
+    if (ax.offsets.empty()) return e;
+    const auto u = std::size_t(i);
+    for (int g = ax.offsets[u]; g < ax.offsets[u + 1]; ++g) {
+        const int j = ax.gather_index[std::size_t(g)] - (2 * i - 1);
+        if (j < 0 || j >= kMaxTaps) throw Error("shm", "internal: a restriction gathers beyond the fine cells 2i - 1 ... 2i + 2");
+        e.gw[j] += float(ax.gather_weight[std::size_t(g)]);
+    }
+    return e;
+}
+
 using MgPush = kernels::MultigridPush;  // `Push` in shaders/mg_common.glsl
 
 // Where the software build stores cell k of a row (`stored_cell` in shaders/mg_common.glsl):
@@ -104,9 +121,7 @@ public:
                 off[a] = std::uint32_t(axes.size());
                 for (int i = 0; i < lv.axis[a].n; ++i) {
                     AxisCell cell = axis_cell(lv.axis[a], i);
-                    // The restriction gathers z cells where the software build stores them.
-                    if (software_ && a == 2)
-                        for (float& g : cell.g) g = float(stored_cell(std::size_t(g)));
+                    if (software_ && a == 2) cell = fixed_z_taps(lv.axis[a], i);
                     axes.push_back(cell);
                 }
             }
@@ -137,21 +152,19 @@ public:
         groups0_ = g.x * g.y * g.z;
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
-        // The restriction stores no padding, which the quads read: r of the coarser levels starts
-        // at 0 and stays so there. Every other kernel stores 0 in the padding, and every cell is
-        // stored before it is read (e by a level's first half-sweep, which does not read it), so
-        // nothing else is cleared: on a software device a clear is one thread's memset.
+        // Every kernel stores every quad of a row, the padding's as zeros, and every value is
+        // stored before it is read (e by a level's first half-sweep, which does not read it; φ
+        // by the first update, on a software device), so nothing is cleared: on a software
+        // device a clear is one thread's memset.
         gpu::Recorder rec(c);
         rec.begin();
-        for (std::size_t l = 1; l < H_.levels.size(); ++l) rec.fill_zero(r_[l], 0, cells(l) * 4);
-        // $GSD_GPU_POISON=1 (tests): what no kernel needs cleared starts as NaN instead of
-        // whatever the allocation held, so that a kernel reading a value before one is stored
-        // shows in the result.
+        // $GSD_GPU_POISON=1 (tests): the scratch buffers start as NaN instead of whatever the
+        // allocation held, so that a kernel reading a value before one is stored shows in the
+        // result.
         if (const char* v = std::getenv("GSD_GPU_POISON"); v && v[0] == '1') {
             for (std::size_t l = 0; l < H_.levels.size(); ++l)
-                for (const gpu::Buffer* b : {&e_[l], &t_[l], &save_[l]})
+                for (const gpu::Buffer* b : {&r_[l], &e_[l], &t_[l], &save_[l]})
                     if (b->handle()) rec.fill(*b, 0, cells(l) * 4, 0x7fc00000u);  // float32 quiet NaN
-            rec.fill(r_[0], 0, cells(0) * 4, 0x7fc00000u);
             rec.fill(phi_, 0, cells(0) * 8, 0x7ff80000u);  // a float64 NaN in every word pair
         }
         rec.submit();
@@ -358,7 +371,9 @@ private:
         residual(rec, l, t_[l]);
         {
             const MgPush p = push_for(l + 1, l);
-            run_rows(rec, gpu::kernel_table::mg_restrict, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p, p.dims[2]);
+            // The software build: a coarse quad a lane.
+            run_rows(rec, gpu::kernel_table::mg_restrict, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p,
+                     software_ ? row_lanes(l + 1) : p.dims[2]);
         }
         record_cycle(rec, l + 1, f_cycle);
         if (f_cycle && l + 2 <= last) {
