@@ -208,8 +208,9 @@ TEST_CASE("GPU multigrid: relative residual 1e-6 within 20 cycles at 128^3, φ m
 // Odd, unequal sizes give coarse levels with a lone last cell (unequal cell sizes) and rows that
 // do not fill a workgroup or a quad (the software build pads them); a grid of at most 4 cells an
 // axis is one level, the dense solve alone. Both builds of the kernels (GSD_SOFTWARE_SHAPED) run
-// on them. Their scratch buffers start as NaN (GSD_GPU_POISON) rather than as whatever the
-// allocation held, so a kernel that reads a value before one is stored fails the solve.
+// on them, the GPUs' build with its grids in device memory (GSD_GPU_HOST_GRIDS=0) as on a GPU.
+// Their scratch buffers start as NaN (GSD_GPU_POISON) rather than as whatever the allocation
+// held, so a kernel that reads a value before one is stored fails the solve.
 TEST_CASE("GPU multigrid on grids of any shape, both kernel builds: φ matches the CPU") {
     REQUIRE(gpu::select("gpu").context);
     for (const GridSpec& g : {GridSpec{37, 50, 23, Box{{0, 0, 0}, {1.8, 2.5, 1.1}}}, GridSpec{33, 40, 65, Box{{0, 0, 0}, {1, 1.2, 2}}},
@@ -223,10 +224,12 @@ TEST_CASE("GPU multigrid on grids of any shape, both kernel builds: φ matches t
             CAPTURE(shaped);
             setenv("GSD_SOFTWARE_SHAPED", shaped, 1);
             setenv("GSD_GPU_POISON", "1", 1);
+            setenv("GSD_GPU_HOST_GRIDS", shaped, 1);
             const GridPoissonSolver gpu_solver(g, PoissonSolver::Multigrid, "gpu");
             std::vector<double> history;
             const std::vector<double> phi = gpu_solver.solve(b, {1e-8, 40}, &history);
             unsetenv("GSD_GPU_POISON");
+            unsetenv("GSD_GPU_HOST_GRIDS");
             unsetenv("GSD_SOFTWARE_SHAPED");
             CHECK(std::all_of(phi.begin(), phi.end(), [](double v) { return std::isfinite(v); }));
             CHECK(gpu_solver.device() != "cpu");

@@ -60,9 +60,20 @@ AxisCell axis_cell(const AxisLevel& ax, int i) {
     return e;
 }
 
+// Whether every coarse cell i of the axis gathers fine cells within 2i − 1 … 2i + 2 (Hierarchy
+// coarsens so; checked, not assumed, as the software build's restriction relies on it).
+bool taps_at_fixed_places(const AxisLevel& ax) {
+    for (std::size_t i = 0; i + 1 < ax.offsets.size(); ++i)
+        for (int g = ax.offsets[i]; g < ax.offsets[i + 1]; ++g) {
+            const int j = ax.gather_index[std::size_t(g)] - (2 * int(i) - 1);
+            if (j < 0 || j >= kMaxTaps) return false;
+        }
+    return true;
+}
+
 // The software build's restriction takes coarse quads (shaders/mg_restrict.comp): along z its
 // table holds, for coarse cell i, the weights of fine cells 2i − 1 + j (j = 0 … 3) at those
-// fixed places, not a list of the cells gathered.
+// fixed places, not a list of the cells gathered (taps_at_fixed_places).
 AxisCell fixed_z_taps(const AxisLevel& ax, int i) {
     AxisCell e = axis_cell(ax, i);
     for (int t = 0; t < kMaxTaps; ++t) e.g[t] = 0, e.gw[t] = 0;
@@ -77,6 +88,13 @@ AxisCell fixed_z_taps(const AxisLevel& ax, int i) {
 }
 
 using MgPush = kernels::MultigridPush;  // `Push` in shaders/mg_common.glsl
+
+// φ, b and the finest r in host memory: on a software device, whose memory is the host's, unless
+// $GSD_GPU_HOST_GRIDS=0 (tests: the GPUs' way, device memory with staging copies).
+bool host_grids(const gpu::Context& ctx) {
+    const char* v = std::getenv("GSD_GPU_HOST_GRIDS");
+    return ctx.info().is_software() && !(v && v[0] == '0');
+}
 
 // Where the software build stores cell k of a row (`stored_cell` in shaders/mg_common.glsl):
 // blocks of 8 cells, the 4 even ones then the 4 odd ones.
@@ -111,7 +129,7 @@ bool is_regular(const AxisLevel& ax) {
 class VulkanMultigrid final : public GpuMultigrid {
 public:
     VulkanMultigrid(std::shared_ptr<gpu::Context> ctx, const Hierarchy& h, bool software)
-        : ctx_(std::move(ctx)), H_(h), software_(software) {
+        : ctx_(std::move(ctx)), H_(h), software_(software), host_grids_(host_grids(*ctx_)) {
         gpu::Context& c = *ctx_;
         // The axis tables of every level, one after the other.
         std::vector<AxisCell> axes;
@@ -133,7 +151,7 @@ public:
             stride_.push_back(software_ ? (nz + kBlock - 1) / kBlock * kBlock : nz);
             const std::size_t n = cells(l);
             // On a software device the finest r is host memory: the first residual is b, written in place.
-            r_.emplace_back(c, n * 4, software_ && l == 0 ? gpu::Memory::Download : gpu::Memory::Device);
+            r_.emplace_back(c, n * 4, host_grids_ && l == 0 ? gpu::Memory::Download : gpu::Memory::Device);
             e_.emplace_back(c, n * 4, gpu::Memory::Device);
             t_.emplace_back(c, n * 4, gpu::Memory::Device);
             // The F-cycle's second correction, on the levels between the finest and the coarsest.
@@ -143,7 +161,7 @@ public:
         upload_coarse_pinv();
         // A software device's memory is the host's: φ and b are read and written in place there
         // (no staging buffer, no copy).
-        const gpu::Memory grid_memory = software_ ? gpu::Memory::Download : gpu::Memory::Device;
+        const gpu::Memory grid_memory = host_grids_ ? gpu::Memory::Download : gpu::Memory::Device;
         phi_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
         b_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
         // mg_refine's workgroups (run_rows), one partial sum each.
@@ -213,10 +231,10 @@ public:
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
         std::vector<double> phi(n0);
-        if (!software_) {  // stored as they are
-            gpu::download(c, phi_, phi.data(), n0 * 8);
-        } else if (phi_.mapped()) {  // in place, in rows of blocks
+        if (phi_.mapped()) {  // in place (host memory), in rows
             from_rows(static_cast<const double*>(phi_.mapped()), phi.data());
+        } else if (!software_) {  // stored as they are
+            gpu::download(c, phi_, phi.data(), n0 * 8);
         } else {
             std::vector<double> rows(stored);
             gpu::download(c, phi_, rows.data(), stored * 8);
@@ -425,6 +443,7 @@ private:
     std::vector<std::array<std::uint32_t, 3>> axes_off_;
     std::vector<std::uint32_t> stride_;  // cells stored per row of each level
     bool software_;  // the kernels shaped for software devices (gpu::software_shaped)
+    bool host_grids_;  // φ, b and the finest r in host memory (a software device)
     gpu::Buffer axes_, pinv_, phi_, b_, partial_, partial_down_;
     std::vector<gpu::Buffer> r_, e_, t_, save_;
     std::uint32_t groups0_ = 0;  // mg_refine's workgroups (its partial sums)
@@ -470,8 +489,10 @@ std::unique_ptr<GpuMultigrid> make_gpu_multigrid(const std::shared_ptr<gpu::Cont
                                  std::uint64_t((nz + kBlock - 1) / kBlock * kBlock);
     bool software = gpu::software_shaped(*ctx) && padded <= ctx->limits().maxTexelBufferElements &&
                     padded * 8 <= ctx->max_binding_bytes();
-    for (const Level& lv : h.levels)
+    for (const Level& lv : h.levels) {
         for (const AxisLevel& ax : lv.axis) software = software && is_regular(ax);
+        software = software && taps_at_fixed_places(lv.axis[2]);
+    }
     return std::make_unique<VulkanMultigrid>(ctx, h, software);
 }
 
