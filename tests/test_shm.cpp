@@ -228,6 +228,9 @@ TEST_CASE("GPU multigrid on grids of any shape, both kernel builds: φ matches t
             const GridPoissonSolver gpu_solver(g, PoissonSolver::Multigrid, "gpu");
             std::vector<double> history;
             const std::vector<double> phi = gpu_solver.solve(b, {1e-8, 40}, &history);
+            // A second solve that runs no cycle (b = 0) gives φ = 0, not what the first left.
+            const std::vector<double> none = gpu_solver.solve(std::vector<double>(b.size(), 0.0), {1e-8, 40});
+            CHECK(std::all_of(none.begin(), none.end(), [](double v) { return v == 0.0; }));
             unsetenv("GSD_GPU_POISON");
             unsetenv("GSD_GPU_HOST_GRIDS");
             unsetenv("GSD_SOFTWARE_SHAPED");

@@ -217,7 +217,8 @@ public:
             rel = bnorm > 0 ? std::sqrt(partial_sum()) / bnorm : 0.0;
         }
         gpu::Recorder rec(c);
-        for (int it = 0; it < max_cycles && rel > tol; ++it) {
+        int cycles = 0;
+        for (int it = 0; it < max_cycles && rel > tol; ++it, ++cycles) {
             rec.begin();
             record_cycle(rec, 0, f_cycle);
             record_refine(rec, true, it == 0 && r_[0].mapped());
@@ -230,8 +231,10 @@ public:
             if (history) history->push_back(rel);
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
-        std::vector<double> phi(n0);
-        if (phi_.mapped()) {  // in place (host memory), in rows
+        std::vector<double> phi(n0, 0.0);
+        if (cycles == 0 && phi_.mapped()) {  // φ = 0, never stored (not cleared: host grids)
+            return phi;
+        } else if (phi_.mapped()) {  // in place (host memory), in rows
             from_rows(static_cast<const double*>(phi_.mapped()), phi.data());
         } else if (!software_) {  // stored as they are
             gpu::download(c, phi_, phi.data(), n0 * 8);
