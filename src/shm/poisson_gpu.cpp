@@ -73,16 +73,15 @@ bool taps_at_fixed_places(const AxisLevel& ax) {
 
 // The software build's restriction takes coarse quads (shaders/mg_restrict.comp): along z its
 // table holds, for coarse cell i, the weights of fine cells 2i − 1 + j (j = 0 … 3) at those
-// fixed places, not a list of the cells gathered (taps_at_fixed_places).
+// fixed places, not a list of the cells gathered (the software build is chosen only where
+// taps_at_fixed_places holds).
 AxisCell fixed_z_taps(const AxisLevel& ax, int i) {
     AxisCell e = axis_cell(ax, i);
     for (int t = 0; t < kMaxTaps; ++t) e.g[t] = 0, e.gw[t] = 0;
     if (ax.offsets.empty()) return e;
     const auto u = std::size_t(i);
     for (int g = ax.offsets[u]; g < ax.offsets[u + 1]; ++g) {
-        const int j = ax.gather_index[std::size_t(g)] - (2 * i - 1);
-        if (j < 0 || j >= kMaxTaps) throw Error("shm", "internal: a restriction gathers beyond the fine cells 2i - 1 ... 2i + 2");
-        e.gw[j] += float(ax.gather_weight[std::size_t(g)]);
+        e.gw[ax.gather_index[std::size_t(g)] - (2 * i - 1)] += float(ax.gather_weight[std::size_t(g)]);
     }
     return e;
 }
@@ -195,7 +194,7 @@ public:
         const std::size_t n0 = H_.levels[0].count(), stored = cells(0);
         const double bnorm = std::sqrt(std::inner_product(b.begin(), b.end(), b.begin(), 0.0));
         double rel = bnorm > 0 ? 1.0 : 0.0;  // φ = 0: the residual is b
-        if (r_[0].mapped()) {
+        if (host_grids_) {
             // Host memory (a software device): b, and the first residual r = float(b), in place.
             // φ is not cleared: the first cycle's update stores φ = e.
             to_rows(b.data(), static_cast<double*>(b_.mapped()));
@@ -221,7 +220,7 @@ public:
         for (int it = 0; it < max_cycles && rel > tol; ++it, ++cycles) {
             rec.begin();
             record_cycle(rec, 0, f_cycle);
-            record_refine(rec, true, it == 0 && r_[0].mapped());
+            record_refine(rec, true, it == 0 && host_grids_);
             rec.submit();
             rec.wait();
             rel = std::sqrt(partial_sum()) / bnorm;
@@ -232,9 +231,9 @@ public:
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
         std::vector<double> phi(n0, 0.0);
-        if (cycles == 0 && phi_.mapped()) {  // φ = 0, never stored (not cleared: host grids)
+        if (host_grids_ && cycles == 0) {  // φ = 0, never stored (host grids are not cleared)
             return phi;
-        } else if (phi_.mapped()) {  // in place (host memory), in rows
+        } else if (host_grids_) {  // in place, in rows
             from_rows(static_cast<const double*>(phi_.mapped()), phi.data());
         } else if (!software_) {  // stored as they are
             gpu::download(c, phi_, phi.data(), n0 * 8);
