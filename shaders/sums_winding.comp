@@ -156,28 +156,39 @@ void main() {
 // The walk shaped for llvmpipe, which runs a subgroup as one SIMD thread (8 lanes of 32 bits
 // with AVX2), runs the body of every `if` whether a lane takes it or not, and gathers a load lane
 // by lane inside any loop even when every lane reads one address. So here the lanes are not the
-// queries: a workgroup (one subgroup) sums Q = 8 Morton-adjacent queries, each lane holds all
-// eight in registers (as two vec4 per axis: every per-query step is four-wide vector code, no
-// loop), and the lanes share out the tree's nodes. This is the CPU's packet walk
-// (SumTree::winding_lanes) with a node's record read once for the packet, not once per query.
+// queries: a workgroup (one subgroup) sums a group of Q Morton-adjacent queries (16, or 12 or 8
+// on trees too large for 16-bit node indices), each lane holds all of them in registers (as Q/4
+// vec4 per axis: every per-query step is four-wide vector code, no loop at run time), and the
+// lanes share out the tree's nodes. This is the CPU's packet walk (SumTree::winding_lanes) with a
+// node's record read once for the group, not once per query.
 //
 // The walk keeps a stack in shared memory of inner nodes whose two children some of the queries
 // need tested, with those queries' bits. Each round every lane pops an entry, tests both children
-// against the eight queries, and pushes: a child with the queries that accept its expansion onto
+// against the group's queries, and pushes: a child with the queries that accept its expansion onto
 // the far list, a leaf with the queries that opened it onto the leaf list, an inner child with
 // those queries back onto the stack (the places from one prefix sum over the subgroup). The lists
 // are summed when they fill and at the end, an entry a lane: a far entry's expansion for the
-// eight queries, or a leaf's elements exactly. Each query sums the terms the CPU's float walk
-// sums (the same count: test_gpu), in another order; a query's sum depends on the seven others
-// of its group, so the host streams whole groups (StreamJob::granule) and results do not depend
-// on the chunk size.
-const uint Q = 8u;             // queries a workgroup sums: the bits of an entry's mask (sums_gpu.cpp: kSoftwareGroup)
-const uint STACK = 1024u;      // entries (parent << 8 | queries); a walk needing more is cut
+// group's queries, or a leaf's elements exactly. Each query sums the terms the CPU's float walk
+// sums (the same count: test_gpu), in another order; a query's sum depends on the others of its
+// group, so the host streams whole groups (StreamJob::granule) and results do not depend on the
+// chunk size.
+//
+// The walk's rounds (pops, pushes, prefix sums: about half the kernel's time with 8 queries) are
+// paid once per group, and 16 neighbouring queries open far fewer than twice the nodes 8 open:
+// the kernel's time falls by a sixth from 8 to 16 (sums_gpu.cpp).
+layout(constant_id = 2) const uint QUERIES = 16u;  // 8, 12 or 16: sums_gpu.cpp chooses (software_group)
+const uint Q = QUERIES;
+const uint G = Q / 4u;                // vec4 of queries per axis
+const uint QUERY_BITS = (1u << Q) - 1u;  // an entry is node << Q | the queries it is for
+const uint STACK = 1024u;      // entries; a walk needing more is cut
 const uint FAR = 256u, LEAVES = 128u;
 const uint WIDEST = 64u;      // lanes a subgroup may have: each has its own slots past the ends
 shared uint stack_entries[STACK + 2u * WIDEST];
 shared uint far_entries[FAR + 2u * WIDEST];
 shared uint leaf_entries[LEAVES + 2u * WIDEST];
+
+// The group's queries, every lane all of them: X[g] holds queries 4g..4g+3's x (G of 4 used).
+vec4 X[4], Y[4], Z[4];
 
 // Shared memory between the rounds: the workgroup is one subgroup (gpu::loop_capped_workgroup).
 void sync_subgroup() {
@@ -225,13 +236,13 @@ vec4 element4(vec4 X, vec4 Y, vec4 Z, vec4 ea, vec4 eb, vec4 ec) {
     return w;
 }
 
-// The queries (of eight) farther from c than the node's reach: d² computed as the CPU's walk does.
-uint accepting(vec4 test, vec4 X0, vec4 Y0, vec4 Z0, vec4 X1, vec4 Y1, vec4 Z1) {
-    vec4 dx = X0 - test.x, dy = Y0 - test.y, dz = Z0 - test.z;
-    uvec4 a = uvec4(greaterThan(dx * dx + dy * dy + dz * dz, vec4(test.w))) << uvec4(0u, 1u, 2u, 3u);
-    dx = X1 - test.x, dy = Y1 - test.y, dz = Z1 - test.z;
-    uvec4 b = uvec4(greaterThan(dx * dx + dy * dy + dz * dz, vec4(test.w))) << uvec4(4u, 5u, 6u, 7u);
-    a |= b;
+// The group's queries farther from c than the node's reach: d² computed as the CPU's walk does.
+uint accepting(vec4 test) {
+    uvec4 a = uvec4(0u);
+    for (uint g = 0u; g < G; ++g) {
+        vec4 dx = X[g] - test.x, dy = Y[g] - test.y, dz = Z[g] - test.z;
+        a |= uvec4(greaterThan(dx * dx + dy * dy + dz * dz, vec4(test.w))) << (uvec4(0u, 1u, 2u, 3u) + 4u * g);
+    }
     return a.x | a.y | a.z | a.w;
 }
 
@@ -240,21 +251,29 @@ void main() {
     // Push constants read inside a loop are gathered lane by lane; read them once.
     const uint count = pc.count, first_leaf = pc.first_leaf, group_cap = pc.group_cap, records = pc.node_count;
     const uint base = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * Q;
-    // The eight queries, every lane all of them (one address for all lanes: one load each).
+    // The group's queries, every lane all of them (one address for all lanes: one load each).
     const uint last = count - 1u;
-    vec4 q0 = qs[min(base, last)], q1 = qs[min(base + 1u, last)], q2 = qs[min(base + 2u, last)], q3 = qs[min(base + 3u, last)];
-    vec4 q4 = qs[min(base + 4u, last)], q5 = qs[min(base + 5u, last)], q6 = qs[min(base + 6u, last)], q7 = qs[min(base + 7u, last)];
-    const vec4 X0 = vec4(q0.x, q1.x, q2.x, q3.x), Y0 = vec4(q0.y, q1.y, q2.y, q3.y), Z0 = vec4(q0.z, q1.z, q2.z, q3.z);
-    const vec4 X1 = vec4(q4.x, q5.x, q6.x, q7.x), Y1 = vec4(q4.y, q5.y, q6.y, q7.y), Z1 = vec4(q4.z, q5.z, q6.z, q7.z);
-    const uint live = (1u << min(Q, count - base)) - 1u;  // the group's queries that exist
+    for (uint g = 0u; g < G; ++g) {
+        vec4 a = qs[min(base + 4u * g, last)], b = qs[min(base + 4u * g + 1u, last)];
+        vec4 c = qs[min(base + 4u * g + 2u, last)], d = qs[min(base + 4u * g + 3u, last)];
+        X[g] = vec4(a.x, b.x, c.x, d.x);
+        Y[g] = vec4(a.y, b.y, c.y, d.y);
+        Z[g] = vec4(a.z, b.z, c.z, d.z);
+    }
+    const uint live = count - base >= Q ? QUERY_BITS : (1u << (count - base)) - 1u;  // the group's queries that exist
 
-    vec4 w_far0 = vec4(0.0), w_far1 = vec4(0.0), w_near0 = vec4(0.0), w_near1 = vec4(0.0);
-    uvec4 terms0 = uvec4(0u), terms1 = uvec4(0u);  // this lane's share of each query's terms
+    vec4 w_far[4], w_near[4];
+    uvec4 terms[4];  // this lane's share of each query's terms
+    for (uint g = 0u; g < G; ++g) {
+        w_far[g] = vec4(0.0);
+        w_near[g] = vec4(0.0);
+        terms[g] = uvec4(0u);
+    }
     // The root, tested by every lane at once (one address: one load); the walk below takes the
     // children of an inner node together.
     uint top = 0u, n_far = 0u, n_leaves = 0u;
     {
-        uint accepted = accepting(NODE(0u), X0, Y0, Z0, X1, Y1, Z1) & live, rest = live & ~accepted;
+        uint accepted = accepting(NODE(0u)) & live, rest = live & ~accepted;
         if (lane == 0u) {
             far_entries[0] = accepted;
             leaf_entries[0] = rest;
@@ -280,10 +299,10 @@ void main() {
             uint entry = stack_entries[top - 1u - min(lane, take - 1u)];
             sync_subgroup();  // every pop read before a push overwrites it
             top -= take;
-            uint parent = entry >> 8u, queries = lane < take ? entry & 0xffu : 0u;
+            uint parent = entry >> Q, queries = lane < take ? entry & QUERY_BITS : 0u;
             uint a = 2u * parent + 1u, b = a + 1u;
-            uint accepted_a = accepting(NODE(a), X0, Y0, Z0, X1, Y1, Z1) & queries;
-            uint accepted_b = accepting(NODE(b), X0, Y0, Z0, X1, Y1, Z1) & queries;
+            uint accepted_a = accepting(NODE(a)) & queries;
+            uint accepted_b = accepting(NODE(b)) & queries;
             uint rest_a = queries & ~accepted_a, rest_b = queries & ~accepted_b;
             bool leaf_a = a >= first_leaf, leaf_b = b >= first_leaf;
             bool far_a = accepted_a != 0u, far_b = accepted_b != 0u;
@@ -296,14 +315,14 @@ void main() {
             // Every lane writes, lanes with nothing to push to slots of their own past the list's
             // end: llvmpipe stores lane by lane, and a masked store branches on every lane's bit.
             uint at = n_far + (before & 0x3ffu), junk = 2u * lane;
-            far_entries[far_a ? at : FAR + junk] = a << 8u | accepted_a;
-            far_entries[far_b ? at + (far_a ? 1u : 0u) : FAR + junk + 1u] = b << 8u | accepted_b;
+            far_entries[far_a ? at : FAR + junk] = a << Q | accepted_a;
+            far_entries[far_b ? at + (far_a ? 1u : 0u) : FAR + junk + 1u] = b << Q | accepted_b;
             at = n_leaves + ((before >> 10u) & 0x3ffu);
-            leaf_entries[opened_leaf_a ? at : LEAVES + junk] = a << 8u | rest_a;
-            leaf_entries[opened_leaf_b ? at + (opened_leaf_a ? 1u : 0u) : LEAVES + junk + 1u] = b << 8u | rest_b;
+            leaf_entries[opened_leaf_a ? at : LEAVES + junk] = a << Q | rest_a;
+            leaf_entries[opened_leaf_b ? at + (opened_leaf_a ? 1u : 0u) : LEAVES + junk + 1u] = b << Q | rest_b;
             at = top + (before >> 20u);  // b below a: a's children are tested first
-            stack_entries[inner_b ? at : STACK + junk] = b << 8u | rest_b;
-            stack_entries[inner_a ? at + (inner_b ? 1u : 0u) : STACK + junk + 1u] = a << 8u | rest_a;
+            stack_entries[inner_b ? at : STACK + junk] = b << Q | rest_b;
+            stack_entries[inner_a ? at + (inner_b ? 1u : 0u) : STACK + junk + 1u] = a << Q | rest_a;
             n_far += total & 0x3ffu;
             n_leaves += (total >> 10u) & 0x3ffu;
             top += total >> 20u;
@@ -311,21 +330,21 @@ void main() {
         }
         if (cut) break;
         bool done = top == 0u;
-        // The far list's expansions, an entry a lane, for the eight queries.
+        // The far list's expansions, an entry a lane, for the group's queries.
         if (done || n_far + 2u * S > FAR) {
             iters += (n_far + S - 1u) / S + 1u;
             for (uint i = 0u; i < n_far; i += S) {
                 uint k = i + lane;
                 uint entry = far_entries[min(k, n_far - 1u)];
-                uint node = entry >> 8u, queries = k < n_far ? entry & 0xffu : 0u;
+                uint node = entry >> Q, queries = k < n_far ? entry & QUERY_BITS : 0u;
                 vec4 c = NODE(node);
                 uint r = records + 7u * node;
                 vec4 e0 = NODE(r + 1u), e1 = NODE(r + 2u), e2 = NODE(r + 3u), e3 = NODE(r + 4u), e4 = NODE(r + 5u), e5 = NODE(r + 6u);
-                bvec4 b0 = bits4(queries, 0u), b1 = bits4(queries, 4u);
-                w_far0 += mix(vec4(0.0), expansion4(e0, e1, e2, e3, e4, e5, X0 - c.x, Y0 - c.y, Z0 - c.z), b0);
-                w_far1 += mix(vec4(0.0), expansion4(e0, e1, e2, e3, e4, e5, X1 - c.x, Y1 - c.y, Z1 - c.z), b1);
-                terms0 += uvec4(b0);
-                terms1 += uvec4(b1);
+                for (uint g = 0u; g < G; ++g) {
+                    bvec4 m = bits4(queries, 4u * g);
+                    w_far[g] += mix(vec4(0.0), expansion4(e0, e1, e2, e3, e4, e5, X[g] - c.x, Y[g] - c.y, Z[g] - c.z), m);
+                    terms[g] += uvec4(m);
+                }
             }
             n_far = 0u;
         }
@@ -335,19 +354,20 @@ void main() {
             for (uint i = 0u; i < n_leaves; i += S) {
                 uint k = i + lane;
                 uint entry = leaf_entries[min(k, n_leaves - 1u)];
-                uint queries = k < n_leaves ? entry & 0xffu : 0u;
-                uvec2 range = floatBitsToUint(NODE(records + 7u * (entry >> 8u)).xy);
+                uint queries = k < n_leaves ? entry & QUERY_BITS : 0u;
+                uvec2 range = floatBitsToUint(NODE(records + 7u * (entry >> Q)).xy);
                 uint elements = queries != 0u ? range.y - range.x : 0u;
                 uint longest = subgroupMax(elements);
                 iters += longest + 1u;
                 for (uint j = 0u; j < longest; ++j) {
                     uint e = j < elements ? 3u * (range.x + j) : 0u;
                     vec4 ea = ELEM(e), eb = ELEM(e + 1u), ec = ELEM(e + 2u);
-                    bvec4 b0 = bits4(j < elements ? queries : 0u, 0u), b1 = bits4(j < elements ? queries : 0u, 4u);
-                    w_near0 += mix(vec4(0.0), element4(X0, Y0, Z0, ea, eb, ec), b0);
-                    w_near1 += mix(vec4(0.0), element4(X1, Y1, Z1, ea, eb, ec), b1);
-                    terms0 += uvec4(b0);
-                    terms1 += uvec4(b1);
+                    uint on = j < elements ? queries : 0u;
+                    for (uint g = 0u; g < G; ++g) {
+                        bvec4 m = bits4(on, 4u * g);
+                        w_near[g] += mix(vec4(0.0), element4(X[g], Y[g], Z[g], ea, eb, ec), m);
+                        terms[g] += uvec4(m);
+                    }
                 }
             }
             n_leaves = 0u;
@@ -355,12 +375,13 @@ void main() {
         if (done) break;
     }
     // Each query's sum over the lanes; lane j writes query j.
-    vec4 w0 = subgroupAdd(w_far0 + w_near0), w1 = subgroupAdd(w_far1 + w_near1);
-    uvec4 t0 = subgroupAdd(terms0), t1 = subgroupAdd(terms1);
-    for (uint j = lane; j < Q; j += S) {
-        float w = j < 4u ? w0[j & 3u] : w1[j & 3u];
-        uint t = j < 4u ? t0[j & 3u] : t1[j & 3u];
-        if (base + j < count) outv[base + j] = vec2(w, cut ? -1.0 : float(t));
+    vec4 w[4];
+    uvec4 t[4];
+    for (uint g = 0u; g < G; ++g) {
+        w[g] = subgroupAdd(w_far[g] + w_near[g]);
+        t[g] = subgroupAdd(terms[g]);
     }
+    for (uint j = lane; j < Q; j += S)
+        if (base + j < count) outv[base + j] = vec2(w[j >> 2u][j & 3u], cut ? -1.0 : float(t[j >> 2u][j & 3u]));
 }
 #endif

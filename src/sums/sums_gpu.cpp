@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 
 namespace gsd::sums {
@@ -157,7 +158,7 @@ std::shared_ptr<const DeviceWindingTree> device_tree(const std::shared_ptr<gpu::
 }  // namespace
 
 bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, PointsView queries,
-                 const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
+                 const std::vector<std::uint32_t>& morton, const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
     why_not = gpu_unfit(*ctx, tree);
     if (!why_not.empty()) return false;
     auto clock = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
@@ -169,32 +170,40 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
     const std::uint32_t workgroup = gpu::loop_capped_workgroup(*ctx);
-    // Software devices: 8 queries a workgroup, the lanes sharing out the tree's nodes (the tree
-    // and the elements read as texel buffers, bindings 0 and 1). Its stack entries hold a node
-    // index in 24 bits, and each lane has its own spare slots (64 lanes at most): past those,
-    // the GPUs' kernel.
-    const bool fits_shaped = d.node_count < (1u << 24) && workgroup <= 64;
-    const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding, {d.element_kinds}, workgroup,
+    // Software devices: a group of queries a workgroup, the lanes sharing out the tree's nodes
+    // (the tree and the elements read as texel buffers, bindings 0 and 1). A stack entry holds a
+    // node index above the group's bits: 16 queries while node indices fit 16 bits, 12 while they
+    // fit 20, else 8 (measured on lavapipe, 10⁶ random queries around a 7.9·10³-face mesh: the
+    // kernel took 338, 311 and 284 ms for groups of 8, 12 and 16; 32 in two-word entries 302).
+    // Each lane has its own spare slots (64 lanes at most): past those, the GPUs' kernel.
+    std::uint32_t software_group = d.node_count <= (1u << 16) ? 16u : d.node_count <= (1u << 20) ? 12u : 8u;
+    // GSD_WINDING_GROUP=8 or 12 takes smaller groups (the tests run every size on small trees).
+    if (const char* v = std::getenv("GSD_WINDING_GROUP")) {
+        const std::string g = v;
+        if (g == "8" || (g == "12" && software_group >= 12)) software_group = std::uint32_t(std::stoi(g));
+    }
+    const bool fits_shaped = d.node_count <= (1u << 24) && workgroup <= 64;
+    const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding,
+                                       {d.element_kinds, std::int32_t(software_group)}, workgroup,
                                        gpu::software_shaped(*ctx) && fits_shaped);
     const bool shaped = k.texel_bindings.all() != 0;
     // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
     // elements, or (software-shaped) a round and the sums of both lists (at most 65 chunks of
     // expansions and 33 of leaves, with 4 lanes or more).
     const std::uint32_t step = shaped ? 1024u + 34u * (d.widest_leaf + 2u) : 64u + d.widest_leaf;
-    // The software-shaped kernel sums a group of queries a workgroup, whatever its width (its Q);
-    // the GPUs' one query an invocation.
-    constexpr std::size_t kSoftwareGroup = 8;
-    const std::size_t per_group = shaped ? kSoftwareGroup : k.workgroup;
+    // The software-shaped kernel sums a group of queries a workgroup, whatever its width; the
+    // GPUs' one query an invocation.
+    const std::size_t per_group = shaped ? software_group : k.workgroup;
     const std::uint32_t limit = gpu::software_loop_cap(*ctx);  // 0 on hardware: no limit
     const std::uint32_t cap = limit == 0 ? 0u : limit > step ? limit - step : 1u;
     const auto n = std::size_t(queries.rows());
     // Morton order, so that a subgroup's queries are neighbours; results go back in input order.
-    std::vector<std::uint32_t> order;
-    if (spatial::sort_queries_for_device()) order = spatial::morton_order(queries);
-    else {
-        order.resize(n);
-        for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
+    std::vector<std::uint32_t> input_order;
+    if (!spatial::sort_queries_for_device()) {
+        input_order.resize(n);
+        for (std::size_t i = 0; i < n; ++i) input_order[i] = std::uint32_t(i);
     }
+    const std::vector<std::uint32_t>& order = input_order.empty() ? morton : input_order;
     const double t_sorted = clock();
     const double* origin = tree.winding_origin();
     const double scale = tree.winding_scale();
@@ -261,7 +270,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
         out.w[std::size_t(q)] = tree.winding(queries.row(q).transpose(), opt.beta, opt.tolerance, terms);
     }
     if (ctx->state().profile)
-        std::fprintf(stderr, "gsd: winding host: tree upload %.1f ms, order %.1f ms, stream %.1f ms, CPU redo %.1f ms (%zu queries)\n",
+        std::fprintf(stderr, "gsd: winding host: tree upload %.1f ms, kernel %.1f ms, stream %.1f ms, CPU redo %.1f ms (%zu queries)\n",
                      1e3 * (t_uploaded - t_start), 1e3 * (t_sorted - t_uploaded), 1e3 * (t_streamed - t_sorted),
                      1e3 * (clock() - t_streamed), redone);
     if (redone) log_once("winding: " + std::to_string(redone) + " queries far outside the source or past " + ctx->info().name +

@@ -5,8 +5,10 @@
 
 #include <gsd/sums.hpp>
 
+#include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace gsd::gpu { class Context; }
 namespace gsd::sums { class SumTree; }
@@ -17,8 +19,10 @@ namespace gsd::sums {
 std::string gpu_unfit(const gpu::Context& ctx, const sums::SumTree& tree);
 
 /// Winding numbers on the device. False (and a reason) when the device cannot take the tree.
+/// `morton` is the queries' Morton order (spatial::morton_order), the order the device takes
+/// them in unless GSD_QUERY_ORDER=input.
 bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, PointsView queries,
-                 const WindingOptions& options, WindingResult& out, const ProgressFn& progress, std::string& why_not);
+                 const std::vector<std::uint32_t>& morton, const WindingOptions& options, WindingResult& out, const ProgressFn& progress, std::string& why_not);
 
 }  // namespace gsd::sums
 
