@@ -307,14 +307,38 @@ void insert_nearer(vec3 x, uint begin, uint count, inout float d[K_MAX], inout u
     }
 }
 
+// A bound on the distance from x to its k-th nearest point: the farthest corner of a node that
+// holds k points or more (its points are all within it), the smallest such node on the way down
+// toward the child whose bound is smaller, with a margin for float rounding. The list starts
+// full of it instead of +∞, so the walk's first round (BALL_ROUND steps before any insertion)
+// lists and inserts only points within it, not every point of every leaf it meets: a far query's
+// first round used to insert a hundred points or more, each an unrolled pass over the list.
+float kth_bound(vec3 x, uint k, uint first_leaf) {
+    uint node = 0u;
+    vec3 e = max(abs(x - node_lo(0u)), abs(x - node_hi(0u)));
+    float best = dot(e, e);
+    while (node < first_leaf) {
+        TICK_LANE(1u);
+        uint l = 2u * node + 1u, r = l + 1u;
+        vec3 el = max(abs(x - node_lo(l)), abs(x - node_hi(l))), er = max(abs(x - node_lo(r)), abs(x - node_hi(r)));
+        float bl = node_end(l) - node_begin(l) >= k ? dot(el, el) : 3.0e38;
+        float br = node_end(r) - node_begin(r) >= k ? dot(er, er) : 3.0e38;
+        if (min(bl, br) >= 3.0e38) break;
+        node = bl <= br ? l : r;
+        best = min(best, min(bl, br));
+    }
+    return sqrt(best) * 1.00001 + 1e-30;
+}
+
 void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MAX]) {
+    const uint first_leaf = pc.first_leaf;  // push constants: read outside the loops
+    const float bound = live ? kth_bound(x, k, first_leaf) : 3.0e38;
     float d[K_MAX];
     uint id[K_MAX];
     [[unroll]] for (int s = 0; s < K_MAX; ++s) {
-        d[s] = s < K_MAX - int(k) ? -1.0 : 3.0e38;
+        d[s] = s < K_MAX - int(k) ? -1.0 : bound;
         id[s] = 0u;
     }
-    const uint first_leaf = pc.first_leaf;  // push constants: read outside the loops
     uint node = 0u, trail = 0u;
     float node_d2 = node_distance2(x, 0u);  // carried from step to step: two boxes read a step
     bool walking = live;
