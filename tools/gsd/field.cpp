@@ -372,6 +372,7 @@ void add_field(CLI::App& app) {
     cmd->callback([a] {
         if (!a->domain.is_grid() && a->domain.queries.empty()) throw CLI::RequiredError("--grid or --queries");
         if (!a->domain.bounds.empty()) bounds_from(a->domain.bounds, "--bounds");  // before any costly fit
+        const DevicePrefetch prefetch(a->device);  // while the leaves are read and fitted
         const ParsedField p = parse_field_expression(a->expression, a->device, a->morphology);
         const bool want_gradient = !a->gradient.empty();
         if (want_gradient && !p.field->has_gradient())

@@ -163,6 +163,9 @@ void add_pat(CLI::App& app) {
         outliers->add_to(*fit, false);
         fit->callback([=] {
             args->check();
+            // TorusNet runs on a device: find it while the cloud is read (jets fit on the CPU).
+            std::optional<DevicePrefetch> prefetch;
+            if (args->fitter == "net") prefetch.emplace(args->device);
             const PointCloud cloud = io::read_point_cloud(*input);
             const FittedTori t = args->fit(cloud, *input);
             // The .tori file keeps every point; TorusField scores them again when it loads them.
@@ -204,6 +207,7 @@ void add_pat(CLI::App& app) {
             fit->device = blend->device;  // one --device for the fit and the blend
             if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
             if (!domain->bounds.empty()) bounds_from(domain->bounds, "--bounds");  // before the costly fit
+            const DevicePrefetch prefetch(blend->device);  // while the tori are read or fitted
             std::string source = !tori->empty() ? *tori : *input;
             FittedTori fitted = is_tori_file(source) ? load_tori(source) : fit->fit(io::read_point_cloud(source), source);
             const std::optional<Box> box = bounding_box(fitted.points);
@@ -244,6 +248,7 @@ void add_baseline(CLI::App& app) {
     blend->add_to(*base);
     base->callback([=] {
         if (!domain->is_grid() && domain->queries.empty()) throw CLI::RequiredError("--grid or --queries");
+        const DevicePrefetch prefetch(blend->device);
         const PointCloud cloud = io::read_point_cloud(*input);
         const BaselineField field(baseline_from_name(*kind), cloud, blend->options());
         evaluate_and_write(
@@ -587,6 +592,7 @@ void add_render(CLI::App& app) {
         opt->device = blend->device;
         std::optional<Box> box;
         if (!bounds->empty()) box = bounds_from(*bounds, "--bounds");
+        const DevicePrefetch prefetch(blend->device);  // while the input is read and its field made
         // The color field, read (and checked) before the costly work.
         std::optional<GridSpec> color_grid;
         std::vector<float> color_values;
