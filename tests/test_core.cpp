@@ -5,7 +5,9 @@
 #include <gsd/spatial.hpp>
 
 #include "spatial/box_tree.hpp"
+#include "spatial/morton.hpp"
 
+#include <array>
 #include <random>
 
 #include <cmath>
@@ -23,6 +25,47 @@ TEST_CASE("grid nodes follow the .npy C-order layout") {
     CHECK(n(idx, 2) == doctest::Approx(-3.0 + 6.0 * 3.0 / 4.0));
     CHECK_THROWS_AS((GridSpec{1, 4, 4, Box{{0, 0, 0}, {1, 1, 1}}}.validate()), Error);
     CHECK_THROWS_AS((GridSpec{4, 4, 4, Box{{0, 0, 0}, {1, 0, 1}}}.validate()), Error);
+}
+
+TEST_CASE("grid bricks (a device's order of a grid): every node once, copies clamped, blocks compact") {
+    for (const int brick : {2, 4})
+        for (const auto& dims : {std::array<int, 3>{2, 2, 2}, {5, 3, 7}, {8, 8, 8}, {9, 2, 13}, {16, 5, 4}}) {
+            CAPTURE(brick);
+            CAPTURE(dims[0]);
+            CAPTURE(dims[1]);
+            CAPTURE(dims[2]);
+            const GridSpec g{dims[0], dims[1], dims[2], Box{{0, 0, 0}, {1, 1, 1}}};
+            const spatial::GridBricks bricks(g, brick);
+            const std::size_t per = std::size_t(brick * brick * brick);
+            CHECK(bricks.items() % per == 0);
+            std::vector<int> seen(g.node_count(), 0);
+            for (std::size_t i = 0; i < bricks.items(); ++i) {
+                int ijk[3];
+                std::size_t linear = 0;
+                const bool real = bricks.node(i, ijk, linear);
+                for (int a = 0; a < 3; ++a) {
+                    REQUIRE(ijk[a] >= 0);
+                    REQUIRE(ijk[a] < dims[std::size_t(a)]);
+                }
+                CHECK(linear == (std::size_t(ijk[0]) * std::size_t(dims[1]) + std::size_t(ijk[1])) * std::size_t(dims[2]) + std::size_t(ijk[2]));
+                if (real) ++seen[linear];
+            }
+            for (const int s : seen) CHECK(s == 1);  // each node exactly once; the rest are copies
+            // Every run of 8 items (a software device's subgroup) lies in a 2×2×2 block.
+            for (std::size_t i = 0; i < bricks.items(); i += 8) {
+                int lo[3] = {1 << 30, 1 << 30, 1 << 30}, hi[3] = {-1, -1, -1};
+                for (std::size_t m = i; m < i + 8; ++m) {
+                    int ijk[3];
+                    std::size_t linear;
+                    bricks.node(m, ijk, linear);
+                    for (int a = 0; a < 3; ++a) {
+                        lo[a] = std::min(lo[a], ijk[a]);
+                        hi[a] = std::max(hi[a], ijk[a]);
+                    }
+                }
+                for (int a = 0; a < 3; ++a) CHECK(hi[a] - lo[a] <= 1);
+            }
+        }
 }
 
 TEST_CASE("mean edge length: every face's edges, a shared edge once per face") {

@@ -299,6 +299,17 @@ TEST_CASE("results do not depend on the chunk size (one chunk vs many)") {
     const GridSpec g = GridSpec::cube(20, Box{{-1, -1, -1}, {1, 1, 1}});
     many.chunk_size = 333;  // not a multiple of the workgroup
     CHECK(TorusField(f, one).evaluate(g).phi == TorusField(f, many).evaluate(g).phi);
+    // A grid goes to the device in bricks (odd sides: copies of edge nodes, dropped): each
+    // node's φ as when the nodes come as a list, and as the CPU's.
+    const GridSpec odd{13, 6, 9, Box{{-1, -0.9, -1.1}, {1, 0.8, 1}}};
+    const FieldValues by_grid = TorusField(f, many).evaluate(odd, true);
+    const FieldValues by_list = TorusField(f, one).evaluate(odd.nodes(), true);
+    const FieldValues on_cpu = TorusField(f, on("cpu")).evaluate(odd, true);
+    const Diff dl = compare(by_grid.phi, by_list.phi, 1e-6), dc = compare(by_grid.phi, on_cpu.phi, 2e-4);
+    MESSAGE("odd grid on the device: max |Δφ| to the listed nodes " << dl.max_abs << ", to the CPU " << dc.max_abs);
+    CHECK(dl.max_abs < 1e-6);
+    CHECK(dc.max_abs < 2e-4);
+    CHECK(compare(by_grid.gradient, by_list.gradient, 1e-5).max_abs < 1e-5);
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 

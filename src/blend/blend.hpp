@@ -63,6 +63,8 @@ public:
     Eigen::Vector3d at(std::size_t i) const;
     /// An explicit list (not a grid)?, and then the list itself.
     bool is_list() const { return points_ != nullptr; }
+    /// The grid (when not a list).
+    const GridSpec& grid() const { return grid_; }
     PointsView list() const {
         return PointsView(Eigen::Map<const Points, 0, Eigen::OuterStride<>>(points_, Eigen::Index(rows_), 3, Eigen::OuterStride<>(Eigen::Index(stride_))));
     }

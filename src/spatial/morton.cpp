@@ -103,4 +103,30 @@ std::vector<std::uint32_t> morton_order(PointsView q) {
     return order;
 }
 
+GridBricks::GridBricks(const GridSpec& grid, int brick)
+    : nx_(grid.nx), ny_(grid.ny), nz_(grid.nz), bits_(brick >= 4 ? 2 : 1) {
+    const std::size_t b = std::size_t(1) << bits_;
+    bx_ = (std::size_t(nx_) + b - 1) / b;
+    by_ = (std::size_t(ny_) + b - 1) / b;
+    bz_ = (std::size_t(nz_) + b - 1) / b;
+    per_brick_ = b * b * b;
+}
+
+bool GridBricks::node(std::size_t item, int ijk[3], std::size_t& linear) const {
+    const std::size_t brick = item / per_brick_, m = item % per_brick_;
+    const std::size_t cell[3] = {brick / (by_ * bz_), (brick / bz_) % by_, brick % bz_};
+    const int n[3] = {nx_, ny_, nz_};
+    bool inside = true;
+    for (int a = 0; a < 3; ++a) {
+        // Morton within the brick: bit 3l + (2 − a) of m is bit l of the offset along axis a.
+        std::size_t offset = 0;
+        for (int l = 0; l < bits_; ++l) offset |= ((m >> (3 * l + (2 - a))) & 1u) << l;
+        const std::size_t v = (cell[a] << bits_) + offset;
+        inside = inside && v < std::size_t(n[a]);
+        ijk[a] = int(std::min<std::size_t>(v, std::size_t(n[a] - 1)));
+    }
+    linear = (std::size_t(ijk[0]) * std::size_t(ny_) + std::size_t(ijk[1])) * std::size_t(nz_) + std::size_t(ijk[2]);
+    return inside;
+}
+
 }  // namespace gsd::spatial
