@@ -3,6 +3,7 @@
 #include "shm/diffuse.hpp"
 
 #include "gpu/runtime.hpp"
+#include "spatial/morton.hpp"
 #include "gpu/stream.hpp"
 #include "push_constants.h"
 #include "sums/sum_tree.hpp"
@@ -11,6 +12,7 @@
 #include <algorithm>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 namespace gsd::shm {
 
@@ -51,7 +53,21 @@ public:
         job.out_bytes = 32;
         job.stage = "diffuse";
         if (chunk_) job.chunk = chunk_;
-        job.fill = [&](std::size_t first, std::size_t m, void* dst) { gpu::fill_vec4(x, first, m, dst); };
+        // The nodes go to the device in Morton order (they come in storage order: a subgroup would
+        // take a run along z), so that a subgroup's lanes are a compact block and their walk
+        // together opens fewer nodes; results go back in the caller's order.
+        std::vector<std::uint32_t> order;
+        if (n > 1 && spatial::sort_queries_for_device()) order = spatial::morton_order(x);
+        auto index = [&](std::size_t i) { return order.empty() ? i : std::size_t(order[i]); };
+        job.fill = [&](std::size_t first, std::size_t m, void* dst) {
+            float* up = static_cast<float*>(dst);
+#pragma omp parallel for schedule(static) if (m > 4096)
+            for (std::size_t i = 0; i < m; ++i) {
+                const auto q = Eigen::Index(index(first + i));
+                for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(x(q, a));
+                up[4 * i + 3] = 0.0f;
+            }
+        };
         job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& out, std::size_t m) {
             const DiffusePush push{std::uint32_t(m), tree_.first_leaf, float(k_.lambda), float(k_.cutoff), float(k_.r_floor),
                                    float(k_.sum_tolerance * 2 * M_PI / k_.lambda), cap};
@@ -61,10 +77,11 @@ public:
         job.drain = [&](std::size_t first, std::size_t m, const void* src) {
             const float* r = static_cast<const float*>(src);
             for (std::size_t i = 0; i < m; ++i) {
-                for (int a = 0; a < 3; ++a) y[3 * (first + i) + std::size_t(a)] = r[8 * i + std::size_t(a)];
-                r_min[first + i] = r[8 * i + 3];
-                device_terms[first + i] = r[8 * i + 4];
-                if (r[8 * i + 5] != 0) redo[first + i] = 1;  // cut short with its subgroup, or a wide element
+                const std::size_t q = index(first + i);
+                for (int a = 0; a < 3; ++a) y[3 * q + std::size_t(a)] = r[8 * i + std::size_t(a)];
+                r_min[q] = r[8 * i + 3];
+                device_terms[q] = r[8 * i + 4];
+                if (r[8 * i + 5] != 0) redo[q] = 1;  // cut short with its subgroup, or a wide element
             }
         };
         gpu::stream(*ctx_, job, progress);
