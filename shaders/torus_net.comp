@@ -266,12 +266,9 @@ void block(int base, int R) {
     float scale = inversesqrt(float(D));
     [[dont_unroll]] for (int h = 0; h < H; ++h) {
         int qkv = base + QKV + h * QKV_HEAD, qkv_b = qkv + W * 3 * D4;
-        // q of head h for rows < R, then k | v for every row: [K][3D] at T. One call in a loop
-        // of two (so with the MLP's below): each call site is a copy of the unrolled tile code,
-        // and lavapipe compiles the whole shader on every run (docs/gpu.md, "Compile time").
-        [[dont_unroll]] for (int part = 0; part < 2; ++part)
-            gemm(Y, XS, part == 0 ? R : K, W4, true, qkv + part * D4, 3 * D4, qkv_b + part * D4, part == 0 ? D : 2 * D,
-                 T + part * D4, QS, 0);
+        // q of head h for rows < R, k | v for every row: [K][3D] at T.
+        gemm(Y, XS, R, W4, true, qkv, 3 * D4, qkv_b, D, T, QS, 0);
+        gemm(Y, XS, K, W4, true, qkv + D4, 3 * D4, qkv_b + D4, 2 * D, T + D4, QS, 0);
         sync();
         // Scores q_r·k_j / √D, softmax over j, then o_r = Σ_j a_rj v_j into q's columns.
         scores(R, scale);
@@ -297,13 +294,10 @@ void block(int base, int R) {
         sync();
     }
     layer_norm(X, Y, R, base + N2_G);
-    // The MLP by FC columns: fc1 (= gelu) into T, then fc2 (+=) into X, alternately.
-    [[dont_unroll]] for (int pass = 0; pass < 2 * (F / FC); ++pass) {
-        int c0 = (pass / 2) * FC;
-        bool fc1 = pass % 2 == 0;
-        gemm(fc1 ? Y : T, fc1 ? XS : HS, R, fc1 ? W4 : FC4, true, fc1 ? base + F1_W + c0 / 4 : base + F2_W + c0 * W4,
-             fc1 ? F4 : W4, fc1 ? base + F1_B + c0 / 4 : (c0 == 0 ? base + F2_B : -1), fc1 ? FC : W, fc1 ? T : X,
-             fc1 ? HS : XS, fc1 ? 2 : 1);
+    [[dont_unroll]] for (int c0 = 0; c0 < F; c0 += FC) {
+        gemm(Y, XS, R, W4, true, base + F1_W + c0 / 4, F4, base + F1_B + c0 / 4, FC, T, HS, 2);
+        sync();
+        gemm(T, HS, R, FC4, true, base + F2_W + c0 * W4, W4, c0 == 0 ? base + F2_B : -1, W, X, XS, 1);
         sync();
     }
 }

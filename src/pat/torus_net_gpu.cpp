@@ -212,11 +212,10 @@ std::uint64_t net_loop_iterations(const NetPlan& p, std::uint64_t wg) {
         const U R = last ? TR : K;
         U n = layer_norm(K) + layer_norm(R) + H + 1;
         for (U h = 0; h < H; ++h) {
-            n += 3 + gemm(R, TR, W4, D) + gemm(K, TR, W4, 2 * D);  // q, then k | v: a loop of two
+            n += gemm(R, TR, W4, D) + gemm(K, TR, W4, 2 * D);
             n += scores(R, TR) + softmax(R) + gemm(R, TR, K4, D) + gemm(R, TR, D4, 4 * W4);
         }
-        // fc1 and fc2 in turn, F / FC times: a loop of 2F/FC passes.
-        return n + 2 * (F / FC) + 1 + (F / FC) * (gemm(R, TR, W4, FC) + gemm(R, TR, FC / 4, 4 * W4));
+        return n + (F / FC + 1) * (gemm(R, TR, W4, FC) + gemm(R, TR, FC / 4, 4 * W4));
     };
     const U features = 2 * passes(K) + passes(K) * (K + 1);
     const U blocks = U(p.blocks - 1) * block(false) + block(true) + U(p.blocks) + 1;
