@@ -4,6 +4,7 @@
 #extension GL_KHR_shader_subgroup_vote : require
 #ifdef GSD_SOFTWARE_SHAPED
 #extension GL_KHR_shader_subgroup_arithmetic : require
+#extension GL_EXT_control_flow_attributes : require
 #endif
 // Fast generalized winding numbers: the CPU's packet walk (SumTree::winding_lanes, src/sums/
 // winding_walk.inl) with a subgroup as the packet. The queries come sorted along a Morton curve,
@@ -188,6 +189,8 @@ shared uint far_entries[FAR + 2u * WIDEST];
 shared uint leaf_entries[LEAVES + 2u * WIDEST];
 
 // The group's queries, every lane all of them: X[g] holds queries 4g..4g+3's x (G of 4 used).
+// Every loop over g is unrolled ([[unroll]]): X[g] stays in registers, and a rolled loop would
+// count against llvmpipe's loop limit where the walk's count (iters) does not include it.
 vec4 X[4], Y[4], Z[4];
 
 // Shared memory between the rounds: the workgroup is one subgroup (gpu::loop_capped_workgroup).
@@ -239,7 +242,7 @@ vec4 element4(vec4 X, vec4 Y, vec4 Z, vec4 ea, vec4 eb, vec4 ec) {
 // The group's queries farther from c than the node's reach: d² computed as the CPU's walk does.
 uint accepting(vec4 test) {
     uvec4 a = uvec4(0u);
-    for (uint g = 0u; g < G; ++g) {
+    [[unroll]] for (uint g = 0u; g < G; ++g) {
         vec4 dx = X[g] - test.x, dy = Y[g] - test.y, dz = Z[g] - test.z;
         a |= uvec4(greaterThan(dx * dx + dy * dy + dz * dz, vec4(test.w))) << (uvec4(0u, 1u, 2u, 3u) + 4u * g);
     }
@@ -253,18 +256,19 @@ void main() {
     const uint base = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * Q;
     // The group's queries, every lane all of them (one address for all lanes: one load each).
     const uint last = count - 1u;
-    for (uint g = 0u; g < G; ++g) {
+    [[unroll]] for (uint g = 0u; g < G; ++g) {
         vec4 a = qs[min(base + 4u * g, last)], b = qs[min(base + 4u * g + 1u, last)];
         vec4 c = qs[min(base + 4u * g + 2u, last)], d = qs[min(base + 4u * g + 3u, last)];
         X[g] = vec4(a.x, b.x, c.x, d.x);
         Y[g] = vec4(a.y, b.y, c.y, d.y);
         Z[g] = vec4(a.z, b.z, c.z, d.z);
     }
-    const uint live = count - base >= Q ? QUERY_BITS : (1u << (count - base)) - 1u;  // the group's queries that exist
+    // The group's queries that exist (none in a workgroup past the end of a 2-D dispatch).
+    const uint live = base >= count ? 0u : count - base >= Q ? QUERY_BITS : (1u << (count - base)) - 1u;
 
     vec4 w_far[4], w_near[4];
     uvec4 terms[4];  // this lane's share of each query's terms
-    for (uint g = 0u; g < G; ++g) {
+    [[unroll]] for (uint g = 0u; g < G; ++g) {
         w_far[g] = vec4(0.0);
         w_near[g] = vec4(0.0);
         terms[g] = uvec4(0u);
@@ -340,7 +344,7 @@ void main() {
                 vec4 c = NODE(node);
                 uint r = records + 7u * node;
                 vec4 e0 = NODE(r + 1u), e1 = NODE(r + 2u), e2 = NODE(r + 3u), e3 = NODE(r + 4u), e4 = NODE(r + 5u), e5 = NODE(r + 6u);
-                for (uint g = 0u; g < G; ++g) {
+                [[unroll]] for (uint g = 0u; g < G; ++g) {
                     bvec4 m = bits4(queries, 4u * g);
                     w_far[g] += mix(vec4(0.0), expansion4(e0, e1, e2, e3, e4, e5, X[g] - c.x, Y[g] - c.y, Z[g] - c.z), m);
                     terms[g] += uvec4(m);
@@ -363,7 +367,7 @@ void main() {
                     uint e = j < elements ? 3u * (range.x + j) : 0u;
                     vec4 ea = ELEM(e), eb = ELEM(e + 1u), ec = ELEM(e + 2u);
                     uint on = j < elements ? queries : 0u;
-                    for (uint g = 0u; g < G; ++g) {
+                    [[unroll]] for (uint g = 0u; g < G; ++g) {
                         bvec4 m = bits4(on, 4u * g);
                         w_near[g] += mix(vec4(0.0), element4(X[g], Y[g], Z[g], ea, eb, ec), m);
                         terms[g] += uvec4(m);
@@ -377,7 +381,7 @@ void main() {
     // Each query's sum over the lanes; lane j writes query j.
     vec4 w[4];
     uvec4 t[4];
-    for (uint g = 0u; g < G; ++g) {
+    [[unroll]] for (uint g = 0u; g < G; ++g) {
         w[g] = subgroupAdd(w_far[g] + w_near[g]);
         t[g] = subgroupAdd(terms[g]);
     }

@@ -51,6 +51,7 @@ TEST_CASE("grid bricks (a device's order of a grid): every node once, copies cla
                 if (real) ++seen[linear];
             }
             for (const int s : seen) CHECK(s == 1);  // each node exactly once; the rest are copies
+            CHECK_THROWS_AS(spatial::GridBricks(g, 3), Error);
             // Every run of 8 items (a software device's subgroup) lies in a 2×2×2 block.
             for (std::size_t i = 0; i < bricks.items(); i += 8) {
                 int lo[3] = {1 << 30, 1 << 30, 1 << 30}, hi[3] = {-1, -1, -1};

@@ -176,17 +176,18 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     job.in_bytes = 16;
     job.out_bytes = out_floats * 4;
     job.chunk = chunk_size ? chunk_size : default_chunk(p);
-    // An explicit list goes to the device in Morton order, and a grid in bricks (Morton order
-    // within each), so that the lanes of a subgroup are a compact block of nearby queries: they
-    // walk the kd-tree alike and read the same points. A grid's C order gave a subgroup a run
-    // along z: on lavapipe (8 lanes) the kernel took 1.15–1.3× as long on a 64³ grid as on the
-    // same nodes listed (docs/gpu.md). Results go back in the caller's order.
+    // An explicit list goes to the device in Morton order, and a grid in bricks of 2³ (Morton
+    // order within each, bricks in C order), so that the lanes of a subgroup are a compact block
+    // of nearby queries: they walk the kd-tree alike and read the same points. A grid's C order
+    // gave a subgroup a run along z: on lavapipe (8 lanes) the kernel took 1.15–1.3× as long on
+    // a 64³ grid as on the same nodes listed (docs/gpu.md). Bricks of 2 pad a side by one node at
+    // most (4 would pad a side of 5 to 8). Results go back in the caller's order.
     std::vector<std::uint32_t> order;
     if (q.is_list() && q.size() > 1 && q.size() < (std::size_t(1) << 32) && spatial::sort_queries_for_device())
         order = spatial::morton_order(q.list());
     std::optional<spatial::GridBricks> bricks;
     if (!q.is_list() && spatial::sort_queries_for_device())
-        bricks.emplace(q.grid(), c.info().subgroup_size > 8 ? 4 : 2);
+        bricks.emplace(q.grid(), 2);
     job.count = bricks ? bricks->items() : q.size();
     auto index = [&](std::size_t i) { return order.empty() ? i : std::size_t(order[i]); };
     // Item i's query: the node it stands for (a brick's copy past an odd edge repeats one).

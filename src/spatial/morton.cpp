@@ -104,7 +104,8 @@ std::vector<std::uint32_t> morton_order(PointsView q) {
 }
 
 GridBricks::GridBricks(const GridSpec& grid, int brick)
-    : nx_(grid.nx), ny_(grid.ny), nz_(grid.nz), bits_(brick >= 4 ? 2 : 1) {
+    : nx_(grid.nx), ny_(grid.ny), nz_(grid.nz), bits_(brick == 4 ? 2 : 1) {
+    if (brick != 2 && brick != 4) throw Error("GridBricks", "a brick's side is 2 or 4, not " + std::to_string(brick));
     const std::size_t b = std::size_t(1) << bits_;
     bx_ = (std::size_t(nx_) + b - 1) / b;
     by_ = (std::size_t(ny_) + b - 1) / b;

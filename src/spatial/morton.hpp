@@ -16,12 +16,14 @@ namespace gsd::spatial {
 std::vector<std::uint32_t> morton_order(PointsView q);
 
 /// A grid's nodes in bricks of B³ (B = 2 or 4), bricks in C order and nodes in Morton order
-/// within a brick: the order a device takes a grid in, so that a subgroup's lanes are a compact
-/// block of nodes (a 2×2×2 cube for 8 lanes) rather than a run along z, with no order to sort
-/// or store. Item i of `items()` is a node, or a copy of one past an odd edge (clamped): such
-/// copies are evaluated and dropped (`node(i, linear)` is false for them).
+/// within a brick: an order a device can take a grid in, so that a subgroup's lanes are a compact
+/// block of nodes (a 2×2×2 cube for 8 lanes, 2×2×8 for 32 with B = 2) rather than a run along z,
+/// with no order to sort or store. Item i of `items()` is a node, or a copy of one past a side
+/// that is not a multiple of B (clamped): such copies are evaluated and dropped
+/// (`node(i, ijk, linear)` is false for them). B = 4 pads a side of 5 to 8: the blend takes 2.
 class GridBricks {
 public:
+    /// brick: 2 or 4 (gsd::Error otherwise).
     GridBricks(const GridSpec& grid, int brick);
     std::size_t items() const { return bx_ * by_ * bz_ * per_brick_; }
     /// Item i's node: its indices (clamped into the grid) and, when it is not a copy, its

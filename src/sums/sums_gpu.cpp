@@ -177,15 +177,18 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     // kernel took 338, 311 and 284 ms for groups of 8, 12 and 16; 32 in two-word entries 302).
     // Each lane has its own spare slots (64 lanes at most): past those, the GPUs' kernel.
     std::uint32_t software_group = d.node_count <= (1u << 16) ? 16u : d.node_count <= (1u << 20) ? 12u : 8u;
-    // GSD_WINDING_GROUP=8 or 12 takes smaller groups (the tests run every size on small trees).
+    // GSD_WINDING_GROUP=8 or 12 takes smaller groups (the tests run every size on small trees);
+    // a larger group than the tree allows, or any other value, is ignored.
     if (const char* v = std::getenv("GSD_WINDING_GROUP")) {
         const std::string g = v;
         if (g == "8" || (g == "12" && software_group >= 12)) software_group = std::uint32_t(std::stoi(g));
     }
     const bool fits_shaped = d.node_count <= (1u << 24) && workgroup <= 64;
+    const bool want_shaped = gpu::software_shaped(*ctx) && fits_shaped;
+    // (The GPUs' build has no group: one value, so that trees of every size share its pipeline.)
     const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding,
-                                       {d.element_kinds, std::int32_t(software_group)}, workgroup,
-                                       gpu::software_shaped(*ctx) && fits_shaped);
+                                       {d.element_kinds, std::int32_t(want_shaped ? software_group : 8u)}, workgroup,
+                                       want_shaped);
     const bool shaped = k.texel_bindings.all() != 0;
     // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
     // elements, or (software-shaped) a round and the sums of both lists (at most 65 chunks of
@@ -204,7 +207,9 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
         for (std::size_t i = 0; i < n; ++i) input_order[i] = std::uint32_t(i);
     }
     const std::vector<std::uint32_t>& order = input_order.empty() ? morton : input_order;
-    const double t_sorted = clock();
+    if (order.size() != n) throw Error("gpu_winding", "the queries' order has " + std::to_string(order.size()) +
+                                                         " entries for " + std::to_string(n) + " queries");
+    const double t_kernel = clock();
     const double* origin = tree.winding_origin();
     const double scale = tree.winding_scale();
     // Queries so far out that float32's expansion terms could overflow, and those the loop
@@ -271,7 +276,7 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     }
     if (ctx->state().profile)
         std::fprintf(stderr, "gsd: winding host: tree upload %.1f ms, kernel %.1f ms, stream %.1f ms, CPU redo %.1f ms (%zu queries)\n",
-                     1e3 * (t_uploaded - t_start), 1e3 * (t_sorted - t_uploaded), 1e3 * (t_streamed - t_sorted),
+                     1e3 * (t_uploaded - t_start), 1e3 * (t_kernel - t_uploaded), 1e3 * (t_streamed - t_kernel),
                      1e3 * (clock() - t_streamed), redone);
     if (redone) log_once("winding: " + std::to_string(redone) + " queries far outside the source or past " + ctx->info().name +
                          "'s loop limit were summed on the CPU");
