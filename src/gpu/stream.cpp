@@ -113,10 +113,13 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
 
 std::size_t default_chunk(const Context& ctx) { return ctx.info().is_software() ? 65536 : std::size_t(1) << 20; }
 
-void fill_vec4(PointsView points, std::size_t first, std::size_t n, void* dst) {
+void fill_vec4(PointsView points, const std::vector<std::uint32_t>& order, std::size_t first, std::size_t n, void* dst) {
     float* up = static_cast<float*>(dst);
+    // In parallel: through an order each row is a random access, and a thread waits on memory.
+#pragma omp parallel for schedule(static) if (n > 4096)
     for (std::size_t i = 0; i < n; ++i) {
-        for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(points(Eigen::Index(first + i), a));
+        const auto row = Eigen::Index(order.empty() ? first + i : std::size_t(order[first + i]));
+        for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(points(row, a));
         up[4 * i + 3] = 0;
     }
 }

@@ -7,6 +7,7 @@
 #include "gpu/runtime.hpp"
 
 #include <functional>
+#include <vector>
 
 namespace gsd::gpu {
 
@@ -34,7 +35,9 @@ void stream(Context& ctx, const StreamJob& job, const ProgressFn& progress);
 /// device's few cores 65 536 (progress and the first results come sooner).
 std::size_t default_chunk(const Context& ctx);
 
-/// A StreamJob::fill for query points: rows [first, first + n) of `points` as float vec4 (w = 0).
-void fill_vec4(PointsView points, std::size_t first, std::size_t n, void* dst);
+/// A StreamJob::fill for query points: items [first, first + n) as float vec4 (w = 0), item i
+/// being row order[i] of `points` (row i when `order` is empty: spatial::morton_order's, or
+/// none).
+void fill_vec4(PointsView points, const std::vector<std::uint32_t>& order, std::size_t first, std::size_t n, void* dst);
 
 }  // namespace gsd::gpu

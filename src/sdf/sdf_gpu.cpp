@@ -41,14 +41,7 @@ bool gpu_nearest(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
         order.resize(n);
         for (std::size_t i = 0; i < n; ++i) order[i] = std::uint32_t(i);
     }
-    job.fill = [&](std::size_t first, std::size_t m, void* dst) {
-        auto* f = static_cast<float*>(dst);
-        for (std::size_t i = 0; i < m; ++i) {
-            const auto q = Eigen::Index(order[first + i]);
-            for (int a = 0; a < 3; ++a) f[4 * i + std::size_t(a)] = float(queries(q, a));
-            f[4 * i + 3] = 0;
-        }
-    };
+    job.fill = [&](std::size_t first, std::size_t m, void* dst) { gpu::fill_vec4(queries, order, first, m, dst); };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& out, std::size_t m) {
         const kernels::SdfNearestPush push{std::uint32_t(m), device_tree.first_leaf, cap};
         rec.dispatch(k, {{&device_tree.nodes}, {&device_tree.elements}, {&in, 0, m * 16}, {&out, 0, m * 8}}, &push,

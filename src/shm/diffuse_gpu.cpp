@@ -59,15 +59,7 @@ public:
         std::vector<std::uint32_t> order;
         if (n > 1 && spatial::sort_queries_for_device()) order = spatial::morton_order(x);
         auto index = [&](std::size_t i) { return order.empty() ? i : std::size_t(order[i]); };
-        job.fill = [&](std::size_t first, std::size_t m, void* dst) {
-            float* up = static_cast<float*>(dst);
-#pragma omp parallel for schedule(static) if (m > 4096)
-            for (std::size_t i = 0; i < m; ++i) {
-                const auto q = Eigen::Index(index(first + i));
-                for (int a = 0; a < 3; ++a) up[4 * i + std::size_t(a)] = float(x(q, a));
-                up[4 * i + 3] = 0.0f;
-            }
-        };
+        job.fill = [&](std::size_t first, std::size_t m, void* dst) { gpu::fill_vec4(x, order, first, m, dst); };
         job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& out, std::size_t m) {
             const DiffusePush push{std::uint32_t(m), tree_.first_leaf, float(k_.lambda), float(k_.cutoff), float(k_.r_floor),
                                    float(k_.sum_tolerance * 2 * M_PI / k_.lambda), cap};

@@ -181,7 +181,8 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     // a larger group than the tree allows, or any other value, is ignored.
     if (const char* v = std::getenv("GSD_WINDING_GROUP")) {
         const std::string g = v;
-        if (g == "8" || (g == "12" && software_group >= 12)) software_group = std::uint32_t(std::stoi(g));
+        if (g == "8") software_group = 8;
+        if (g == "12" && software_group >= 12) software_group = 12;
     }
     const bool fits_shaped = d.node_count <= (1u << 24) && workgroup <= 64;
     const bool want_shaped = gpu::software_shaped(*ctx) && fits_shaped;
