@@ -2,7 +2,8 @@
 // tests hold this to). The including shader defines, before including this,
 //   float field_phi(vec3 x, bool live, bool grad, out vec3 g)   the field (called by every lane
 //   together, live = false on lanes with nothing to evaluate), and ∇φ into g when `grad`,
-// RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below,
+// RENDER_PARAMS_BINDING / RENDER_OUT_BINDING, the bindings of the two buffers below (and
+// RENDER_EMPTY_BINDING, that of the empty cells, where rays may skip: render.hpp's EmptySpace),
 // SHADE_HITS (a constant: true, the kernel writes ∇φ at each hit — a shading turn per hit; false,
 // it writes the hit alone and the host evaluates ∇φ there, so that the march's evaluations carry
 // no gradient sums: render_gpu.cpp), the specialization constant LOOP_CAP, the counters lane_ticks and subgroup_ticks and the macros
@@ -22,6 +23,8 @@ struct RenderParams {
     uvec4 size;      // width, height, max_steps, bisection steps
     vec4 march;      // step_scale, hit_eps, min_step, unused
     uvec4 tile;      // rays in tile order: tile width, height (pixels); rays per lane; unused
+    vec4 empty;      // the empty-space grid's low corner, cell side
+    uvec4 cells;     // its cells along x, y, z; 1 if rays skip its empty cells, else 0
 };
 
 layout(std430, binding = RENDER_PARAMS_BINDING) readonly buffer Params { RenderParams rp; };
@@ -29,6 +32,50 @@ layout(std430, binding = RENDER_PARAMS_BINDING) readonly buffer Params { RenderP
 // miss. The host fills it with t = −2 first: a ray left so was cut short by llvmpipe's loop limit (below), and the
 // host marches it on the CPU.
 layout(std430, binding = RENDER_OUT_BINDING) writeonly buffer Hits { vec4 hits[]; };
+#ifdef RENDER_EMPTY_BINDING
+// A bit per cell, C order, 1 = empty (render.hpp's EmptySpace).
+layout(std430, binding = RENDER_EMPTY_BINDING) readonly buffer Empty { uint empty_bits[]; };
+
+bool empty_cell(ivec3 c) {
+    if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(rp.cells.xyz)))) return false;
+    uint cell = (uint(c.x) * rp.cells.y + uint(c.y)) * rp.cells.z + uint(c.z);
+    return ((empty_bits[cell >> 5u] >> (cell & 31u)) & 1u) != 0u;
+}
+#endif
+
+// Moves t on past the run of empty cells the ray o + t·d is in (a hair past the last one's
+// exit), cell by cell (a 3D DDA); false when that takes it past span. render.hpp's
+// EmptySpace::skip, which the CPU runs.
+bool skip_empty(vec3 o, vec3 d, float span, inout float t) {
+#ifdef RENDER_EMPTY_BINDING
+    if (rp.cells.w == 0u) return true;
+    float h = rp.empty.w;
+    vec3 f = (o + t * d - rp.empty.xyz) / h;
+    if (!(all(greaterThanEqual(f, vec3(0.0))) && all(lessThan(f, vec3(rp.cells.xyz))))) return true;
+    ivec3 c = ivec3(f);
+    if (!empty_cell(c)) return true;
+    vec3 next, delta;
+    ivec3 dir;
+    for (int a = 0; a < 3; ++a) {
+        dir[a] = d[a] > 0.0 ? 1 : -1;
+        next[a] = d[a] != 0.0 ? (rp.empty[a] + h * (float(c[a]) + (d[a] > 0.0 ? 1.0 : 0.0)) - o[a]) / d[a] : 3.0e38;
+        delta[a] = d[a] != 0.0 ? h / abs(d[a]) : 3.0e38;
+    }
+    float exit = t;
+    for (int i = 0; i < 256; ++i) {  // a ray crosses at most n_x + n_y + n_z ≤ 192 cells
+        TICK_LANE(1u);
+        int a = next.x <= next.y ? (next.x <= next.z ? 0 : 2) : (next.y <= next.z ? 1 : 2);
+        exit = next[a];
+        c[a] += dir[a];
+        next[a] += delta[a];
+        if (!empty_cell(c)) break;
+    }
+    t = max(exit, t) + 1e-4 * h;
+    return t <= span;
+#else
+    return true;
+#endif
+}
 
 vec3 pixel_ray(uint px, uint py) {
     float u = 2.0 * (float(px) + 0.5) / float(rp.size.x) - 1.0;
@@ -72,6 +119,7 @@ uvec2 tile_pixel(uint p) {
 const uint IDLE = 0u, FIRST = 1u, MARCH = 2u, BISECT = 3u, SHADE = 4u;
 struct Ray {
     uint phase, index, s, k;  // index: the ray's place in the chunk
+    bool fresh;               // the next sample follows a skip through empty cells
     vec3 o, d;                // from where it enters the box
     float t0, span, t, phi, tn, a, b, pa, hit;
 };
@@ -90,15 +138,18 @@ void start_ray(inout Ray r, uint index, uint first_pixel) {
     r.d = d;
     r.t0 = t0;
     r.span = t1 - t0;
-    r.phase = in_box ? FIRST : IDLE;
     r.t = 0.0;
     r.s = 0u;
     r.hit = -1.0;
+    r.fresh = false;
+    in_box = in_box && skip_empty(r.o, d, r.span, r.t);
+    r.phase = in_box ? FIRST : IDLE;
     if (!in_box) hits[index] = vec4(-1.0, 0.0, 0.0, 0.0);
 }
 
 // Where the ray samples φ next.
 float next_sample(Ray r) {
+    if (r.phase == FIRST) return r.t;
     if (r.phase == MARCH) return r.tn;
     if (r.phase == BISECT) return 0.5 * (r.a + r.b);
     if (r.phase == SHADE) return r.hit;
@@ -111,8 +162,17 @@ bool advance(inout Ray r, float p) {
         bool next = false;  // take another step from (t, phi)
         if (r.phase == FIRST) {
             r.phi = p;
-            if (abs(r.phi) < rp.march.y) r.hit = 0.0;
+            if (abs(r.phi) < rp.march.y) r.hit = r.t;
             else next = true;
+        } else if (r.fresh) {
+            // After a skip through empty cells, which hold no surface: a fresh start at tn.
+            if (abs(p) < rp.march.y) r.hit = r.tn;
+            else {
+                r.t = r.tn;
+                r.phi = p;
+                ++r.s;
+                next = true;
+            }
         } else if ((p < 0.0) != (r.phi < 0.0)) {
             // Crossed the surface within the step: bisect [t, tn].
             r.a = r.t;
@@ -131,7 +191,12 @@ bool advance(inout Ray r, float p) {
         }
         if (next) {
             r.tn = r.t + max(rp.march.x * abs(r.phi), rp.march.z);
-            if (r.s < rp.size.z && r.tn <= r.span) { r.phase = MARCH; return false; }
+            float stepped = r.tn;
+            if (r.s < rp.size.z && r.tn <= r.span && skip_empty(r.o, r.d, r.span, r.tn)) {
+                r.fresh = r.tn != stepped;
+                r.phase = MARCH;
+                return false;
+            }
         }
         return true;
     }

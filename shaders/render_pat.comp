@@ -39,6 +39,7 @@ float field_phi(vec3 x, bool live, bool grad, out vec3 g) { return blend_field(x
 const bool SHADE_HITS = false;
 #define RENDER_PARAMS_BINDING 3
 #define RENDER_OUT_BINDING 4
+#define RENDER_EMPTY_BINDING 5
 #include "render_march.glsl"
 
 void main() { render_main(pc.first_pixel, pc.pixel_count); }

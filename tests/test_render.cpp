@@ -2,6 +2,7 @@
 // shaders against the CPU reference on a Vulkan device (lavapipe in CI), option errors.
 #include <doctest/doctest.h>
 
+#include <gsd/field_algebra.hpp>
 #include <gsd/gpu.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
@@ -130,6 +131,47 @@ TEST_CASE("render: PAT of a sampled sphere shows the sphere") {
     REQUIRE(a.both_hit > 500);
     CHECK(a.mask_fraction() <= 0.02);
     CHECK(a.depth_quantile(0.95) <= 5e-3);
+}
+
+// Empty-space skipping (FieldRenderOptions::skip_empty_space) lets rays cross cells whose
+// corners say they hold no surface, by the march's own trust in |φ| as a distance: the picture
+// must be the plain march's, up to the rays it steps differently near a surface.
+TEST_CASE("render: skipping empty space draws what the plain march draws") {
+    auto same_picture = [](const char* what, const RenderedField& skip, const RenderedField& plain, double depth_tol) {
+        const Agreement a = between(skip, plain);
+        const double image_off = image_difference(skip.image, plain.image, 8);
+        MESSAGE(std::string(what) << ": mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth 99% "
+                     << a.depth_quantile(0.99) << "; image bytes off by > 8: " << image_off);
+        REQUIRE(a.both_hit > 300);
+        CHECK(a.mask_fraction() <= 0.005);
+        CHECK(a.depth_quantile(0.99) <= depth_tol);
+        CHECK(image_off <= 0.01);
+    };
+    FieldRenderOptions skip = small("cpu"), plain = small("cpu");
+    plain.skip_empty_space = false;
+    SUBCASE("PAT of a sampled torus") {
+        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        skip.view_from = plain.view_from = {0.2, 1.0, 0.7};
+        same_picture("torus", render_field(field, kBox, skip), render_field(field, kBox, plain), 1e-3);
+    }
+    SUBCASE("PAT of the demo cloud (holes, noise): the blend's creases and the closed holes stay") {
+        const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        const Box box = padded_cube(bounding_box(cloud.points));
+        same_picture("demo cloud", render_field(field, box, skip), render_field(field, box, plain), 1e-3 * box.diagonal());
+    }
+    SUBCASE("a composite field (the wavefront march), against the exact sphere too") {
+        const GridSpec g = GridSpec::cube(48, kBox);
+        const auto sphere = std::make_shared<GridField>(g, sphere_grid(g));
+        const FieldPtr both = field_union(sphere, sphere);  // the sphere again, as a composite
+        skip.view_from = plain.view_from = {0.3, -0.5, 1.0};
+        const RenderedField r = render_field(*both, kBox, skip);
+        same_picture("union of a sphere with itself", r, render_field(*both, kBox, plain), 1e-4);
+        const Agreement a = against_sphere(r);
+        CHECK(a.mask_fraction() <= 0.01);
+        CHECK(a.depth_quantile(0.5) <= 1e-3);
+    }
 }
 
 TEST_CASE("render: shading faces the light, a color field colors the surface") {
@@ -290,32 +332,48 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
     REQUIRE(sel.context);  // lavapipe in CI
     const std::uint64_t errors_before = gpu::validation_error_count();
 
-    // A PAT torus on the device beside the CPU, with the environment variable `var` set to
-    // `value` for the device's run (nullptr: none).
-    auto torus_pat = [&](const char* label, const char* var, const char* value) {
-        if (var) setenv(var, value, 1);
+    // A PAT torus on the device beside the CPU, with the environment variables `vars` (name,
+    // value) set for the device's run. Software devices march a blend as a wavefront of
+    // blend_eval dispatches, GPUs in render_pat (render_gpu.cpp); GSD_RENDER_MARCH=kernel runs
+    // render_pat here too.
+    auto torus_pat = [&](const char* label, std::vector<std::pair<const char*, const char*>> vars) {
+        for (const auto& [var, value] : vars) setenv(var, value, 1);
         const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});
         FieldRenderOptions o = small("cpu");
         o.view_from = {0.2, 1.0, 0.7};
         device_matches_cpu(label, o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
-        if (var) unsetenv(var);
+        for (const auto& [var, value] : vars) unsetenv(var);
     };
-    SUBCASE("PAT of a torus") { torus_pat("PAT", nullptr, nullptr); }
+    const std::pair<const char*, const char*> kernel{"GSD_RENDER_MARCH", "kernel"};
+    SUBCASE("PAT of a torus") { torus_pat("PAT", {}); }
+    SUBCASE("PAT, the wavefront march") { torus_pat("PAT, wavefront", {{"GSD_RENDER_MARCH", "wavefront"}}); }
+    SUBCASE("PAT, the render_pat kernel") { torus_pat("PAT, render_pat", {kernel}); }
+    SUBCASE("PAT, the render_pat kernel without empty-space skipping") {
+        // The kernel's own march through every cell, as before the skip.
+        const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
+        const TorusField field(JetFitter().fit(cloud), BlendOptions{});
+        FieldRenderOptions o = small("cpu");
+        o.view_from = {0.2, 1.0, 0.7};
+        o.skip_empty_space = false;
+        setenv("GSD_RENDER_MARCH", "kernel", 1);
+        device_matches_cpu("PAT, render_pat, no skip", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
+        unsetenv("GSD_RENDER_MARCH");
+    }
     SUBCASE("PAT, four rays a lane: the compaction hardware GPUs run") {
         // A lane whose ray ends takes its tile's next one (render_march.glsl); lavapipe runs one
         // ray a lane unless told otherwise.
-        torus_pat("PAT, 4 rays a lane", "GSD_RENDER_RAYS_PER_LANE", "4");
+        torus_pat("PAT, 4 rays a lane", {kernel, {"GSD_RENDER_RAYS_PER_LANE", "4"}});
     }
     SUBCASE("PAT, the kernel as GPUs run it (storage buffers, the ball walked together)") {
-        torus_pat("PAT, GPUs' kernel", "GSD_SOFTWARE_SHAPED", "0");
+        torus_pat("PAT, GPUs' kernel", {kernel, {"GSD_SOFTWARE_SHAPED", "0"}});
     }
     SUBCASE("PAT, the k-nearest fallback walked by the subgroup together") {
-        torus_pat("PAT, fallback together", "GSD_SHARED_KNN", "1");
+        torus_pat("PAT, fallback together", {kernel, {"GSD_SHARED_KNN", "1"}});
     }
     SUBCASE("PAT, a low loop cap: the subgroups cut short, their rays marched on the CPU") {
         // On a software device (render_march.glsl's past_loop_limit); elsewhere no cap applies.
-        torus_pat("PAT, loop cap 3000", "GSD_LOOP_CAP", "3000");
+        torus_pat("PAT, loop cap 3000", {kernel, {"GSD_LOOP_CAP", "3000"}});
     }
     SUBCASE("the project's demo cloud (holes, noise), as gsd render draws it") {
         const PointCloud cloud = io::read_point_cloud(std::string(GSD_SOURCE_DIR) + "/data/demo/torus-holey.ply");
@@ -323,6 +381,10 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         const Box box = padded_cube(bounding_box(cloud.points));
         device_matches_cpu("demo cloud", small("cpu"), 1e-3 * box.diagonal(),
                            [&](const FieldRenderOptions& r) { return render_field(field, box, r); });
+        setenv("GSD_RENDER_MARCH", "kernel", 1);
+        device_matches_cpu("demo cloud, render_pat", small("cpu"), 1e-3 * box.diagonal(),
+                           [&](const FieldRenderOptions& r) { return render_field(field, box, r); });
+        unsetenv("GSD_RENDER_MARCH");
     }
     SUBCASE("a grid, colored by a second grid") {
         const GridSpec g = GridSpec::cube(40, kBox);

@@ -43,6 +43,10 @@ struct FieldRenderOptions : Execution {
     /// |φ| below this is a hit (0: 1e-4 of the box diagonal). Also the smallest step.
     double hit_tolerance = 0;
     int bisection_steps = 12;     ///< refinement of a hit found by a sign change
+    /// Blended fields (PAT, SSPD, SHC): first sample φ at the corners of a coarse grid (about
+    /// one sample for 8 rays) and let rays cross the cells that hold no surface without
+    /// evaluating φ there (docs/render.md, "Empty space").
+    bool skip_empty_space = true;
     int supersample = 1;          ///< render at this factor and box-downsample (antialiasing), 1 to 4
     std::array<std::uint8_t, 3> color{200, 200, 205};      ///< surface color without a color field
     std::array<std::uint8_t, 3> background{255, 255, 255};

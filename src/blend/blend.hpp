@@ -112,9 +112,10 @@ std::string gpu_field_device(const GpuField& field);
 const gpu::Context* gpu_field_context(const GpuField& field);
 /// Records the renderer's render_pat kernel over a field's device data (src/render): rays
 /// [first_pixel, first_pixel + pixel_count) of the camera in `params` (tile order), hits into
-/// `hits`, `rays_per_lane` rays for each invocation; `loop_cap`: render_march.glsl's LOOP_CAP.
+/// `hits`, `rays_per_lane` rays for each invocation; `loop_cap`: render_march.glsl's LOOP_CAP;
+/// `empty`: the empty cells' bits (render.hpp's EmptySpace; any buffer when params say none).
 void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const gpu::Buffer& params,
-                   const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count,
+                   const gpu::Buffer& empty, const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count,
                    std::uint32_t rays_per_lane, std::uint32_t loop_cap);
 void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries, Output out,
                   std::size_t chunk_size, const ProgressFn& progress);

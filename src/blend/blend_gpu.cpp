@@ -139,7 +139,7 @@ public:
     void evaluate(const Params& p, const Queries& q, Output out, std::size_t chunk_size, const ProgressFn& progress);
     /// Queries in an application's buffer, results into another (gsd/vulkan.hpp).
     void evaluate_into(const Params& p, const gpu::DeviceQueries& job, const gpu::SubmitSync& sync);
-    void record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
+    void record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& empty, const gpu::Buffer& hits,
                        std::uint32_t first_pixel, std::uint32_t pixel_count, std::uint32_t rays_per_lane,
                        std::uint32_t loop_cap);
     std::string device_name() const { return ctx_->info().name; }
@@ -269,7 +269,7 @@ void GpuField::evaluate_into(const Params& p, const gpu::DeviceQueries& job, con
     if (sync.fence == VK_NULL_HANDLE && sync.signal.empty()) rec->wait();
 }
 
-void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& hits,
+void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& empty, const gpu::Buffer& hits,
                              std::uint32_t first_pixel, std::uint32_t pixel_count, std::uint32_t rays_per_lane,
                              std::uint32_t loop_cap) {
     using RenderPush = kernels::RenderPatPush;  // `Push` in render_pat.comp: blend_eval's, then the chunk
@@ -278,14 +278,14 @@ void GpuField::record_render(gpu::Recorder& rec, const Params& p, const gpu::Buf
                                        gpu::loop_capped_workgroup(*ctx_));
     const RenderPush push{first_pixel, point_count_, first_leaf_, std::uint32_t(p.fallback_k), float(p.r_eval),
                           float(p.C), dmin_, pixel_count};
-    rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&params}, {&hits, 0, VkDeviceSize(pixel_count) * 16}}, &push,
+    rec.dispatch(k, {{&points_}, {&terms_}, {&nodes_}, {&params}, {&hits, 0, VkDeviceSize(pixel_count) * 16}, {&empty}}, &push,
                  sizeof(push), (pixel_count + k.workgroup * rays_per_lane - 1) / (k.workgroup * rays_per_lane));
 }
 
 void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const gpu::Buffer& params,
-                   const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count,
+                   const gpu::Buffer& empty, const gpu::Buffer& hits, std::uint32_t first_pixel, std::uint32_t pixel_count,
                    std::uint32_t rays_per_lane, std::uint32_t loop_cap) {
-    field.record_render(rec, p, params, hits, first_pixel, pixel_count, rays_per_lane, loop_cap);
+    field.record_render(rec, p, params, empty, hits, first_pixel, pixel_count, rays_per_lane, loop_cap);
 }
 
 std::shared_ptr<GpuField> make_gpu_field(const std::shared_ptr<gpu::Context>& ctx, const Source& src,

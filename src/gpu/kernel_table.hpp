@@ -41,7 +41,7 @@ inline constexpr KernelSpec sdf_nearest{"sdf_nearest", 4, sizeof(SdfNearestPush)
 // The PAT blend (src/blend): tori from jets, evaluation, the sphere-traced render.
 inline constexpr KernelSpec torus_from_jet{"torus_from_jet", 2, sizeof(CountPush)};
 inline constexpr KernelSpec blend_eval{"blend_eval", 5, sizeof(BlendPush), {0b111u}};
-inline constexpr KernelSpec render_pat{"render_pat", 5, sizeof(RenderPatPush), {0b111u}};
+inline constexpr KernelSpec render_pat{"render_pat", 6, sizeof(RenderPatPush), {0b111u}};
 // Rendering a sampled grid (src/render).
 inline constexpr KernelSpec render_grid{"render_grid", 3, sizeof(RenderGridPush)};
 // TorusNet (src/pat): neighbours, then the network.

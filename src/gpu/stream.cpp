@@ -11,32 +11,20 @@
 
 namespace gsd::gpu {
 
-namespace {
-
-// While it lives, parallel regions this thread starts have one thread (OpenMP's nthreads-var).
-class OneOpenMPThread {
-public:
-    explicit OneOpenMPThread(bool active) {
+OneOpenMPThread::OneOpenMPThread(bool active) {
 #ifdef _OPENMP
-        if (active) {
-            saved_ = omp_get_max_threads();
-            omp_set_num_threads(1);
-        }
-#endif
+    if (active) {
+        saved_ = omp_get_max_threads();
+        omp_set_num_threads(1);
     }
-    ~OneOpenMPThread() {
+#endif
+}
+
+OneOpenMPThread::~OneOpenMPThread() {
 #ifdef _OPENMP
-        if (saved_ > 0) omp_set_num_threads(saved_);
+    if (saved_ > 0) omp_set_num_threads(saved_);
 #endif
-    }
-    OneOpenMPThread(const OneOpenMPThread&) = delete;
-    OneOpenMPThread& operator=(const OneOpenMPThread&) = delete;
-
-private:
-    int saved_ = 0;
-};
-
-}  // namespace
+}
 
 void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     if (job.count == 0) return;

@@ -73,13 +73,19 @@ Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& eye, cons
     // From the box entry, as the shader does (it keeps float32 steps exact for far cameras).
     const Eigen::Vector3d o = eye + t0 * d;
     const double span = t1 - t0;
-    double t = 0, phi = field(o, nullptr), hit = -1;
+    double t = 0, hit = -1;
+    if (!skip_empty(m, o, d, span, t)) return miss;
+    double phi = field(o + t * d, nullptr);
     if (std::abs(phi) < m.hit_eps) hit = t;
     for (int s = 0; hit < 0 && s < m.max_steps; ++s) {
-        const double tn = t + std::max(m.step_scale * std::abs(phi), m.min_step);
-        if (tn > span) break;
+        double tn = t + std::max(m.step_scale * std::abs(phi), m.min_step);
+        const double stepped = tn;
+        if (tn > span || !skip_empty(m, o, d, span, tn)) break;
         const double pn = field(o + tn * d, nullptr);
-        if ((pn < 0) != (phi < 0)) {  // crossed the surface within the step: bisect [t, tn]
+        if (tn != stepped) {
+            // Skipped through empty cells, which hold no surface: a fresh start at tn.
+            if (std::abs(pn) < m.hit_eps) hit = tn;
+        } else if ((pn < 0) != (phi < 0)) {  // crossed the surface within the step: bisect [t, tn]
             double a = t, b = tn, pa = phi;
             for (int k = 0; k < m.bisection; ++k) {
                 const double mid = 0.5 * (a + b), pm = field(o + mid * d, nullptr);
@@ -274,10 +280,12 @@ void redo_unfinished(std::vector<float>& hits, const std::function<Sampler()>& m
 
 // The march on the chosen device, else (no device, or the field does not fit it) on the CPU,
 // then the shading both share. `march_on(ctx, hits, why_not)` marches on a context and says why
-// it could not (a generic lambda: gpu::on_device).
+// it could not (a generic lambda: gpu::on_device); it may set f.march.empty, which the CPU then
+// uses for the rays the device left. `before_cpu`, if set, readies f.march for the CPU's march.
 template <class DeviceMarch>
-RenderedField march_and_shade(const Frame& f, const FieldRenderOptions& o, const DeviceMarch& march_on,
-                              const std::function<Sampler()>& make_sampler, const ProgressFn& progress) {
+RenderedField march_and_shade(Frame& f, const FieldRenderOptions& o, const DeviceMarch& march_on,
+                              const std::function<Sampler()>& make_sampler, const ProgressFn& progress,
+                              const std::function<void()>& before_cpu = {}) {
     std::vector<float> hits;
     const gpu::DeviceRun run = gpu::on_device(
         o.device, [&](const auto& ctx, std::string& why_not) { return march_on(ctx, hits, why_not); },
@@ -286,21 +294,23 @@ RenderedField march_and_shade(const Frame& f, const FieldRenderOptions& o, const
         redo_unfinished(hits, make_sampler, f.cam, f.march, run.device);
         return shade(hits, f.cam, o, run.device);
     }
+    if (before_cpu) before_cpu();
     hits = march_cpu(make_sampler, f.cam, f.march, progress);
     return shade(hits, f.cam, o, "cpu");
 }
 
 RenderedField render_blend(const blend::Engine& engine, const Box& box, const FieldRenderOptions& o,
                            const ProgressFn& progress) {
-    const Frame f = frame_for(box, bounding_box(engine.source().points), o);
+    Frame f = frame_for(box, bounding_box(engine.source().points), o);
     blend::Params params = engine.params(true);
     params.exact = false;  // the shader marches the accelerated sum; so does its reference
     const blend::Source& src = engine.source();
     const spatial::BoxTree& tree = engine.search_tree();
+    const int cells = o.skip_empty_space ? empty_space_resolution(std::size_t(f.cam.width) * std::size_t(f.cam.height)) : 0;
     return march_and_shade(
         f, o,
         [&](const auto& ctx, std::vector<float>& hits, std::string& why_not) {
-            return march_blend_gpu(engine, ctx, f.cam, f.march, hits, why_not, progress);
+            return march_blend_gpu(engine, ctx, f.cam, f.march, cells, hits, why_not, progress);
         },
         [&] {
             auto scratch = std::make_shared<std::vector<Neighbor>>();
@@ -308,7 +318,17 @@ RenderedField render_blend(const blend::Engine& engine, const Box& box, const Fi
                 return blend::evaluate_one(src, tree, params, x, g, *scratch);
             });
         },
-        progress);
+        progress,
+        [&] {
+            if (!cells) return;
+            blend::Params p = params;
+            p.gradient = false;
+            f.march.empty = std::make_shared<EmptySpace>(find_empty_space(f.march.box, cells, f.march.step_scale, [&](const GridSpec& g) {
+                std::vector<float> phi(g.node_count());
+                blend::evaluate_cpu(src, tree, p, blend::Queries(g), blend::Output{phi.data(), nullptr}, {});
+                return phi;
+            }));
+        });
 }
 
 }  // namespace
@@ -325,7 +345,7 @@ RenderedField render_field(const GridSpec& grid, const std::vector<float>& value
                                   std::to_string(grid.node_count()) + " nodes");
     for (float v : values)
         if (!std::isfinite(v)) throw Error("values", "contain NaN or infinite values");
-    const render::Frame f = render::frame_for(grid.box, render::grid_subject(grid, values), options);
+    render::Frame f = render::frame_for(grid.box, render::grid_subject(grid, values), options);
     return render::march_and_shade(
         f, options,
         [&](const auto& ctx, std::vector<float>& hits, std::string& why_not) {
@@ -350,7 +370,7 @@ RenderedField render_field(const Field& field, const Box& box, const FieldRender
     // within half a cell of φ ≤ 0 (a few thousand evaluations, against the march's millions).
     validate_box(box, "box");
     const GridSpec coarse{24, 24, 24, box};
-    const render::Frame f = render::frame_for(box, render::grid_subject(coarse, field.evaluate(coarse).phi), options);
+    render::Frame f = render::frame_for(box, render::grid_subject(coarse, field.evaluate(coarse).phi), options);
     // Any other field: the wavefront march, its evaluations by the field's device program where
     // it has one and a device is chosen, else by its evaluate() on the CPU.
     render::PointEvaluator eval{[&](const Points& x, bool gradient) { return field.evaluate(x, gradient); },
@@ -366,6 +386,17 @@ RenderedField render_field(const Field& field, const Box& box, const FieldRender
             return true;
         },
         "; its rays are marched on the CPU");
+    if (options.skip_empty_space) {
+        const int cells = render::empty_space_resolution(std::size_t(f.cam.width) * std::size_t(f.cam.height));
+        f.march.empty = std::make_shared<render::EmptySpace>(render::find_empty_space(f.march.box, cells, f.march.step_scale, [&](const GridSpec& g) {
+            Points x(Eigen::Index(g.node_count()), 3);
+            for (int i = 0; i < g.nx; ++i)
+                for (int j = 0; j < g.ny; ++j)
+                    for (int k = 0; k < g.nz; ++k)
+                        x.row(Eigen::Index((std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k))) = g.node(i, j, k).transpose();
+            return eval.evaluate(x, false).phi;
+        }));
+    }
     std::string device;
     const std::vector<float> hits = render::march_wavefront(eval, f.cam, f.march, device, progress);
     return render::shade(hits, f.cam, options, device);

@@ -7,6 +7,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>  // cross products
 
+#include <cstdint>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -30,6 +32,40 @@ struct Camera {
     RenderCamera view() const { return {eye, forward, right, up}; }
 };
 
+/// Where the march may skip ahead without evaluating the field (empty_space.cpp): a coarse grid
+/// of cubic cells over the march's box, a cell empty when φ has one sign at its 8 corners and
+/// every point of it lies within step_scale·|φ| of a corner — the step a march from that corner
+/// would take, so the skip trusts |φ| as a distance exactly as far as the march itself does. A
+/// ray in an empty cell goes on past the empty cells ahead of it without evaluating φ.
+struct EmptySpace {
+    Eigen::Vector3d lo = Eigen::Vector3d::Zero();
+    double h = 0;                     ///< the cells' side
+    int n[3] = {0, 0, 0};             ///< cells along x, y, z
+    std::vector<std::uint32_t> bits;  ///< a bit per cell, C order (x slowest): 1 = empty
+    std::size_t empty_cells = 0;
+
+    std::size_t cell_count() const { return std::size_t(n[0]) * std::size_t(n[1]) * std::size_t(n[2]); }
+    /// The grid of the cells' corners, where φ is sampled.
+    GridSpec corners() const;
+    bool is_empty(const int c[3]) const {
+        const std::size_t cell = (std::size_t(c[0]) * std::size_t(n[1]) + std::size_t(c[1])) * std::size_t(n[2]) + std::size_t(c[2]);
+        return (bits[cell >> 5] >> (cell & 31)) & 1u;
+    }
+    /// Where the ray o + t·d goes on to without evaluating φ: past the run of empty cells it is
+    /// in (a hair past the last one's exit), or t itself when its cell is not empty.
+    double skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t) const;
+};
+
+/// φ at the nodes of a grid (C order), float: how an EmptySpace is sampled on either path.
+using NodeSampler = std::function<std::vector<float>(const GridSpec&)>;
+
+/// Cells along the box's longest side for a picture of `rays` rays: about one corner sample
+/// for every 8 rays (8 to 64), a few percent of the march's evaluations.
+int empty_space_resolution(std::size_t rays);
+
+/// The empty cells of a field over `box`, `cells` along its longest side.
+EmptySpace find_empty_space(const Box& box, int cells, double step_scale, const NodeSampler& phi_at_nodes);
+
 /// How rays march (FieldRenderOptions resolved for a box).
 struct March {
     Box box;
@@ -37,12 +73,17 @@ struct March {
     double step_scale = 0.9, hit_eps = 0, min_step = 0;
     int bisection = 12;
     std::size_t chunk = 0;  ///< rays per GPU submission (FieldRenderOptions::chunk_size; 0: the device's default)
+    std::shared_ptr<const EmptySpace> empty;  ///< where it may skip ahead; null: nowhere
 };
 
 /// A camera looking at `subject` (where the surface is) from FieldRenderOptions::view_from,
 /// framing the subject's bounding sphere.
 Camera make_camera(const Box& subject, const FieldRenderOptions& o, int width, int height);
 March make_march(const Box& box, const FieldRenderOptions& o);
+
+/// Moves t on through empty cells (m.empty) while the ray o + t·d is in one; false when that
+/// takes it past `span` (a miss).
+bool skip_empty(const March& m, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double span, double& t);
 
 /// The part [t0, t1] of the ray o + t·d (t ≥ 0) inside the box; false when it misses.
 bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1);
@@ -69,8 +110,10 @@ std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& ca
 
 /// Per-pixel hits, 4 floats each (t, ∇φ), from a device; false (and why) when it cannot run
 /// there, so the caller marches on the CPU instead.
+/// march_blend_gpu first finds the empty space (`empty_cells` along the box's longest side; 0:
+/// none) with the device and puts it in m.empty.
 bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Context>& ctx, const Camera& cam,
-                     const March& m, std::vector<float>& hits, std::string& why_not, const ProgressFn& progress);
+                     March& m, int empty_cells, std::vector<float>& hits, std::string& why_not, const ProgressFn& progress);
 bool march_grid_gpu(const GridSpec& grid, const std::vector<float>& values, const std::shared_ptr<gpu::Context>& ctx,
                     const Camera& cam, const March& m, std::vector<float>& hits, std::string& why_not,
                     const ProgressFn& progress);

@@ -24,6 +24,8 @@ struct RenderParams {  // `RenderParams` in render_march.glsl (std430)
     std::uint32_t size[4];  // width, height, max_steps, bisection steps
     float march[4];         // step_scale, hit_eps, min_step, unused
     std::uint32_t tile[4];  // tile width, height, rays per lane, unused
+    float empty[4];         // the empty-space grid's low corner, cell side
+    std::uint32_t cells[4]; // its cells along x, y, z; 1 if rays skip its empty cells
 };
 
 // How a device's subgroups share the rays: a tile of subgroup size × rays_per_lane pixels each,
@@ -91,6 +93,12 @@ gpu::Buffer upload_params(gpu::Context& ctx, const Camera& cam, const March& m, 
     p.tile[0] = tiles.width;
     p.tile[1] = tiles.height;
     p.tile[2] = tiles.rays_per_lane;
+    if (m.empty) {
+        put(p.empty, m.empty->lo);
+        p.empty[3] = float(m.empty->h);
+        for (int a = 0; a < 3; ++a) p.cells[a] = std::uint32_t(m.empty->n[a]);
+        p.cells[3] = 1;
+    }
     return gpu::upload(ctx, &p, sizeof(p));
 }
 
@@ -169,8 +177,60 @@ bool subgroups_ready(const gpu::Context& ctx, std::string& why_not) {
 
 }  // namespace
 
+namespace {
+
+// The empty cells of the blend, their corners evaluated on the device.
+std::shared_ptr<const EmptySpace> empty_space_on_device(blend::GpuField& field, blend::Params p, const March& m, int cells) {
+    if (cells <= 0) return nullptr;
+    p.gradient = false;
+    return std::make_shared<EmptySpace>(find_empty_space(m.box, cells, m.step_scale, [&](const GridSpec& g) {
+        std::vector<float> phi(g.node_count());
+        blend::evaluate_gpu(field, p, blend::Queries(g), blend::Output{phi.data(), nullptr}, 0, {});
+        return phi;
+    }));
+}
+
+// Software devices march a blend as a wavefront (wavefront.cpp), each step's evaluations one
+// list of queries for blend_eval.comp: the rays still marching, compacted, so every lane of
+// llvmpipe's SIMD groups has a ray. render_pat.comp marches a tile of rays per subgroup, which on
+// a SIMD device pays each turn for its slowest ray's lanes: on the 2-core machine (lavapipe),
+// a 320×240 picture of snail.ply's PAT field at 2×2 rays a pixel marched in 0.74 s as a
+// wavefront, 1.4 s in render_pat. A GPU keeps render_pat: the wavefront's round trip to the
+// host at every step would cost it more than the idle lanes. $GSD_RENDER_MARCH=kernel|wavefront
+// overrides (tests run both).
+bool marches_as_wavefront(const gpu::Context& ctx) {
+    if (const char* v = std::getenv("GSD_RENDER_MARCH")) {
+        if (std::strcmp(v, "kernel") == 0) return false;
+        if (std::strcmp(v, "wavefront") == 0) return true;
+    }
+    return gpu::software_shaped(ctx);
+}
+
+bool march_blend_wavefront(blend::GpuField& field, const blend::Params& p, const Camera& cam, const March& m,
+                           std::vector<float>& hits, const ProgressFn& progress) {
+    PointEvaluator eval;
+    eval.has_gradient = true;
+    eval.evaluate = [&](const Points& x, bool gradient) {
+        FieldValues v;
+        v.phi.resize(std::size_t(x.rows()));
+        if (gradient) v.gradient.resize(3 * std::size_t(x.rows()));
+        blend::Params q = p;
+        q.gradient = gradient;
+        blend::evaluate_gpu(field, q, blend::Queries(PointsView(x)), blend::Output{v.phi.data(), gradient ? v.gradient.data() : nullptr},
+                            m.chunk, {});
+        v.device = blend::gpu_field_device(field);
+        return v;
+    };
+    std::string device;
+    const gpu::OneOpenMPThread serial(blend::gpu_field_context(field)->info().is_software());
+    hits = march_wavefront(eval, cam, m, device, progress);
+    return true;
+}
+
+}  // namespace
+
 bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Context>& ctx, const Camera& cam,
-                     const March& m, std::vector<float>& hits, std::string& why_not, const ProgressFn& progress) {
+                     March& m, int empty_cells, std::vector<float>& hits, std::string& why_not, const ProgressFn& progress) {
     if (!subgroups_ready(*ctx, why_not)) return false;
     std::shared_ptr<blend::GpuField> field;
     try {
@@ -181,10 +241,14 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
     }
     blend::Params p = engine.params(false);
     p.exact = false;
+    m.empty = empty_space_on_device(*field, p, m, empty_cells);
+    if (marches_as_wavefront(*ctx)) return march_blend_wavefront(*field, p, cam, m, hits, progress);
+    const std::uint32_t no_cells = 0;
+    const gpu::Buffer empty = m.empty ? gpu::upload(*ctx, m.empty->bits.data(), m.empty->bits.size() * 4) : gpu::upload(*ctx, &no_cells, 4);
     const Tiling tiles = tiling_for(*ctx);
     const gpu::Buffer params = upload_params(*ctx, cam, m, tiles);
     march_chunks(*ctx, cam, m, tiles, hits, progress, [&](gpu::Recorder& rec, const gpu::Buffer& out, std::uint32_t first, std::uint32_t count) {
-        blend::record_render(*field, rec, p, params, out, first, count, tiles.rays_per_lane, gpu::software_loop_cap(*ctx));
+        blend::record_render(*field, rec, p, params, empty, out, first, count, tiles.rays_per_lane, gpu::software_loop_cap(*ctx));
     });
     gradients_at_hits(*field, engine.params(true), cam, hits, progress);
     return true;

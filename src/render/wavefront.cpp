@@ -18,16 +18,18 @@ struct Ray {
     double entry = 0, span = 0, t = 0, phi = 0;
     double a = 0, b = 0, pa = 0;  // the bisection's bracket
     long pixel = 0;
+    bool fresh = false;  // its next sample follows a skip through empty cells
 };
 
-// φ at o + t·d for the listed rays (t from `t_of`), in one evaluation.
+// φ at o + t·d for the listed rays (t_of(k, ray): the t of the list's k-th), in one evaluation.
 template <class T>
 std::vector<float> phi_at(const PointEvaluator& field, const std::vector<Ray>& rays, const std::vector<std::size_t>& which,
                           T&& t_of, std::string& device) {
     Points p(Eigen::Index(which.size()), 3);
-    for (std::size_t k = 0; k < which.size(); ++k) {
-        const Ray& r = rays[which[k]];
-        p.row(Eigen::Index(k)) = (r.o + t_of(r) * r.d).transpose();
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t k = 0; k < std::ptrdiff_t(which.size()); ++k) {
+        const Ray& r = rays[which[std::size_t(k)]];
+        p.row(Eigen::Index(k)) = (r.o + t_of(std::size_t(k), r) * r.d).transpose();
     }
     FieldValues v = field.evaluate(p, false);
     device = v.device;
@@ -61,50 +63,69 @@ std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& ca
     std::vector<float> hits(std::size_t(4 * n), 0.0f);
     for (long p = 0; p < n; ++p) hits[std::size_t(4 * p)] = -1;
     device = "cpu";
-    // Bands of rays bound the memory (a ray's state and its points: ~200 bytes) and report progress.
-    constexpr long kBand = 1L << 18;
+    // Bands of rays bound the memory (a ray's state and its points: ~200 bytes) and report
+    // progress. Each band ends in a tail of steps over a few long rays, a dispatch each on a
+    // device: 2^19 rays (100 MB) take a 640×480 picture, or 320×240 at 2×2 rays a pixel, in one.
+    constexpr long kBand = 1L << 19;
     for (long first = 0; first < n; first += kBand) {
         const long last = std::min(n, first + kBand);
-        std::vector<Ray> rays;
+        // The band's rays that enter the box and, past its empty cells, are still in it.
+        std::vector<Ray> rays(std::size_t(last - first));
+#pragma omp parallel for schedule(static)
         for (long p = first; p < last; ++p) {
-            Ray r;
+            Ray& r = rays[std::size_t(p - first)];
             r.d = cam.ray(int(p % cam.width), int(p / cam.width));
+            r.pixel = -1;
             double t0, t1;
             if (!clip_to_box(m.box, cam.eye, r.d, t0, t1)) continue;
             r.o = cam.eye + t0 * r.d;  // from the box entry, as march_ray
             r.entry = t0;
             r.span = t1 - t0;
-            r.pixel = p;
-            rays.push_back(r);
+            if (skip_empty(m, r.o, r.d, r.span, r.t)) r.pixel = p;
         }
+        rays.erase(std::remove_if(rays.begin(), rays.end(), [](const Ray& r) { return r.pixel < 0; }), rays.end());
         std::vector<std::size_t> marching(rays.size()), bisecting;
         std::vector<std::pair<std::size_t, double>> found;  // (ray, t of its hit)
         for (std::size_t k = 0; k < rays.size(); ++k) marching[k] = k;
-        const std::vector<float> start = phi_at(field, rays, marching, [](const Ray&) { return 0.0; }, device);
+        const std::vector<float> start = phi_at(field, rays, marching, [](std::size_t, const Ray& r) { return r.t; }, device);
         std::vector<std::size_t> next;
         for (std::size_t k = 0; k < rays.size(); ++k) {
             rays[k].phi = start[k];
-            if (std::abs(rays[k].phi) < m.hit_eps) found.push_back({k, 0.0});
+            if (std::abs(rays[k].phi) < m.hit_eps) found.push_back({k, rays[k].t});
             else next.push_back(k);
         }
         marching.swap(next);
         for (int s = 0; s < m.max_steps && !marching.empty(); ++s) {
             // Each ray's next step; those past the box's far side are misses.
+            std::vector<double> step_to(marching.size());
+            std::vector<char> goes_on(marching.size());
+#pragma omp parallel for schedule(static)
+            for (std::size_t i = 0; i < marching.size(); ++i) {
+                Ray& r = rays[marching[i]];
+                double t = r.t + std::max(m.step_scale * std::abs(r.phi), m.min_step);
+                const double stepped = t;
+                goes_on[i] = t <= r.span && skip_empty(m, r.o, r.d, r.span, t);
+                r.fresh = t != stepped;
+                step_to[i] = t;
+            }
             next.clear();
             std::vector<double> tn;
-            for (std::size_t k : marching) {
-                const Ray& r = rays[k];
-                const double t = r.t + std::max(m.step_scale * std::abs(r.phi), m.min_step);
-                if (t > r.span) continue;
-                next.push_back(k);
-                tn.push_back(t);
-            }
-            std::size_t j = 0;
-            const std::vector<float> pn = phi_at(field, rays, next, [&](const Ray&) { return tn[j++]; }, device);
+            for (std::size_t i = 0; i < marching.size(); ++i)
+                if (goes_on[i]) {
+                    next.push_back(marching[i]);
+                    tn.push_back(step_to[i]);
+                }
+            const std::vector<float> pn = phi_at(field, rays, next, [&](std::size_t k, const Ray&) { return tn[k]; }, device);
             marching.clear();
             for (std::size_t i = 0; i < next.size(); ++i) {
                 Ray& r = rays[next[i]];
-                if ((pn[i] < 0) != (r.phi < 0)) {  // crossed within the step: bisect [t, tn]
+                if (r.fresh && std::abs(pn[i]) < m.hit_eps) {  // after a skip: a fresh start at tn
+                    found.push_back({next[i], tn[i]});
+                } else if (r.fresh) {
+                    r.t = tn[i];
+                    r.phi = pn[i];
+                    marching.push_back(next[i]);
+                } else if ((pn[i] < 0) != (r.phi < 0)) {  // crossed within the step: bisect [t, tn]
                     r.a = r.t;
                     r.b = tn[i];
                     r.pa = r.phi;
@@ -121,7 +142,7 @@ std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& ca
                 progress("march", (double(first) + double(last - first) * (1.0 - double(marching.size()) / double(std::max<std::size_t>(rays.size(), 1)))) / double(n));
         }
         for (int k = 0; k < m.bisection && !bisecting.empty(); ++k) {
-            const std::vector<float> pm = phi_at(field, rays, bisecting, [](const Ray& r) { return 0.5 * (r.a + r.b); }, device);
+            const std::vector<float> pm = phi_at(field, rays, bisecting, [](std::size_t, const Ray& r) { return 0.5 * (r.a + r.b); }, device);
             for (std::size_t i = 0; i < bisecting.size(); ++i) {
                 Ray& r = rays[bisecting[i]];
                 const double mid = 0.5 * (r.a + r.b);

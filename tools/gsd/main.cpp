@@ -571,6 +571,8 @@ void add_render(CLI::App& app) {
     r->add_option("--supersample", opt->supersample, "Rays per pixel along each axis (antialiasing)")->check(CLI::Range(1, 4))->capture_default_str();
     r->add_option("--max-steps", opt->max_steps, "March steps per ray")->check(CLI::Range(1, 100000))->capture_default_str();
     r->add_option("--step-scale", opt->step_scale, "Each step advances this × |φ|")->check(finite_number())->check(CLI::Range(0.01, 1.0))->capture_default_str();
+    r->add_flag("!--no-empty-skip", opt->skip_empty_space,
+                "Blended fields: march every ray through the whole box, without first finding the cells that hold no surface");
     r->add_option("--bounds", *bounds,
                   "Box the rays march in, x0 y0 z0 x1 y1 z1 (default: a grid's own bounds from GRID.npy.json; for PAT the "
                   "cloud's bounding cube + 10%)")->expected(6);
