@@ -24,7 +24,7 @@ struct RenderParams {
     vec4 march;      // step_scale, hit_eps, min_step, unused
     uvec4 tile;      // rays in tile order: tile width, height (pixels); rays per lane; unused
     vec4 empty;      // the empty-space grid's low corner, cell side
-    uvec4 cells;     // its cells along x, y, z; 1 if rays skip its empty cells, else 0
+    uvec4 cells;     // its cells along x, y, z; W, the words of empty bits (0: rays skip nothing)
 };
 
 layout(std430, binding = RENDER_PARAMS_BINDING) readonly buffer Params { RenderParams rp; };
@@ -33,27 +33,35 @@ layout(std430, binding = RENDER_PARAMS_BINDING) readonly buffer Params { RenderP
 // host marches it on the CPU.
 layout(std430, binding = RENDER_OUT_BINDING) writeonly buffer Hits { vec4 hits[]; };
 #ifdef RENDER_EMPTY_BINDING
-// A bit per cell, C order, 1 = empty (render.hpp's EmptySpace).
+// Two bits per cell, C order: words [0, W) 1 = empty, [W, 2W) 1 = negative (render.hpp's EmptySpace).
 layout(std430, binding = RENDER_EMPTY_BINDING) readonly buffer Empty { uint empty_bits[]; };
+
+uint cell_index(ivec3 c) { return (uint(c.x) * rp.cells.y + uint(c.y)) * rp.cells.z + uint(c.z); }
 
 bool empty_cell(ivec3 c) {
     if (any(lessThan(c, ivec3(0))) || any(greaterThanEqual(c, ivec3(rp.cells.xyz)))) return false;
-    uint cell = (uint(c.x) * rp.cells.y + uint(c.y)) * rp.cells.z + uint(c.z);
+    uint cell = cell_index(c);
     return ((empty_bits[cell >> 5u] >> (cell & 31u)) & 1u) != 0u;
+}
+
+bool negative_cell(ivec3 c) {
+    uint cell = cell_index(c);
+    return ((empty_bits[rp.cells.w + (cell >> 5u)] >> (cell & 31u)) & 1u) != 0u;
 }
 #endif
 
 // Moves t on past the run of empty cells the ray o + t·d is in (a hair past the last one's
-// exit), cell by cell (a 3D DDA); false when that takes it past span. render.hpp's
+// exit), cell by cell (a 3D DDA), unless its cell's sign is not `sign` (that of φ where the ray
+// last sampled it; 0: none yet); false when that takes it past span. render.hpp's
 // EmptySpace::skip, which the CPU runs.
-bool skip_empty(vec3 o, vec3 d, float span, inout float t) {
+bool skip_empty(vec3 o, vec3 d, float span, inout float t, int sign) {
 #ifdef RENDER_EMPTY_BINDING
     if (rp.cells.w == 0u) return true;
     float h = rp.empty.w;
     vec3 f = (o + t * d - rp.empty.xyz) / h;
     if (!(all(greaterThanEqual(f, vec3(0.0))) && all(lessThan(f, vec3(rp.cells.xyz))))) return true;
     ivec3 c = ivec3(f);
-    if (!empty_cell(c)) return true;
+    if (!empty_cell(c) || (sign != 0 && negative_cell(c) != (sign < 0))) return true;
     vec3 next, delta;
     ivec3 dir;
     for (int a = 0; a < 3; ++a) {
@@ -142,7 +150,7 @@ void start_ray(inout Ray r, uint index, uint first_pixel) {
     r.s = 0u;
     r.hit = -1.0;
     r.fresh = false;
-    in_box = in_box && skip_empty(r.o, d, r.span, r.t);
+    in_box = in_box && skip_empty(r.o, d, r.span, r.t, 0);
     r.phase = in_box ? FIRST : IDLE;
     if (!in_box) hits[index] = vec4(-1.0, 0.0, 0.0, 0.0);
 }
@@ -192,7 +200,7 @@ bool advance(inout Ray r, float p) {
         if (next) {
             r.tn = r.t + max(rp.march.x * abs(r.phi), rp.march.z);
             float stepped = r.tn;
-            if (r.s < rp.size.z && r.tn <= r.span && skip_empty(r.o, r.d, r.span, r.tn)) {
+            if (r.s < rp.size.z && r.tn <= r.span && skip_empty(r.o, r.d, r.span, r.tn, r.phi < 0.0 ? -1 : 1)) {
                 r.fresh = r.tn != stepped;
                 r.phase = MARCH;
                 return false;

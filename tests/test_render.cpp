@@ -14,6 +14,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
 
 using namespace gsd;
 
@@ -98,6 +102,53 @@ FieldRenderOptions small(const std::string& device) {
 
 const Box kBox{{-1, -1, -1}, {1, 1, 1}};
 
+// Sets environment variables for its lifetime and restores what they were, even when a
+// REQUIRE or an exception leaves the scope early.
+class ScopedEnv {
+public:
+    explicit ScopedEnv(std::vector<std::pair<const char*, const char*>> vars) {
+        for (const auto& [name, value] : vars) {
+            const char* old = std::getenv(name);
+            saved_.push_back({name, old ? std::optional<std::string>(old) : std::nullopt});
+            setenv(name, value, 1);
+        }
+    }
+    ~ScopedEnv() {
+        for (const auto& [name, old] : saved_) {
+            if (old) setenv(name.c_str(), old->c_str(), 1);
+            else unsetenv(name.c_str());
+        }
+    }
+    ScopedEnv(const ScopedEnv&) = delete;
+    ScopedEnv& operator=(const ScopedEnv&) = delete;
+
+private:
+    std::vector<std::pair<std::string, std::optional<std::string>>> saved_;
+};
+
+// φ = +0.5 for x < 0.45 and −0.5 beyond: a sheet where the sign jumps, with |φ| large on both
+// sides, so the cells on either side of it are empty (of opposite signs).
+class JumpField final : public Field {
+public:
+    FieldValues evaluate(PointsView q, bool with_gradient, const ProgressFn&) const override {
+        refuse_gradient(with_gradient, "JumpField");
+        FieldValues v;
+        for (Eigen::Index i = 0; i < q.rows(); ++i) v.phi.push_back(q(i, 0) < 0.45 ? 0.5f : -0.5f);
+        v.device = "cpu";
+        return v;
+    }
+    FieldValues evaluate(const GridSpec& g, bool with_gradient, const ProgressFn& progress) const override {
+        Points x(Eigen::Index(g.node_count()), 3);
+        for (int i = 0; i < g.nx; ++i)
+            for (int j = 0; j < g.ny; ++j)
+                for (int k = 0; k < g.nz; ++k)
+                    x.row(Eigen::Index((std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k))) =
+                        g.node(i, j, k).transpose();
+        return evaluate(PointsView(x), with_gradient, progress);
+    }
+    bool has_gradient() const override { return false; }
+};
+
 }  // namespace
 
 TEST_CASE("render: a grid of the sphere's exact distance is hit where the rays meet the sphere") {
@@ -138,6 +189,9 @@ TEST_CASE("render: PAT of a sampled sphere shows the sphere") {
 // must be the plain march's, up to the rays it steps differently near a surface.
 TEST_CASE("render: skipping empty space draws what the plain march draws") {
     auto same_picture = [](const char* what, const RenderedField& skip, const RenderedField& plain, double depth_tol) {
+        // Cells were found empty (and not by the plain march): there was something to skip.
+        CHECK(skip.empty_cells > 0);
+        CHECK(plain.empty_cells == 0);
         const Agreement a = between(skip, plain);
         const double image_off = image_difference(skip.image, plain.image, 8);
         MESSAGE(std::string(what) << ": mask differs at " << a.mask_differs << " of " << a.pixels << " pixels; depth 99% "
@@ -171,6 +225,20 @@ TEST_CASE("render: skipping empty space draws what the plain march draws") {
         const Agreement a = against_sphere(r);
         CHECK(a.mask_fraction() <= 0.01);
         CHECK(a.depth_quantile(0.5) <= 1e-3);
+    }
+    SUBCASE("a step into an empty cell of the other sign still sees the crossing") {
+        // Rays along +x: the march steps from the cells before the sheet into the empty cells
+        // beyond it. Skipping on from there, as a skip into cells of any sign would, loses the
+        // sheet; its sign against the last sample's must stop the skip. (A far, narrow camera:
+        // every ray leaves the box through its far face, well past the sheet. A ray leaving
+        // through a side within a step of the sheet would miss it in the plain march, which
+        // does not sample the box's exit.)
+        const JumpField jump;
+        skip.eye = plain.eye = Eigen::Vector3d(-20, 0, 0);
+        skip.fov_degrees = plain.fov_degrees = 4;
+        const RenderedField r = render_field(jump, kBox, skip), p = render_field(jump, kBox, plain);
+        same_picture("a jump of sign at x = 0.45", r, p, 1e-3);
+        CHECK(r.hit_fraction > 0.9);  // the sheet fills the frame
     }
 }
 
@@ -337,17 +405,17 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
     // blend_eval dispatches, GPUs in render_pat (render_gpu.cpp); GSD_RENDER_MARCH=kernel runs
     // render_pat here too.
     auto torus_pat = [&](const char* label, std::vector<std::pair<const char*, const char*>> vars) {
-        for (const auto& [var, value] : vars) setenv(var, value, 1);
+        const ScopedEnv env(std::move(vars));
         const PointCloud cloud = shapes::torus({0, 0, 0}, 0.55, 0.2)->sample(2500, 5);
         const TorusField field(JetFitter().fit(cloud), BlendOptions{});
         FieldRenderOptions o = small("cpu");
         o.view_from = {0.2, 1.0, 0.7};
         device_matches_cpu(label, o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
-        for (const auto& [var, value] : vars) unsetenv(var);
     };
     const std::pair<const char*, const char*> kernel{"GSD_RENDER_MARCH", "kernel"};
-    SUBCASE("PAT of a torus") { torus_pat("PAT", {}); }
-    SUBCASE("PAT, the wavefront march") { torus_pat("PAT, wavefront", {{"GSD_RENDER_MARCH", "wavefront"}}); }
+    SUBCASE("PAT of a torus, the wavefront march (as software devices run it)") {
+        torus_pat("PAT, wavefront", {{"GSD_RENDER_MARCH", "wavefront"}});
+    }
     SUBCASE("PAT, the render_pat kernel") { torus_pat("PAT, render_pat", {kernel}); }
     SUBCASE("PAT, the render_pat kernel without empty-space skipping") {
         // The kernel's own march through every cell, as before the skip.
@@ -356,9 +424,8 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         FieldRenderOptions o = small("cpu");
         o.view_from = {0.2, 1.0, 0.7};
         o.skip_empty_space = false;
-        setenv("GSD_RENDER_MARCH", "kernel", 1);
+        const ScopedEnv env({kernel});
         device_matches_cpu("PAT, render_pat, no skip", o, 1e-3, [&](const FieldRenderOptions& r) { return render_field(field, kBox, r); });
-        unsetenv("GSD_RENDER_MARCH");
     }
     SUBCASE("PAT, four rays a lane: the compaction hardware GPUs run") {
         // A lane whose ray ends takes its tile's next one (render_march.glsl); lavapipe runs one
@@ -381,10 +448,9 @@ TEST_CASE("render on the device matches the CPU reference (PAT, a grid), validat
         const Box box = padded_cube(bounding_box(cloud.points));
         device_matches_cpu("demo cloud", small("cpu"), 1e-3 * box.diagonal(),
                            [&](const FieldRenderOptions& r) { return render_field(field, box, r); });
-        setenv("GSD_RENDER_MARCH", "kernel", 1);
+        const ScopedEnv env({kernel});
         device_matches_cpu("demo cloud, render_pat", small("cpu"), 1e-3 * box.diagonal(),
                            [&](const FieldRenderOptions& r) { return render_field(field, box, r); });
-        unsetenv("GSD_RENDER_MARCH");
     }
     SUBCASE("a grid, colored by a second grid") {
         const GridSpec g = GridSpec::cube(40, kBox);

@@ -77,6 +77,9 @@ struct RenderedField {
     int render_width = 0, render_height = 0;  ///< the supersampled size `depth` has
     double hit_fraction = 0;                  ///< share of rays that hit the surface
     std::string device;                       ///< "cpu" or the Vulkan device that marched
+    /// Cells of the coarse grid the rays crossed without evaluating φ
+    /// (FieldRenderOptions::skip_empty_space; 0 when off, or for a grid).
+    std::size_t empty_cells = 0;
     RenderCamera camera;
 };
 

@@ -11,7 +11,7 @@ namespace gsd::render {
 
 GridSpec EmptySpace::corners() const { return {n[0] + 1, n[1] + 1, n[2] + 1, {lo, lo + h * Eigen::Vector3d(n[0], n[1], n[2])}}; }
 
-double EmptySpace::skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t) const {
+double EmptySpace::skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t, int sign) const {
     int c[3];
     const Eigen::Vector3d x = o + t * d;
     for (int a = 0; a < 3; ++a) {
@@ -19,7 +19,8 @@ double EmptySpace::skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, doub
         if (!(f >= 0 && f < n[a])) return t;  // outside the grid (or NaN)
         c[a] = int(f);                        // f ≥ 0: truncation is the floor
     }
-    if (!is_empty(c)) return t;
+    const std::size_t first = cell(c);
+    if (!is_empty(first) || (sign != 0 && is_negative(first) != (sign < 0))) return t;
     // Cell by cell along the ray (a 3D DDA): next[a], where it crosses the next plane of cells
     // normal to a.
     double next[3], delta[3];
@@ -35,16 +36,16 @@ double EmptySpace::skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, doub
         exit = next[a];
         c[a] += step[a];
         next[a] += delta[a];
-        if (c[a] < 0 || c[a] >= n[a] || !is_empty(c)) break;
+        if (c[a] < 0 || c[a] >= n[a] || !is_empty(cell(c))) break;
     }
     // A hair past the last empty cell's exit, so that φ is next sampled in the cell after it;
     // far below the hit tolerance (10⁻⁴ of the box diagonal against 10⁻⁴ of a cell).
     return std::max(exit, t) + 1e-4 * h;
 }
 
-bool skip_empty(const March& m, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double span, double& t) {
+bool skip_empty(const March& m, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double span, double& t, int sign) {
     if (!m.empty) return true;
-    t = m.empty->skip(o, d, t);
+    t = m.empty->skip(o, d, t, sign);
     return t <= span;
 }
 
@@ -66,7 +67,7 @@ EmptySpace find_empty_space(const Box& box, int cells, double step_scale, const 
     // Every point of a cube lies within half its diagonal of the nearest corner, and within the
     // whole diagonal of any corner.
     const double half_diagonal = 0.5 * std::sqrt(3.0) * e.h;
-    e.bits.assign((e.cell_count() + 31) / 32, 0u);
+    e.bits.assign(2 * e.words(), 0u);
     for (int i = 0; i < e.n[0]; ++i)
         for (int j = 0; j < e.n[1]; ++j)
             for (int k = 0; k < e.n[2]; ++k) {
@@ -82,8 +83,10 @@ EmptySpace find_empty_space(const Box& box, int cells, double step_scale, const 
                 }
                 if (!finite || (negative != 0 && negative != 8)) continue;
                 if (least < half_diagonal && most < 2 * half_diagonal) continue;
-                const std::size_t c = (std::size_t(i) * std::size_t(e.n[1]) + std::size_t(j)) * std::size_t(e.n[2]) + std::size_t(k);
+                const int at[3] = {i, j, k};
+                const std::size_t c = e.cell(at);
                 e.bits[c >> 5] |= 1u << (c & 31);
+                if (negative == 8) e.bits[e.words() + (c >> 5)] |= 1u << (c & 31);
                 ++e.empty_cells;
             }
     return e;

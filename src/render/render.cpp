@@ -74,13 +74,13 @@ Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& eye, cons
     const Eigen::Vector3d o = eye + t0 * d;
     const double span = t1 - t0;
     double t = 0, hit = -1;
-    if (!skip_empty(m, o, d, span, t)) return miss;
+    if (!skip_empty(m, o, d, span, t, 0)) return miss;
     double phi = field(o + t * d, nullptr);
     if (std::abs(phi) < m.hit_eps) hit = t;
     for (int s = 0; hit < 0 && s < m.max_steps; ++s) {
         double tn = t + std::max(m.step_scale * std::abs(phi), m.min_step);
         const double stepped = tn;
-        if (tn > span || !skip_empty(m, o, d, span, tn)) break;
+        if (tn > span || !skip_empty(m, o, d, span, tn, phi < 0 ? -1 : 1)) break;
         const double pn = field(o + tn * d, nullptr);
         if (tn != stepped) {
             // Skipped through empty cells, which hold no surface: a fresh start at tn.
@@ -290,13 +290,17 @@ RenderedField march_and_shade(Frame& f, const FieldRenderOptions& o, const Devic
     const gpu::DeviceRun run = gpu::on_device(
         o.device, [&](const auto& ctx, std::string& why_not) { return march_on(ctx, hits, why_not); },
         "; rendering on the CPU");
+    RenderedField r;
     if (run) {
         redo_unfinished(hits, make_sampler, f.cam, f.march, run.device);
-        return shade(hits, f.cam, o, run.device);
+        r = shade(hits, f.cam, o, run.device);
+    } else {
+        if (before_cpu) before_cpu();
+        hits = march_cpu(make_sampler, f.cam, f.march, progress);
+        r = shade(hits, f.cam, o, "cpu");
     }
-    if (before_cpu) before_cpu();
-    hits = march_cpu(make_sampler, f.cam, f.march, progress);
-    return shade(hits, f.cam, o, "cpu");
+    r.empty_cells = f.march.empty ? f.march.empty->empty_cells : 0;
+    return r;
 }
 
 RenderedField render_blend(const blend::Engine& engine, const Box& box, const FieldRenderOptions& o,
@@ -399,7 +403,9 @@ RenderedField render_field(const Field& field, const Box& box, const FieldRender
     }
     std::string device;
     const std::vector<float> hits = render::march_wavefront(eval, f.cam, f.march, device, progress);
-    return render::shade(hits, f.cam, options, device);
+    RenderedField r = render::shade(hits, f.cam, options, device);
+    r.empty_cells = f.march.empty ? f.march.empty->empty_cells : 0;
+    return r;
 }
 
 }  // namespace gsd

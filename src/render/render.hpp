@@ -8,7 +8,6 @@
 #include <Eigen/Geometry>  // cross products
 
 #include <cstdint>
-#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -41,19 +40,27 @@ struct EmptySpace {
     Eigen::Vector3d lo = Eigen::Vector3d::Zero();
     double h = 0;                     ///< the cells' side
     int n[3] = {0, 0, 0};             ///< cells along x, y, z
-    std::vector<std::uint32_t> bits;  ///< a bit per cell, C order (x slowest): 1 = empty
+    /// Two bits per cell, C order (x slowest): words [0, W) say which cells are empty, words
+    /// [W, 2W) which of those are negative (W = words()).
+    std::vector<std::uint32_t> bits;
     std::size_t empty_cells = 0;
+
+    std::size_t words() const { return (cell_count() + 31) / 32; }
 
     std::size_t cell_count() const { return std::size_t(n[0]) * std::size_t(n[1]) * std::size_t(n[2]); }
     /// The grid of the cells' corners, where φ is sampled.
     GridSpec corners() const;
-    bool is_empty(const int c[3]) const {
-        const std::size_t cell = (std::size_t(c[0]) * std::size_t(n[1]) + std::size_t(c[1])) * std::size_t(n[2]) + std::size_t(c[2]);
-        return (bits[cell >> 5] >> (cell & 31)) & 1u;
+    std::size_t cell(const int c[3]) const {
+        return (std::size_t(c[0]) * std::size_t(n[1]) + std::size_t(c[1])) * std::size_t(n[2]) + std::size_t(c[2]);
     }
+    bool is_empty(std::size_t cell) const { return (bits[cell >> 5] >> (cell & 31)) & 1u; }
+    bool is_negative(std::size_t cell) const { return (bits[words() + (cell >> 5)] >> (cell & 31)) & 1u; }
     /// Where the ray o + t·d goes on to without evaluating φ: past the run of empty cells it is
-    /// in (a hair past the last one's exit), or t itself when its cell is not empty.
-    double skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t) const;
+    /// in (a hair past the last one's exit), or t itself when its cell is not empty. `sign`: the
+    /// sign of φ where the ray last sampled it (+1 or −1; 0 before its first sample); a cell of
+    /// the other sign is not skipped, so that the sample there sees the crossing on the way in.
+    /// (Face-adjacent empty cells share 4 corners, so a run of them has one sign.)
+    double skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t, int sign) const;
 };
 
 /// φ at the nodes of a grid (C order), float: how an EmptySpace is sampled on either path.
@@ -81,9 +88,9 @@ struct March {
 Camera make_camera(const Box& subject, const FieldRenderOptions& o, int width, int height);
 March make_march(const Box& box, const FieldRenderOptions& o);
 
-/// Moves t on through empty cells (m.empty) while the ray o + t·d is in one; false when that
-/// takes it past `span` (a miss).
-bool skip_empty(const March& m, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double span, double& t);
+/// Moves t on through empty cells (m.empty) while the ray o + t·d is in one of sign `sign`
+/// (EmptySpace::skip); false when that takes it past `span` (a miss).
+bool skip_empty(const March& m, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double span, double& t, int sign);
 
 /// The part [t0, t1] of the ray o + t·d (t ≥ 0) inside the box; false when it misses.
 bool clip_to_box(const Box& b, const Eigen::Vector3d& o, const Eigen::Vector3d& d, double& t0, double& t1);

@@ -25,7 +25,7 @@ struct RenderParams {  // `RenderParams` in render_march.glsl (std430)
     float march[4];         // step_scale, hit_eps, min_step, unused
     std::uint32_t tile[4];  // tile width, height, rays per lane, unused
     float empty[4];         // the empty-space grid's low corner, cell side
-    std::uint32_t cells[4]; // its cells along x, y, z; 1 if rays skip its empty cells
+    std::uint32_t cells[4]; // its cells along x, y, z; the words of its empty bits (0: rays skip nothing)
 };
 
 // How a device's subgroups share the rays: a tile of subgroup size × rays_per_lane pixels each,
@@ -97,7 +97,7 @@ gpu::Buffer upload_params(gpu::Context& ctx, const Camera& cam, const March& m, 
         put(p.empty, m.empty->lo);
         p.empty[3] = float(m.empty->h);
         for (int a = 0; a < 3; ++a) p.cells[a] = std::uint32_t(m.empty->n[a]);
-        p.cells[3] = 1;
+        p.cells[3] = std::uint32_t(m.empty->words());
     }
     return gpu::upload(ctx, &p, sizeof(p));
 }

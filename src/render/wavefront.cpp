@@ -81,7 +81,7 @@ std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& ca
             r.o = cam.eye + t0 * r.d;  // from the box entry, as march_ray
             r.entry = t0;
             r.span = t1 - t0;
-            if (skip_empty(m, r.o, r.d, r.span, r.t)) r.pixel = p;
+            if (skip_empty(m, r.o, r.d, r.span, r.t, 0)) r.pixel = p;
         }
         rays.erase(std::remove_if(rays.begin(), rays.end(), [](const Ray& r) { return r.pixel < 0; }), rays.end());
         std::vector<std::size_t> marching(rays.size()), bisecting;
@@ -104,7 +104,7 @@ std::vector<float> march_wavefront(const PointEvaluator& field, const Camera& ca
                 Ray& r = rays[marching[i]];
                 double t = r.t + std::max(m.step_scale * std::abs(r.phi), m.min_step);
                 const double stepped = t;
-                goes_on[i] = t <= r.span && skip_empty(m, r.o, r.d, r.span, t);
+                goes_on[i] = t <= r.span && skip_empty(m, r.o, r.d, r.span, t, r.phi < 0 ? -1 : 1);
                 r.fresh = t != stepped;
                 step_to[i] = t;
             }
