@@ -1,6 +1,9 @@
 // The renderer on a Vulkan device: render_pat.comp (blended fields, over the field's own device
 // data) and render_grid.comp (a grid uploaded for the picture) march every pixel; the hits come
-// back in chunks and are shaded on the host exactly as the CPU reference's are.
+// back in chunks and are shaded on the host exactly as the CPU reference's are. On software
+// devices a blend is marched as a wavefront of blend_eval dispatches instead
+// (march_blend_wavefront), and for both a blend's empty space is found on the device first
+// (empty_space.cpp).
 //
 // The kernels take rays in tile order, a subgroup a tile of `rays_per_lane` rays a lane
 // (render_march.glsl: with more than one, a lane whose ray has ended takes the tile's next one).
