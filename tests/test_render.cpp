@@ -138,12 +138,7 @@ public:
         return v;
     }
     FieldValues evaluate(const GridSpec& g, bool with_gradient, const ProgressFn& progress) const override {
-        Points x(Eigen::Index(g.node_count()), 3);
-        for (int i = 0; i < g.nx; ++i)
-            for (int j = 0; j < g.ny; ++j)
-                for (int k = 0; k < g.nz; ++k)
-                    x.row(Eigen::Index((std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k))) =
-                        g.node(i, j, k).transpose();
+        const Points x = g.nodes();
         return evaluate(PointsView(x), with_gradient, progress);
     }
     bool has_gradient() const override { return false; }

@@ -49,8 +49,9 @@ bool skip_empty(const March& m, const Eigen::Vector3d& o, const Eigen::Vector3d&
     return t <= span;
 }
 
-int empty_space_resolution(std::size_t rays) {
-    return std::clamp(int(std::lround(std::cbrt(double(rays) / 8))), 8, 64);
+int empty_space_resolution(const Camera& cam) {
+    const double rays = double(cam.width) * double(cam.height);
+    return std::clamp(int(std::lround(std::cbrt(rays / 8))), 8, 64);
 }
 
 EmptySpace find_empty_space(const Box& box, int cells, double step_scale, const NodeSampler& phi_at_nodes) {

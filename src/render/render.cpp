@@ -310,7 +310,7 @@ RenderedField render_blend(const blend::Engine& engine, const Box& box, const Fi
     params.exact = false;  // the shader marches the accelerated sum; so does its reference
     const blend::Source& src = engine.source();
     const spatial::BoxTree& tree = engine.search_tree();
-    const int cells = o.skip_empty_space ? empty_space_resolution(std::size_t(f.cam.width) * std::size_t(f.cam.height)) : 0;
+    const int cells = o.skip_empty_space ? empty_space_resolution(f.cam) : 0;
     return march_and_shade(
         f, o,
         [&](const auto& ctx, std::vector<float>& hits, std::string& why_not) {
@@ -391,15 +391,9 @@ RenderedField render_field(const Field& field, const Box& box, const FieldRender
         },
         "; its rays are marched on the CPU");
     if (options.skip_empty_space) {
-        const int cells = render::empty_space_resolution(std::size_t(f.cam.width) * std::size_t(f.cam.height));
-        f.march.empty = std::make_shared<render::EmptySpace>(render::find_empty_space(f.march.box, cells, f.march.step_scale, [&](const GridSpec& g) {
-            Points x(Eigen::Index(g.node_count()), 3);
-            for (int i = 0; i < g.nx; ++i)
-                for (int j = 0; j < g.ny; ++j)
-                    for (int k = 0; k < g.nz; ++k)
-                        x.row(Eigen::Index((std::size_t(i) * std::size_t(g.ny) + std::size_t(j)) * std::size_t(g.nz) + std::size_t(k))) = g.node(i, j, k).transpose();
-            return eval.evaluate(x, false).phi;
-        }));
+        const int cells = render::empty_space_resolution(f.cam);
+        f.march.empty = std::make_shared<render::EmptySpace>(render::find_empty_space(
+            f.march.box, cells, f.march.step_scale, [&](const GridSpec& g) { return eval.evaluate(g.nodes(), false).phi; }));
     }
     std::string device;
     const std::vector<float> hits = render::march_wavefront(eval, f.cam, f.march, device, progress);

@@ -66,9 +66,9 @@ struct EmptySpace {
 /// φ at the nodes of a grid (C order), float: how an EmptySpace is sampled on either path.
 using NodeSampler = std::function<std::vector<float>(const GridSpec&)>;
 
-/// Cells along the box's longest side for a picture of `rays` rays: about one corner sample
-/// for every 8 rays (8 to 64), a few percent of the march's evaluations.
-int empty_space_resolution(std::size_t rays);
+/// Cells along the box's longest side for the camera's picture: about one corner sample for
+/// every 8 of its rays (8 to 64), a few percent of the march's evaluations.
+int empty_space_resolution(const Camera& cam);
 
 /// The empty cells of a field over `box`, `cells` along its longest side.
 EmptySpace find_empty_space(const Box& box, int cells, double step_scale, const NodeSampler& phi_at_nodes);
