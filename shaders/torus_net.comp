@@ -1,6 +1,9 @@
 #version 450
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
+#ifdef GSD_SOFTWARE_SHAPED
+#extension GL_KHR_shader_subgroup_shuffle : require
+#endif
 // TorusNet stage 2 (docs/torusnet.md, "GPU kernels"): one workgroup per point. From the K
 // tokens written by torus_net_knn.comp (or given neighborhoods), the workgroup builds the token
 // features and the scale m, runs the transformer with every activation in a workspace of POOL
@@ -8,10 +11,13 @@
 // memory), and writes the six coefficients. Float32 throughout; the CPU reference in double is
 // src/pat/torus_net.cpp.
 //
-// Every matrix product is tiled: an invocation computes TR rows × 4·TC columns, reading vec4s
-// (4 × 16 on CPU devices: lavapipe executes each load of shared or storage memory lane by lane
-// and loads, not arithmetic, bound its speed; 4 × 4 on GPUs, where more, smaller tiles keep
-// more threads busy). docs/gpu.md has the measurements.
+// Built twice (cmake/EmbedShaders.cmake). For GPUs, every matrix product is tiled: an
+// invocation computes TR rows × 4·TC columns, reading vec4s (4 × 1 on GPUs, where more, smaller
+// tiles keep more threads busy). For software devices (GSD_SOFTWARE_SHAPED), the workgroup is
+// one subgroup of L lanes, every product, attention and LayerNorm goes row by row, and what a
+// lane uses many times (its columns' weights, its tokens' keys and values) stays in its
+// registers; rows reach every lane through subgroup shuffles (the section below says why).
+// docs/gpu.md ("TorusNet") has the measurements.
 //
 // Weights come in one buffer in the layout src/pat/torus_net_gpu.cpp packs (offsets below, in
 // vec4s): every Linear's weight transposed to [in][out], qkv regrouped per head.
@@ -27,8 +33,9 @@ layout(constant_id = 7) const int POOL = 1;    // workspace vec4s per point (lay
 layout(constant_id = 8) const int GLOBAL = 0;  // 1: the workspace lives in the Scratch buffer
 layout(constant_id = 9) const int DEBUG = 0;   // 1: also write features and m (tests)
 layout(constant_id = 10) const int SHARED_POOL = 1;  // POOL in shared mode, 1 in global mode
-layout(constant_id = 11) const int TR = 4;     // matrix-product tile: rows (divides K)
-layout(constant_id = 12) const int TC = 2;     // matrix-product tile: vec4 columns
+layout(constant_id = 11) const int TR = 4;     // GPU build: matrix-product tile: rows (divides K)
+layout(constant_id = 12) const int TC = 2;     // GPU build: matrix-product tile: vec4 columns
+layout(constant_id = 13) const int L = 8;      // software build: lanes (the workgroup is one subgroup)
 
 const int D = W / H;  // head dimension
 const int W4 = W / 4, D4 = D / 4, K4 = K / 4, F4 = F / 4, FC4 = FC / 4;
@@ -91,8 +98,6 @@ layout(std430, binding = 6) writeonly buffer Debug { float dbg[]; };    // DEBUG
 layout(push_constant) uniform Push { CountPush pc; };  // push_constants.h
 
 shared vec4 spool[SHARED_POOL];
-shared float row_mean[K];
-shared float row_rstd[K];
 shared float dist[K];
 shared float median_max[2];
 
@@ -125,11 +130,251 @@ void put(int o, vec4 v, int mode) {
     st(o, v);
 }
 
+// Features [K][8] at T and the scale m of this point's neighborhood (docs/torusnet.md).
+float features(uint g) {
+    uint c = tokens[g * uint(K)];
+    ivec4 pc_fixed = fixed_pts[c];
+    vec4 nc = nrm[c];
+    vec3 n = nc.xyz;
+    vec3 axis = nc.w == 0.0 ? vec3(1.0, 0.0, 0.0) : (nc.w == 1.0 ? vec3(0.0, 1.0, 0.0) : vec3(0.0, 0.0, 1.0));
+    vec3 s = normalize(cross(n, axis));  // tangent_of(n): the axis is chosen on the host in double
+    vec3 t = cross(n, s);
+    for (int j = tid; j < K; j += WG) {
+        uint tj = tokens[g * uint(K) + uint(j)];
+        // d = p_j − p from fixed-point positions: the integer difference is exact, so d has
+        // float32 precision relative to |d| however far the cloud is from the origin (float
+        // tricks like hi/lo splits do not survive compilers that reassociate; lavapipe's does).
+        vec3 d = ldexp(vec3(fixed_pts[tj].xyz - pc_fixed.xyz), ivec3(pc_fixed.w));
+        dist[j] = length(d);
+        vec3 nj = nrm[tj].xyz;
+        st(T + FS * j, vec4(dot(d, s), dot(d, t), dot(d, n), dot(nj, s)));
+        st(T + FS * j + 1, vec4(dot(nj, t), dot(nj, n), j == 0 ? 1.0 : 0.0, 0.0));
+    }
+    barrier();
+    // The lower median (rank (K − 2)/2) and the largest (rank K − 2) of the K − 1 distances.
+    for (int j = 1 + tid; j < K; j += WG) {
+        float dj = dist[j];
+        int rank = 0;
+        [[dont_unroll]] for (int i = 1; i < K; ++i) rank += (dist[i] < dj || (dist[i] == dj && i < j)) ? 1 : 0;
+        if (rank == (K - 2) / 2) median_max[0] = dj;
+        if (rank == K - 2) median_max[1] = dj;
+    }
+    barrier();
+    float m = median_max[0], dmax = median_max[1];
+    if (m <= 1e-3 * dmax) m = 1e-3 * dmax;
+    if (dmax == 0.0) m = 1.0;
+    for (int j = tid; j < K; j += WG) {
+        vec4 f0 = ld(T + FS * j);
+        f0.xyz /= m;
+        st(T + FS * j, f0);
+        if (DEBUG == 1) {
+            vec4 f1 = ld(T + FS * j + 1);
+            uint at = g * uint(7 * K + 1) + uint(7 * j);
+            dbg[at] = f0.x; dbg[at + 1] = f0.y; dbg[at + 2] = f0.z; dbg[at + 3] = f0.w;
+            dbg[at + 4] = f1.x; dbg[at + 5] = f1.y; dbg[at + 6] = f1.z;
+        }
+    }
+    if (DEBUG == 1 && tid == 0) dbg[g * uint(7 * K + 1) + uint(7 * K)] = m;
+    sync();
+    return m;
+}
+
+#ifdef GSD_SOFTWARE_SHAPED
+// ---- the kernel for software devices (gpu::software_shaped): a point's workgroup is one
+// subgroup of L lanes (L ≥ 8, K % L == 0, D4 ≤ L; torus_net_gpu.cpp checks) ---------------
+//
+// llvmpipe runs a subgroup as one SIMD thread and reads memory at lane-varying addresses one
+// lane at a time, so a tile loop that reads an activation and a weight for every few products
+// spends its time in those reads. Here the data a lane uses many times lives in its registers:
+// in a product with weights, lane l owns the vec4 columns c = l + L·m and loads their weights
+// once (the indices are constants after unrolling, so they stay SSA values: spilled vectors,
+// not gathers); then, row by row, the L lanes load the row together (one vec4 each) and
+// subgroupShuffle hands each vec4 to every lane (on Mesa 22.3's llvmpipe a third of what
+// subgroupBroadcast costs, and a shared-memory row read at constant addresses costs as much as
+// the broadcast). Attention, softmax and LayerNorm work row by row the same way,
+// their sums and maxima butterflies of shuffles. docs/gpu.md ("TorusNet") has the measurements.
+
+// Sums (and maxima) over the L lanes, every lane getting the result.
+float lanes_sum(float v) {
+    [[unroll]] for (int k = 0; k < 6; ++k)
+        if ((1 << k) < L) v += subgroupShuffleXor(v, 1u << k);
+    return v;
+}
+vec4 lanes_sum(vec4 v) {
+    [[unroll]] for (int k = 0; k < 6; ++k)
+        if ((1 << k) < L) v += subgroupShuffleXor(v, 1u << k);
+    return v;
+}
+float lanes_max(float v) {
+    [[unroll]] for (int k = 0; k < 6; ++k)
+        if ((1 << k) < L) v = max(v, subgroupShuffleXor(v, 1u << k));
+    return v;
+}
+
+// out[r][c] (=, +=, = gelu) bias[c] + Σ_i A[r][i]·B[i][c] for r < R, c < N: A in the
+// workspace (row stride lda; I4 = inputs / 4), B in the weights (row stride ldb), bias in the
+// weights (< 0: none), out in the workspace (row stride ldo); all in vec4s. I4 and NL (a lane's
+// vec4 columns, ⌈N/4L⌉ or more) must be constants at every call: they size the unrolled code.
+// The rest may vary, so products of one shape share a call site: llvmpipe compiles every copy
+// of the unrolled code at pipeline creation, in every run.
+const int GI4 = (W + F) / 4;           // bound on a product's inputs in vec4s (2, W4, D4, FC4)
+const int GN4 = ((2 * W + F) / 4 + 7) / 8;  // bound on NL (q | k v: 2·D4 ≤ 2·W4 columns)
+void gemm_lanes(int a, int lda, int R, const int I4, const int NL, int b, int ldb, int bias, int N, int o, int ldo,
+                int mode) {
+    int n4 = N / 4;
+    vec4 wreg[GI4][4][GN4];
+    vec4 breg[GN4];
+    [[unroll]] for (int m = 0; m < NL; ++m) {
+        int c = tid + L * m, cc = min(c, n4 - 1);
+        breg[m] = c < n4 && bias >= 0 ? WEIGHT(bias + cc) : vec4(0.0);
+        // Nested: Mesa unrolls no loop of more than 32 passes (max_unroll_iterations).
+        [[unroll]] for (int i4 = 0; i4 < I4; ++i4)
+            [[unroll]] for (int k = 0; k < 4; ++k)
+                wreg[i4][k][m] = c < n4 ? WEIGHT(b + (4 * i4 + k) * ldb + cc) : vec4(0.0);
+    }
+    [[dont_unroll]] for (int r = 0; r < R; ++r) {
+        vec4 acc[GN4];
+        [[unroll]] for (int m = 0; m < NL; ++m) acc[m] = breg[m];
+        [[unroll]] for (int m4 = 0; m4 < (I4 + L - 1) / L; ++m4) {
+            vec4 xv = tid + L * m4 < I4 ? ld(a + r * lda + tid + L * m4) : vec4(0.0);
+            [[unroll]] for (int s = 0; s < L; ++s) {
+                const int i4 = s + L * m4;
+                if (i4 >= I4) break;
+                vec4 xs = subgroupShuffle(xv, uint(s));
+                [[unroll]] for (int m = 0; m < NL; ++m)
+                    acc[m] += xs.x * wreg[i4][0][m] + xs.y * wreg[i4][1][m] + xs.z * wreg[i4][2][m] + xs.w * wreg[i4][3][m];
+            }
+        }
+        [[unroll]] for (int m = 0; m < NL; ++m)
+            if (tid + L * m < n4) put(o + r * ldo + tid + L * m, acc[m], mode);
+    }
+}
+
+// A product with weights whose N is a constant (the lane's columns follow from it).
+void gemm(int a, int lda, int R, const int I4, int b, int ldb, int bias, const int N, int o, int ldo, int mode) {
+    gemm_lanes(a, lda, R, I4, (N / 4 + L - 1) / L, b, ldb, bias, N, o, ldo, mode);
+}
+
+// LayerNorm (biased variance, eps 1e-5) of rows [0, R) of src into dst (row stride XS), γ at
+// g, β at g + W4: lane l normalizes the row's vec4s l + L·m.
+const int LN4 = (W4 + L - 1) / L;
+void layer_norm(int src, int dst, int R, int g) {
+    vec4 gamma[LN4], beta[LN4];
+    [[unroll]] for (int m = 0; m < LN4; ++m) {
+        int c = min(tid + L * m, W4 - 1);
+        gamma[m] = WEIGHT(g + c);
+        beta[m] = WEIGHT(g + W4 + c);
+    }
+    [[dont_unroll]] for (int r = 0; r < R; ++r) {
+        vec4 v[LN4];
+        vec4 s = vec4(0.0);
+        [[unroll]] for (int m = 0; m < LN4; ++m) {
+            v[m] = tid + L * m < W4 ? ld(src + r * XS + tid + L * m) : vec4(0.0);
+            s += v[m];
+        }
+        float mean = lanes_sum(s.x + s.y + s.z + s.w) / float(W);
+        vec4 q = vec4(0.0);
+        [[unroll]] for (int m = 0; m < LN4; ++m) {
+            vec4 e = tid + L * m < W4 ? v[m] - mean : vec4(0.0);
+            q += e * e;
+        }
+        float rstd = inversesqrt(lanes_sum(q.x + q.y + q.z + q.w) / float(W) + 1e-5);
+        [[unroll]] for (int m = 0; m < LN4; ++m)
+            if (tid + L * m < W4) st(dst + r * XS + tid + L * m, (v[m] - mean) * rstd * gamma[m] + beta[m]);
+    }
+    sync();
+}
+
+// One head's attention for rows r < R: scores q_r·k_j / √D, softmax over j, o_r = Σ_j a_rj v_j,
+// row by row in registers. Lane l holds the keys and values of tokens j = l + L·c (loaded
+// once); a row's query comes in one vec4 a lane (D4 ≤ L) and is shuffled to all; the max, the
+// sum and o_r's partial sums are butterflies. o_r goes to q_r's place: lane l < D4 writes the
+// vec4 it read, so no lane overwrites what another still reads.
+const int KL = K / L;  // tokens a lane holds
+void attention(int R, float scale) {
+    vec4 kreg[KL][D4], vreg[KL][D4];
+    [[unroll]] for (int c = 0; c < KL; ++c)
+        [[unroll]] for (int x4 = 0; x4 < D4; ++x4) {
+            kreg[c][x4] = ld(T + (tid + L * c) * QS + D4 + x4);
+            vreg[c][x4] = ld(T + (tid + L * c) * QS + 2 * D4 + x4);
+        }
+    [[dont_unroll]] for (int r = 0; r < R; ++r) {
+        vec4 qv = tid < D4 ? ld(T + r * QS + tid) : vec4(0.0);
+        vec4 q[D4];
+        [[unroll]] for (int x4 = 0; x4 < D4; ++x4) q[x4] = subgroupShuffle(qv, uint(x4));
+        float e[KL];
+        float mx = -3.0e38;
+        [[unroll]] for (int c = 0; c < KL; ++c) {
+            float d = 0.0;
+            [[unroll]] for (int x4 = 0; x4 < D4; ++x4) d += dot(q[x4], kreg[c][x4]);
+            e[c] = scale * d;
+            mx = max(mx, e[c]);
+        }
+        mx = lanes_max(mx);
+        float sum = 0.0;
+        [[unroll]] for (int c = 0; c < KL; ++c) {
+            e[c] = exp(e[c] - mx);
+            sum += e[c];
+        }
+        float inv = 1.0 / lanes_sum(sum);
+        vec4 mine = vec4(0.0);
+        [[unroll]] for (int x4 = 0; x4 < D4; ++x4) {
+            vec4 part = vec4(0.0);
+            [[unroll]] for (int c = 0; c < KL; ++c) part += e[c] * vreg[c][x4];
+            part = lanes_sum(part) * inv;
+            if (tid == x4) mine = part;
+        }
+        if (tid < D4) st(T + r * QS + tid, mine);
+    }
+}
+
+// One block; in the last block only token 0 leaves, so its query row, attention row and MLP are
+// computed for row 0 only (R = 1); keys and values still come from every token.
+void block(int base, int R) {
+    layer_norm(X, Y, K, base + N1_G);
+    float scale = inversesqrt(float(D));
+    [[dont_unroll]] for (int h = 0; h < H; ++h) {
+        int qkv = base + QKV + h * QKV_HEAD, qkv_b = qkv + W * 3 * D4;
+        // q of head h for rows < R, then k | v for every row ([K][3D] at T): one call site.
+        [[dont_unroll]] for (int p = 0; p < 2; ++p)
+            gemm_lanes(Y, XS, p == 0 ? R : K, W4, (2 * D4 + L - 1) / L, qkv + p * D4, 3 * D4, qkv_b + p * D4, (p + 1) * D,
+                       T + p * D4, QS, 0);
+        sync();
+        attention(R, scale);
+        sync();
+        // x += o_h · proj[hD … hD+D) (the bias once, with head 0).
+        gemm(T, QS, R, D4, base + PR_W + h * D * W4, W4, h == 0 ? base + PR_B : -1, W, X, XS, 1);
+        sync();
+    }
+    layer_norm(X, Y, R, base + N2_G);
+    [[dont_unroll]] for (int c0 = 0; c0 < F; c0 += FC) {
+        if (FC == W) {  // fc1 and fc2 have one shape: one call site
+            [[dont_unroll]] for (int p = 0; p < 2; ++p) {
+                bool fc1 = p == 0;
+                gemm_lanes(fc1 ? Y : T, fc1 ? XS : HS, R, W4, (W4 + L - 1) / L, base + (fc1 ? F1_W + c0 / 4 : F2_W + c0 * W4),
+                           fc1 ? F4 : W4, fc1 ? base + F1_B + c0 / 4 : (c0 == 0 ? base + F2_B : -1), W, fc1 ? T : X,
+                           fc1 ? HS : XS, fc1 ? 2 : 1);
+                sync();
+            }
+        } else {
+            gemm(Y, XS, R, W4, base + F1_W + c0 / 4, F4, base + F1_B + c0 / 4, FC, T, HS, 2);
+            sync();
+            gemm(T, HS, R, FC4, base + F2_W + c0 * W4, W4, c0 == 0 ? base + F2_B : -1, W, X, XS, 1);
+            sync();
+        }
+    }
+}
+const int LAST_ROWS = 1;  // rows the last block computes
+
+#else
+// ---- the kernel for GPUs (and software devices the one above does not fit) ------------------
+
 // out[r][c] (=, +=, = gelu) bias[c] + Σ_i A[r][i]·B[i][c] for r < R, c < N; all in vec4s:
 // A in the workspace (row stride lda), I4 = inputs / 4; B in the weights (weights = true) or
 // the workspace, row-major (row stride ldb); bias in the weights (bias < 0: none); out in the
 // workspace (row stride ldo). An invocation computes TR rows × TC vec4 columns (a constant, so
 // the tile loops unroll into registers); R is a multiple of TR; N % 4 == 0.
+
 void gemm(int a, int lda, int R, int I4, bool weights, int b, int ldb, int bias, int N, int o, int ldo,
           int mode) {
     int n4 = N / 4;
@@ -187,6 +432,8 @@ void scores(int R, float scale) {
 
 // LayerNorm (biased variance, eps 1e-5) of rows [0, R) of src into dst (row stride XS), γ at
 // g, β at g + W4.
+shared float row_mean[K];
+shared float row_rstd[K];
 void layer_norm(int src, int dst, int R, int g) {
     for (int r = tid; r < R; r += WG) {
         vec4 s = vec4(0.0);
@@ -206,55 +453,6 @@ void layer_norm(int src, int dst, int R, int g) {
         st(dst + r * XS + c, (ld(src + r * XS + c) - row_mean[r]) * row_rstd[r] * WEIGHT(g + c) + WEIGHT(g + W4 + c));
     }
     sync();
-}
-
-// Features [K][8] at T and the scale m of this point's neighborhood (docs/torusnet.md).
-float features(uint g) {
-    uint c = tokens[g * uint(K)];
-    ivec4 pc_fixed = fixed_pts[c];
-    vec4 nc = nrm[c];
-    vec3 n = nc.xyz;
-    vec3 axis = nc.w == 0.0 ? vec3(1.0, 0.0, 0.0) : (nc.w == 1.0 ? vec3(0.0, 1.0, 0.0) : vec3(0.0, 0.0, 1.0));
-    vec3 s = normalize(cross(n, axis));  // tangent_of(n): the axis is chosen on the host in double
-    vec3 t = cross(n, s);
-    for (int j = tid; j < K; j += WG) {
-        uint tj = tokens[g * uint(K) + uint(j)];
-        // d = p_j − p from fixed-point positions: the integer difference is exact, so d has
-        // float32 precision relative to |d| however far the cloud is from the origin (float
-        // tricks like hi/lo splits do not survive compilers that reassociate; lavapipe's does).
-        vec3 d = ldexp(vec3(fixed_pts[tj].xyz - pc_fixed.xyz), ivec3(pc_fixed.w));
-        dist[j] = length(d);
-        vec3 nj = nrm[tj].xyz;
-        st(T + FS * j, vec4(dot(d, s), dot(d, t), dot(d, n), dot(nj, s)));
-        st(T + FS * j + 1, vec4(dot(nj, t), dot(nj, n), j == 0 ? 1.0 : 0.0, 0.0));
-    }
-    barrier();
-    // The lower median (rank (K − 2)/2) and the largest (rank K − 2) of the K − 1 distances.
-    for (int j = 1 + tid; j < K; j += WG) {
-        float dj = dist[j];
-        int rank = 0;
-        [[dont_unroll]] for (int i = 1; i < K; ++i) rank += (dist[i] < dj || (dist[i] == dj && i < j)) ? 1 : 0;
-        if (rank == (K - 2) / 2) median_max[0] = dj;
-        if (rank == K - 2) median_max[1] = dj;
-    }
-    barrier();
-    float m = median_max[0], dmax = median_max[1];
-    if (m <= 1e-3 * dmax) m = 1e-3 * dmax;
-    if (dmax == 0.0) m = 1.0;
-    for (int j = tid; j < K; j += WG) {
-        vec4 f0 = ld(T + FS * j);
-        f0.xyz /= m;
-        st(T + FS * j, f0);
-        if (DEBUG == 1) {
-            vec4 f1 = ld(T + FS * j + 1);
-            uint at = g * uint(7 * K + 1) + uint(7 * j);
-            dbg[at] = f0.x; dbg[at + 1] = f0.y; dbg[at + 2] = f0.z; dbg[at + 3] = f0.w;
-            dbg[at + 4] = f1.x; dbg[at + 5] = f1.y; dbg[at + 6] = f1.z;
-        }
-    }
-    if (DEBUG == 1 && tid == 0) dbg[g * uint(7 * K + 1) + uint(7 * K)] = m;
-    sync();
-    return m;
 }
 
 // One block. In the last block only token 0 leaves, so its query row, attention row and MLP are
@@ -302,6 +500,9 @@ void block(int base, int R) {
     }
 }
 
+const int LAST_ROWS = TR;  // rows the last block computes
+#endif
+
 void main() {
     uint g = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     if (g >= pc.count) return;  // uniform over the workgroup
@@ -310,10 +511,14 @@ void main() {
 
     float m = features(g);
     // x = LayerNorm(embed(features)): the embedding into Y, normalized into X.
+#ifdef GSD_SOFTWARE_SHAPED
+    gemm(T, FS, K, 2, E_W, W4, E_B, W, Y, XS, 0);
+#else
     gemm(T, FS, K, 2, true, E_W, W4, E_B, W, Y, XS, 0);
+#endif
     sync();
     layer_norm(Y, X, K, EN_G);
-    [[dont_unroll]] for (int b = 0; b < B; ++b) block(BLK0 + b * BLK, b + 1 < B ? K : TR);
+    [[dont_unroll]] for (int b = 0; b < B; ++b) block(BLK0 + b * BLK, b + 1 < B ? K : LAST_ROWS);
     // z = LayerNorm(x_0), r = head(z), rescaled by m.
     layer_norm(X, Y, 1, FN_G);
     if (tid < 6) {

@@ -139,6 +139,7 @@ DeviceInfo describe_device(const InstanceFunctions& fn, VkPhysicalDevice dev, st
     d.subgroup_vote = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_VOTE_BIT);
     d.subgroup_ballot = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_BALLOT_BIT);
     d.subgroup_arithmetic = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_ARITHMETIC_BIT);
+    d.subgroup_shuffle = compute && (sub.supportedOperations & VK_SUBGROUP_FEATURE_SHUFFLE_BIT);
     d.max_storage_buffer_range = p.limits.maxStorageBufferRange;
     std::uint32_t family = 0;
     if (p.apiVersion < VK_API_VERSION_1_1) d.why_not = "needs Vulkan 1.1";

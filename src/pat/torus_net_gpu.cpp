@@ -222,23 +222,53 @@ std::uint64_t net_loop_iterations(const NetPlan& p, std::uint64_t wg) {
     return features + gemm(K, TR, 2, 4 * W4) + 2 * layer_norm(K) + blocks + W4 + 1;
 }
 
+/// The same bound for the software build of torus_net.comp, whose workgroup is one subgroup of
+/// `lanes`: its products, attention and LayerNorms loop over rows, everything else unrolled.
+std::uint64_t lanes_loop_iterations(const NetPlan& p, std::uint64_t lanes) {
+    using U = std::uint64_t;
+    const U K = U(p.k), W4 = U(p.width) / 4, H = U(p.heads), F = U(p.mlp), FC = U(p.fc);
+    auto passes = [&](U items) { return (items + lanes - 1) / lanes + 1; };
+    auto rows = [](U R) { return R + 1; };  // a loop over R rows (gemm_lanes, attention, layer_norm)
+    auto block = [&](U R) {
+        const U head = 3 + rows(R) + rows(K) + rows(R) + rows(R);  // q | k v, attention, proj
+        const U mlp = FC == U(p.width) ? 3 + 2 * rows(R) : 2 * rows(R);
+        return rows(K) + rows(R) + (H + 1) + H * head + (F / FC + 1) + (F / FC) * mlp;
+    };
+    const U features = 2 * passes(K) + passes(K) * (K + 1);
+    return features + 2 * rows(K) + U(p.blocks - 1) * block(K) + block(1) + U(p.blocks) + 1 + rows(1) + W4 + 1;
+}
+
+/// Whether the software build of torus_net.comp (a point's workgroup one subgroup of L lanes,
+/// products and attention through subgroup shuffles) runs this model on this device: a
+/// software device with shuffles and 8, 16 or 32 lanes; K a multiple of L and a head's width at
+/// most 4L (its rows are read one vec4 a lane); width and MLP pass at most 128 (a product's
+/// unrolled input loop has at most 32 passes, Mesa's limit for unrolling); and the loops under
+/// half llvmpipe's limit.
+bool lanes_kernel_fits(const NetPlan& p, const gpu::Context& ctx) {
+    const gpu::DeviceInfo& info = ctx.info();
+    const int L = int(info.subgroup_size), d = p.width / p.heads;
+    return gpu::software_shaped(ctx) && info.subgroup_shuffle && (L == 8 || L == 16 || L == 32) && p.k % L == 0 &&
+           d <= 4 * L && p.width <= 128 && p.fc <= 128 && 2 * lanes_loop_iterations(p, std::uint64_t(L)) <= 65535;
+}
+
 const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
-    // Software devices read the weights as a texel buffer (binding 0; torus_net.comp), and run
-    // a point's workgroup with as few invocations as llvmpipe's loop limit allows (at least 8:
-    // the 6 that write the coefficients): the matrix products have 32 tiles for a width of 64,
-    // so 64 invocations left half of lavapipe's lanes idle, and its barriers switch between
-    // the subgroups of a workgroup. The bound of net_loop_iterations is kept under half the
-    // limit; a model too big for that runs at 64 as before.
+    const std::initializer_list<std::int32_t> constants = {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool,
+                                                           p.global ? 1 : 0, debug ? 1 : 0, p.global ? 1 : p.pool,
+                                                           p.tile_rows, p.tile_cols, std::int32_t(ctx.info().subgroup_size)};
+    if (lanes_kernel_fits(p, ctx))
+        return gpu::kernel(ctx, gpu::kernel_table::torus_net, constants, ctx.info().subgroup_size, true);
+    // Else the GPUs' kernel. On a software device its workgroup is as small as llvmpipe's loop
+    // limit allows (at least 8: the 6 that write the coefficients): the matrix products have 32
+    // tiles for a width of 64, and barriers switch between the subgroups of a workgroup. The
+    // bound of net_loop_iterations is kept under half the limit; a model too big for that runs
+    // at 64.
     std::uint32_t workgroup = 0;
     if (ctx.info().is_software()) {
         workgroup = std::max(8u, ctx.info().subgroup_size);
         while (workgroup < 64 && 2 * net_loop_iterations(p, workgroup) > 65535) workgroup *= 2;
         workgroup = std::min(workgroup, 64u);
     }
-    return gpu::kernel(ctx, gpu::kernel_table::torus_net,
-                       {p.k, p.width, p.heads, p.mlp, p.blocks, p.fc, p.pool, p.global ? 1 : 0, debug ? 1 : 0,
-                        p.global ? 1 : p.pool, p.tile_rows, p.tile_cols},
-                       workgroup);
+    return gpu::kernel(ctx, gpu::kernel_table::torus_net, constants, workgroup, false);
 }
 
 // Records the network over n points whose tokens are in `tokens`.

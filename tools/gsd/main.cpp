@@ -641,11 +641,15 @@ void add_info(CLI::App& app) {
         std::printf("gsd %s\n", std::string(version()).c_str());
         const gpu::Inventory inv = gpu::list_devices();
         if (inv.devices.empty()) std::printf("Vulkan: %s\n", inv.problem.empty() ? "no devices" : inv.problem.c_str());
-        for (const auto& d : inv.devices)
+        for (const auto& d : inv.devices) {
+            std::string ops;  // the subgroup operations gsd's kernels use
+            for (const auto& [has, name] : {std::pair{d.subgroup_vote, "vote"}, std::pair{d.subgroup_ballot, "ballot"},
+                                            std::pair{d.subgroup_arithmetic, "arithmetic"}, std::pair{d.subgroup_shuffle, "shuffle"}})
+                if (has) ops += (ops.empty() ? ": " : ", ") + std::string(name);
             std::printf("  device %u: %s (%s, Vulkan %s, %.1f GiB, subgroup %u%s)%s\n", d.index, d.name.c_str(), d.type.c_str(),
-                        d.api_version.c_str(), double(d.device_local_bytes) / (1u << 30), d.subgroup_size,
-                        d.subgroup_vote ? (d.subgroup_ballot ? ": vote, ballot" : ": vote") : "",
+                        d.api_version.c_str(), double(d.device_local_bytes) / (1u << 30), d.subgroup_size, ops.c_str(),
                         d.usable ? "" : (" — unusable: " + d.why_not).c_str());
+        }
         const gpu::Selection sel = gpu::select("auto");
         std::printf("--device auto: %s%s\n", sel.device_name.c_str(), sel.context ? "" : " (the CPU path)");
         const gpu::Selection any = gpu::select("gpu");
