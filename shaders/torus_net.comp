@@ -227,7 +227,8 @@ void gemm_lanes(int a, int lda, int R, const int I4, const int NL, int b, int ld
     [[unroll]] for (int m = 0; m < NL; ++m) {
         int c = tid + L * m, cc = min(c, n4 - 1);
         breg[m] = c < n4 && bias >= 0 ? WEIGHT(bias + cc) : vec4(0.0);
-        // Nested: Mesa unrolls no loop of more than 32 passes (max_unroll_iterations).
+        // Nested: Mesa 22.3 left a loop of 64 passes rolled despite [[unroll]] (llvmpipe's
+        // max_unroll_iterations is 32), its arrays in memory.
         [[unroll]] for (int i4 = 0; i4 < I4; ++i4)
             [[unroll]] for (int k = 0; k < 4; ++k)
                 wreg[i4][k][m] = c < n4 ? WEIGHT(b + (4 * i4 + k) * ldb + cc) : vec4(0.0);

@@ -8,6 +8,7 @@
 #include <gsd/shapes.hpp>
 #include <gsd/spatial.hpp>
 
+#include "gpu/runtime.hpp"
 #include "pat/safetensors.hpp"
 #include "pat/torus_net.hpp"
 #include "pat/torus_net_gpu.hpp"
@@ -264,6 +265,20 @@ TEST_CASE("TorusNet GPU: a Vulkan device is available (lavapipe in CI) and valid
     CHECK(gpu::validation_active());
 }
 
+TEST_CASE("on a software device with 8-lane subgroups and shuffles, the shipped model runs the software build") {
+    REQUIRE(device());
+    const gpu::DeviceInfo& info = device()->info();
+    const TorusNetModel model = TorusNetModel::load(kModelPath);
+    const bool lanes = pat::runs_lanes_kernel(model, *device());
+    MESSAGE(info.name << ": subgroup " << info.subgroup_size << std::string(info.subgroup_shuffle ? ", shuffle" : "")
+                      << "; the shipped model on the " << std::string(lanes ? "software" : "GPU") << " build");
+    if (info.is_software() && info.subgroup_shuffle && info.subgroup_size == 8 && gpu::software_shaped(*device())) {
+        CHECK(lanes);  // lavapipe with AVX2: what CI measures and the cloud tests below compare
+        CHECK_FALSE(pat::runs_lanes_kernel(random_model({20, 32, 1, 2, 64}, 1), *device()));  // k % 8 != 0
+    }
+    if (!info.is_software()) CHECK_FALSE(lanes);  // a GPU may run a workgroup as several subgroups
+}
+
 TEST_CASE("tangent_axis is the branch tangent_of takes") {
     std::mt19937_64 rng(3);
     std::normal_distribution<double> g;
@@ -422,12 +437,12 @@ struct Shape {
 };
 
 /// Each shape through the kernel against the reference: in shared memory where it fits, and
-/// forced into the device-memory workspace. With the kernel hardware GPUs get (weights in a
-/// storage buffer, the matrix-product tile 4 rows × 1 vec4 column; the golden and cloud cases
-/// run lavapipe's own: texel-buffer weights, 4 × 4), so that both are tested, and each pipeline
-/// compiles in half the time on a machine that has not cached it.
-/// With `gpus_kernel` false, the device's own kernel instead (on lavapipe: texel-buffer weights,
-/// 4 × 4 tiles, and a workgroup as small as llvmpipe's loop limit allows).
+/// forced into the device-memory workspace. With the kernel hardware GPUs get (the GPU build:
+/// weights in a storage buffer, the matrix-product tile 4 rows × 1 vec4 column; the golden and
+/// cloud cases run lavapipe's own), so that both are tested, and each pipeline compiles in half
+/// the time on a machine that has not cached it.
+/// With `gpus_kernel` false, the device's own kernel instead (on lavapipe the software build: a
+/// subgroup a point, rows through shuffles, where the shape fits it).
 void check_shapes(const PointCloud& c, std::initializer_list<Shape> shapes, bool gpus_kernel = true) {
     if (gpus_kernel) {
         ::setenv("GSD_TORUSNET_TILE", "4,1", 1);
@@ -488,7 +503,7 @@ TEST_CASE("models of other shapes: the published one and odd sizes, a whole clou
     // fit 32 KiB of shared memory: its activations go to device memory.
     check_shapes(c, {Shape{{64, 128, 4, 4, 256}, 97}, Shape{{24, 48, 3, 3, 96}, 13}});
     check_shapes(c, {Shape{{64, 128, 4, 4, 256}, 97}, Shape{{24, 48, 3, 3, 96}, 13}}, false);
-    // A whole cloud through the device-memory workspace (lavapipe's own tile).
+    // A whole cloud through the device-memory workspace (the device's own kernel).
     const TorusNetModel big = random_model({64, 128, 2, 4, 256}, 3);
     std::size_t ties = 0;
     const PointCloud small = noisy_box(400, 3);

@@ -71,12 +71,17 @@ NetPlan plan(const TorusNetModel& m, const gpu::Context& ctx, bool force_global)
     for (int c = 4; c <= m.mlp; c += 4)
         if (m.mlp % c == 0 && k * (c / 4 + 1) <= scratch) p.fc = c;
     p.pool = 2 * k * xs + std::max(scratch, k * (p.fc / 4 + 1));
-    // Tiles (measured, docs/gpu.md): 4 rows × 4 vec4s on CPU devices, whose kernel reads the
-    // weights as a texel buffer (8 × 2 was best while they were read lane by lane), 4 × 1 on
-    // GPUs (more, smaller tiles keep more threads busy: on an H100 1.6× the throughput of
-    // 4 × 2). $GSD_TORUSNET_TILE=rows,cols overrides.
-    if (ctx.info().is_software()) p.tile_cols = 4;
-    else p.tile_cols = 1;
+    // Tiles of the GPU build's matrix products (measured, docs/gpu.md): 4 rows × 1 vec4 on GPUs
+    // (more, smaller tiles keep more threads busy: on an H100 1.6× the throughput of 4 × 2);
+    // 8 × 2 on a software device that the software build does not fit, which reads the weights
+    // lane by lane there (snail.ply: 2.0 s of kernel against 2.2 for 4 × 2 and 2.8 for 4 × 4).
+    // $GSD_TORUSNET_TILE=rows,cols overrides.
+    if (ctx.info().is_software()) {
+        p.tile_rows = k % 8 == 0 ? 8 : 4;
+        p.tile_cols = 2;
+    } else {
+        p.tile_cols = 1;
+    }
     if (const char* v = std::getenv("GSD_TORUSNET_TILE"); v && *v) {
         int r = 0, c = 0;
         if (std::sscanf(v, "%d,%d", &r, &c) != 2 || r < 1 || r > 16 || k % r != 0 || c < 1 || c > 4)
@@ -242,13 +247,16 @@ std::uint64_t lanes_loop_iterations(const NetPlan& p, std::uint64_t lanes) {
 /// products and attention through subgroup shuffles) runs this model on this device: a
 /// software device with shuffles and 8, 16 or 32 lanes; K a multiple of L and a head's width at
 /// most 4L (its rows are read one vec4 a lane); width and MLP pass at most 128 (a product's
-/// unrolled input loop has at most 32 passes, Mesa's limit for unrolling); and the loops under
+/// unrolled input loop has at most 32 passes, llvmpipe's max_unroll_iterations); and the loops under
 /// half llvmpipe's limit.
+/// Only on software devices: the kernel takes a workgroup of subgroup_size invocations to be one
+/// subgroup, which llvmpipe guarantees and Vulkan 1.1 does not (a GPU may compile it narrower).
 bool lanes_kernel_fits(const NetPlan& p, const gpu::Context& ctx) {
     const gpu::DeviceInfo& info = ctx.info();
     const int L = int(info.subgroup_size), d = p.width / p.heads;
-    return gpu::software_shaped(ctx) && info.subgroup_shuffle && (L == 8 || L == 16 || L == 32) && p.k % L == 0 &&
-           d <= 4 * L && p.width <= 128 && p.fc <= 128 && 2 * lanes_loop_iterations(p, std::uint64_t(L)) <= 65535;
+    return info.is_software() && gpu::software_shaped(ctx) && info.subgroup_shuffle && (L == 8 || L == 16 || L == 32) &&
+           p.k % L == 0 && d <= 4 * L && p.width <= 128 && p.fc <= 128 &&
+           2 * lanes_loop_iterations(p, std::uint64_t(L)) <= 65535;
 }
 
 const gpu::Kernel& net_kernel(gpu::Context& ctx, const NetPlan& p, bool debug) {
@@ -290,6 +298,10 @@ bool force_global_env() {
 }
 
 }  // namespace
+
+bool runs_lanes_kernel(const TorusNetModel& model, gpu::Context& ctx) {
+    return lanes_kernel_fits(plan(model, ctx, force_global_env()), ctx);
+}
 
 void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::Context& ctx, std::vector<Jet>& jets,
                       Points& tangents, std::size_t chunk_size, const ProgressFn& progress) {

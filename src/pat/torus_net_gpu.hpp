@@ -8,4 +8,7 @@ namespace gsd::pat {
 void predict_jets_gpu(const TorusNetModel& model, const PointCloud& cloud, gpu::Context& ctx,
                       std::vector<Jet>& jets, Points& tangents, std::size_t chunk_size,
                       const ProgressFn& progress);
+/// Whether predict_jets_gpu runs this model on this device with torus_net.comp's software
+/// build (a subgroup a point, rows through shuffles) rather than the GPU build (tiles).
+bool runs_lanes_kernel(const TorusNetModel& model, gpu::Context& ctx);
 }
