@@ -218,7 +218,7 @@ float lanes_max(float v) {
 // The rest may vary, so products of one shape share a call site: llvmpipe compiles every copy
 // of the unrolled code at pipeline creation, in every run.
 const int GI4 = (W + F) / 4;           // bound on a product's inputs in vec4s (2, W4, D4, FC4)
-const int GN4 = ((2 * W + F) / 4 + 7) / 8;  // bound on NL (q | k v: 2·D4 ≤ 2·W4 columns)
+const int GN4 = ((2 * W + F) / 4 + 7) / 8;  // bound on NL for L ≥ 8 (q | k v: 2·D4 ≤ 2·W4 columns)
 void gemm_lanes(int a, int lda, int R, const int I4, const int NL, int b, int ldb, int bias, int N, int o, int ldo,
                 int mode) {
     int n4 = N / 4;
@@ -251,8 +251,10 @@ void gemm_lanes(int a, int lda, int R, const int I4, const int NL, int b, int ld
     }
 }
 
-// A product with weights whose N is a constant (the lane's columns follow from it).
-void gemm(int a, int lda, int R, const int I4, int b, int ldb, int bias, const int N, int o, int ldo, int mode) {
+// gemm with the GPU build's signature, so both builds share main(): a product with weights
+// (`weights` is true at every call here) whose N is a constant, the lane's columns following.
+void gemm(int a, int lda, int R, const int I4, bool weights, int b, int ldb, int bias, const int N, int o, int ldo,
+          int mode) {
     gemm_lanes(a, lda, R, I4, (N / 4 + L - 1) / L, b, ldb, bias, N, o, ldo, mode);
 }
 
@@ -344,7 +346,7 @@ void block(int base, int R) {
         attention(R, scale);
         sync();
         // x += o_h · proj[hD … hD+D) (the bias once, with head 0).
-        gemm(T, QS, R, D4, base + PR_W + h * D * W4, W4, h == 0 ? base + PR_B : -1, W, X, XS, 1);
+        gemm(T, QS, R, D4, true, base + PR_W + h * D * W4, W4, h == 0 ? base + PR_B : -1, W, X, XS, 1);
         sync();
     }
     layer_norm(X, Y, R, base + N2_G);
@@ -358,9 +360,9 @@ void block(int base, int R) {
                 sync();
             }
         } else {
-            gemm(Y, XS, R, W4, base + F1_W + c0 / 4, F4, base + F1_B + c0 / 4, FC, T, HS, 2);
+            gemm(Y, XS, R, W4, true, base + F1_W + c0 / 4, F4, base + F1_B + c0 / 4, FC, T, HS, 2);
             sync();
-            gemm(T, HS, R, FC4, base + F2_W + c0 * W4, W4, c0 == 0 ? base + F2_B : -1, W, X, XS, 1);
+            gemm(T, HS, R, FC4, true, base + F2_W + c0 * W4, W4, c0 == 0 ? base + F2_B : -1, W, X, XS, 1);
             sync();
         }
     }
@@ -512,11 +514,7 @@ void main() {
 
     float m = features(g);
     // x = LayerNorm(embed(features)): the embedding into Y, normalized into X.
-#ifdef GSD_SOFTWARE_SHAPED
-    gemm(T, FS, K, 2, E_W, W4, E_B, W, Y, XS, 0);
-#else
     gemm(T, FS, K, 2, true, E_W, W4, E_B, W, Y, XS, 0);
-#endif
     sync();
     layer_norm(Y, X, K, EN_G);
     [[dont_unroll]] for (int b = 0; b < B; ++b) block(BLK0 + b * BLK, b + 1 < B ? K : LAST_ROWS);
