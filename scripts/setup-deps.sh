@@ -7,7 +7,7 @@ set -euo pipefail
 packages=(
   cmake ninja-build g++ ccache pkg-config
   libeigen3-dev libnanoflann-dev libsuitesparse-dev coinor-libclp-dev liblemon-dev libspectra-dev
-  libvulkan-dev libvulkan-volk-dev glslang-tools mesa-vulkan-drivers vulkan-validationlayers
+  libvulkan-dev libvulkan-volk-dev glslang-tools spirv-tools mesa-vulkan-drivers vulkan-validationlayers
   libcli11-dev libstb-dev nlohmann-json3-dev doctest-dev libopenvdb-dev libboost-dev python3-openvdb
   libopenblas0-pthread
   python3 python3-numpy python3-dev pybind11-dev python3-pytest
