@@ -66,6 +66,20 @@ TEST_CASE("grid bricks (a device's order of a grid): every node once, copies cla
                 }
                 for (int a = 0; a < 3; ++a) CHECK(hi[a] - lo[a] <= 1);
             }
+            // A cursor walked from any item gives node()'s answers (the device's upload and
+            // read-back take the items so).
+            for (const std::size_t start : {std::size_t(0), std::size_t(1), per - 1, per, bricks.items() / 2 + 3}) {
+                if (start >= bricks.items()) continue;
+                spatial::GridBricks::Cursor at(bricks, start);
+                for (std::size_t i = start; i < bricks.items(); ++i, at.next()) {
+                    int want[3], got[3];
+                    std::size_t want_linear = 0, got_linear = 0;
+                    const bool want_real = bricks.node(i, want, want_linear), got_real = at.node(got, got_linear);
+                    REQUIRE(got_real == want_real);
+                    REQUIRE(got_linear == want_linear);
+                    for (int a = 0; a < 3; ++a) REQUIRE(got[a] == want[a]);
+                }
+            }
         }
 }
 

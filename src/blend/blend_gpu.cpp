@@ -94,6 +94,25 @@ void record_tori(gpu::Context& ctx, gpu::Recorder& rec, const gpu::Buffer& jets,
     rec.dispatch(k, {{&jets}, {&tori}}, &push, sizeof(push), (count + k.workgroup - 1) / k.workgroup);
 }
 
+// Items [first, first + n) of a grid's bricks, f(m, ijk, linear, real) for item first + m, in
+// blocks a thread walks with a cursor (GridBricks::Cursor: no division per item).
+template <class F>
+void for_brick_items(const spatial::GridBricks& bricks, std::size_t first, std::size_t n, F&& f) {
+    constexpr std::size_t kBlock = 4096;
+    const auto blocks = std::ptrdiff_t((n + kBlock - 1) / kBlock);
+#pragma omp parallel for schedule(static) if (blocks > 1)
+    for (std::ptrdiff_t b = 0; b < blocks; ++b) {
+        const std::size_t begin = std::size_t(b) * kBlock, end = std::min(n, begin + kBlock);
+        spatial::GridBricks::Cursor at(bricks, first + begin);
+        for (std::size_t m = begin; m < end; ++m, at.next()) {
+            int ijk[3];
+            std::size_t linear = 0;
+            const bool real = at.node(ijk, linear);
+            f(m, ijk, linear, real);
+        }
+    }
+}
+
 }  // namespace
 
 class GpuField {
@@ -190,25 +209,37 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
         bricks.emplace(q.grid(), 2);
     job.count = bricks ? bricks->items() : q.size();
     auto index = [&](std::size_t i) { return order.empty() ? i : std::size_t(order[i]); };
-    // Item i's query: the node it stands for (a brick's copy past an odd edge repeats one).
-    auto query_at = [&](std::size_t i) {
-        if (!bricks) return q.at(index(i));
-        int ijk[3];
-        std::size_t linear;
-        bricks->node(i, ijk, linear);
-        return q.grid().node(ijk[0], ijk[1], ijk[2]);
-    };
+    // A grid's node coordinates along each axis, as GridSpec::node makes them (each coordinate
+    // depends on its own index only), so that a node costs three reads, not three divisions.
+    std::array<std::vector<double>, 3> axis;
+    if (bricks) {
+        const GridSpec& g = q.grid();
+        const int n[3] = {g.nx, g.ny, g.nz};
+        for (int a = 0; a < 3; ++a) {
+            axis[std::size_t(a)].resize(std::size_t(n[a]));
+            for (int i = 0; i < n[a]; ++i) axis[std::size_t(a)][std::size_t(i)] = g.node(a == 0 ? i : 0, a == 1 ? i : 0, a == 2 ? i : 0)[a];
+        }
+    }
     // Gathers and scatters through the order run in parallel (random accesses: a thread waits
     // on memory for most of each).
     job.fill = [&](std::size_t first, std::size_t n, void* dst) {
         float* up = static_cast<float*>(dst);
+        auto put = [up](std::size_t m, double x, double y, double z) {
+            up[4 * m] = float(x);
+            up[4 * m + 1] = float(y);
+            up[4 * m + 2] = float(z);
+            up[4 * m + 3] = 0.0f;
+        };
+        if (bricks) {  // a brick's copy past an odd edge repeats a node
+            for_brick_items(*bricks, first, n, [&](std::size_t m, const int ijk[3], std::size_t, bool) {
+                put(m, axis[0][std::size_t(ijk[0])], axis[1][std::size_t(ijk[1])], axis[2][std::size_t(ijk[2])]);
+            });
+            return;
+        }
 #pragma omp parallel for schedule(static) if (n > 4096)
         for (std::size_t m = 0; m < n; ++m) {
-            const Eigen::Vector3d x = query_at(first + m);
-            up[4 * m] = float(x.x());
-            up[4 * m + 1] = float(x.y());
-            up[4 * m + 2] = float(x.z());
-            up[4 * m + 3] = 0.0f;
+            const Eigen::Vector3d x = q.at(index(first + m));
+            put(m, x.x(), x.y(), x.z());
         }
     };
     job.record = [&](gpu::Recorder& rec, const gpu::Buffer& in, const gpu::Buffer& res, std::size_t n) {
@@ -219,17 +250,19 @@ void GpuField::evaluate(const Params& p, const Queries& q, Output out, std::size
     };
     job.drain = [&](std::size_t first, std::size_t n, const void* src) {
         const float* r = static_cast<const float*>(src);
-#pragma omp parallel for schedule(static) if (n > 4096)
-        for (std::size_t m = 0; m < n; ++m) {
-            std::size_t i = index(first + m);
-            if (bricks) {
-                int ijk[3];
-                if (!bricks->node(first + m, ijk, i)) continue;  // a copy
-            }
+        auto take = [&](std::size_t m, std::size_t i) {
             out.phi[i] = r[out_floats * m];
             if (out.gradient)
                 for (int a = 0; a < 3; ++a) out.gradient[3 * i + std::size_t(a)] = r[4 * m + 1 + std::size_t(a)];
+        };
+        if (bricks) {
+            for_brick_items(*bricks, first, n, [&](std::size_t m, const int*, std::size_t linear, bool real) {
+                if (real) take(m, linear);  // a copy is dropped
+            });
+            return;
         }
+#pragma omp parallel for schedule(static) if (n > 4096)
+        for (std::size_t m = 0; m < n; ++m) take(m, index(first + m));
     };
     gpu::stream(c, job, progress);
 }

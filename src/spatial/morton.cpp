@@ -111,23 +111,49 @@ GridBricks::GridBricks(const GridSpec& grid, int brick)
     by_ = (std::size_t(ny_) + b - 1) / b;
     bz_ = (std::size_t(nz_) + b - 1) / b;
     per_brick_ = b * b * b;
+    // Morton within a brick: bit 3l + (2 − a) of the place is bit l of the offset along axis a.
+    offsets_.resize(per_brick_);
+    for (std::size_t m = 0; m < per_brick_; ++m)
+        for (int a = 0; a < 3; ++a) {
+            std::size_t offset = 0;
+            for (int l = 0; l < bits_; ++l) offset |= ((m >> (3 * l + (2 - a))) & 1u) << l;
+            offsets_[m][std::size_t(a)] = std::uint8_t(offset);
+        }
 }
 
 bool GridBricks::node(std::size_t item, int ijk[3], std::size_t& linear) const {
-    const std::size_t brick = item / per_brick_, m = item % per_brick_;
-    const std::size_t cell[3] = {brick / (by_ * bz_), (brick / bz_) % by_, brick % bz_};
-    const int n[3] = {nx_, ny_, nz_};
+    return Cursor(*this, item).node(ijk, linear);
+}
+
+GridBricks::Cursor::Cursor(const GridBricks& bricks, std::size_t item) : b_(&bricks) {
+    const std::size_t brick = item / bricks.per_brick_;
+    m_ = item % bricks.per_brick_;
+    brick_[0] = brick / (bricks.by_ * bricks.bz_);
+    brick_[1] = (brick / bricks.bz_) % bricks.by_;
+    brick_[2] = brick % bricks.bz_;
+}
+
+bool GridBricks::Cursor::node(int ijk[3], std::size_t& linear) const {
+    const GridBricks& b = *b_;
+    const int n[3] = {b.nx_, b.ny_, b.nz_};
     bool inside = true;
     for (int a = 0; a < 3; ++a) {
-        // Morton within the brick: bit 3l + (2 − a) of m is bit l of the offset along axis a.
-        std::size_t offset = 0;
-        for (int l = 0; l < bits_; ++l) offset |= ((m >> (3 * l + (2 - a))) & 1u) << l;
-        const std::size_t v = (cell[a] << bits_) + offset;
+        const std::size_t v = (brick_[a] << b.bits_) + b.offsets_[m_][std::size_t(a)];
         inside = inside && v < std::size_t(n[a]);
         ijk[a] = int(std::min<std::size_t>(v, std::size_t(n[a] - 1)));
     }
-    linear = (std::size_t(ijk[0]) * std::size_t(ny_) + std::size_t(ijk[1])) * std::size_t(nz_) + std::size_t(ijk[2]);
+    linear = (std::size_t(ijk[0]) * std::size_t(b.ny_) + std::size_t(ijk[1])) * std::size_t(b.nz_) + std::size_t(ijk[2]);
     return inside;
+}
+
+void GridBricks::Cursor::next() {
+    if (++m_ < b_->per_brick_) return;
+    m_ = 0;  // the next brick, in C order
+    if (++brick_[2] < b_->bz_) return;
+    brick_[2] = 0;
+    if (++brick_[1] < b_->by_) return;
+    brick_[1] = 0;
+    ++brick_[0];
 }
 
 }  // namespace gsd::spatial
