@@ -2,8 +2,9 @@
 #
 # Each shader NAME.comp is compiled by glslangValidator, optimized by spirv-opt -O (spirv-tools,
 # which glslang-tools depends on; GSD_OPTIMIZE_SHADERS=OFF skips it), and becomes
-# ${GSD_SHADER_DIR}/NAME.spv.h holding a uint32_t array (cmake/SpirvHeader.cmake), and ${GSD_SHADER_DIR}/gsd_shader_registry.h lists them all as
-# {name, words, word_count} so the gpu module can look kernels up by name. A shader that
+# ${GSD_SHADER_DIR}/NAME.spv.h holding a uint32_t array (cmake/SpirvHeader.cmake), and
+# ${GSD_SHADER_DIR}/gsd_shader_registry.h lists them all as {name, words, word_count} so the
+# gpu module can look kernels up by name. A shader that
 # mentions GSD_SOFTWARE_SHAPED is also built with it defined, as NAME_software (the kernel shaped
 # for a software device's SIMD lanes: gpu::software_shaped).
 # Shared GLSL snippets live in shaders/*.glsl and are #included by the .comp files.
@@ -14,13 +15,17 @@ option(GSD_OPTIMIZE_SHADERS "Optimize the SPIR-V with spirv-opt -O before embedd
 
 function(gsd_embed_shaders target)
   find_program(GLSLANG_VALIDATOR glslangValidator REQUIRED)
-  # Optimized SPIR-V leaves a driver less to do when it makes a pipeline: on lavapipe (Mesa 22.3),
-  # whose NIR passes take most of a pipeline's making, blend_eval_software took 47–52 ms
-  # instead of 68–69 and torus_net_software 174–181 instead of 234–245, kernels as fast
-  # (docs/gpu.md, "Kernels").
+  # Optimized SPIR-V leaves lavapipe (Mesa 22.3, whose NIR passes take most of a pipeline's
+  # making) a quarter to a third less to do for the largest kernels, which run as fast
+  # (docs/gpu.md, "Kernels"). Bindings and specialization constants stay as declared: the host
+  # checks a shader's binding count, and sets every constant whether the code still reads it.
   if(GSD_OPTIMIZE_SHADERS)
     find_program(SPIRV_OPT spirv-opt REQUIRED)
   endif()
+  # A change of the option or of the tools rebuilds every shader (Ninja sees a changed command
+  # line; Makefiles need this stamp, rewritten only when its content changes).
+  set(tools_stamp ${GSD_SHADER_DIR}/shader-tools.stamp)
+  file(CONFIGURE OUTPUT ${tools_stamp} CONTENT "${GLSLANG_VALIDATOR} optimize=${GSD_OPTIMIZE_SHADERS} ${SPIRV_OPT}\n")
   file(GLOB shader_sources CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/shaders/*.comp)
   file(GLOB shader_includes CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/shaders/*.glsl ${CMAKE_SOURCE_DIR}/shaders/*.h)
   list(SORT shader_sources)
@@ -47,16 +52,17 @@ function(gsd_embed_shaders target)
       set(spv ${GSD_SHADER_DIR}/${name}.spv)
       set(optimize)
       if(GSD_OPTIMIZE_SHADERS)
-        set(optimize COMMAND ${SPIRV_OPT} -O --target-env=vulkan1.1 ${spv} -o ${spv})
+        set(optimize COMMAND ${SPIRV_OPT} -O --preserve-bindings --preserve-spec-constants --target-env=vulkan1.1 ${spv} -o ${spv})
       endif()
       add_custom_command(
         OUTPUT ${out}
+        BYPRODUCTS ${spv}
         COMMAND ${CMAKE_COMMAND} -E make_directory ${GSD_SHADER_DIR}
         COMMAND ${GLSLANG_VALIDATOR} --quiet -V --target-env vulkan1.1 ${defines}
                 -I${CMAKE_SOURCE_DIR}/shaders -o ${spv} ${src}
         ${optimize}
         COMMAND ${CMAKE_COMMAND} -DIN=${spv} -DOUT=${out} -DNAME=gsd_spv_${name} -P ${CMAKE_SOURCE_DIR}/cmake/SpirvHeader.cmake
-        DEPENDS ${src} ${shader_includes} ${CMAKE_SOURCE_DIR}/cmake/SpirvHeader.cmake
+        DEPENDS ${src} ${shader_includes} ${CMAKE_SOURCE_DIR}/cmake/SpirvHeader.cmake ${tools_stamp}
         COMMENT "Compiling shader ${name}"
         VERBATIM)
       list(APPEND headers ${out})

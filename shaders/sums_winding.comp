@@ -380,10 +380,14 @@ void main() {
         if (done) break;
     }
     // Each query's sum over the lanes, by halving: at each step a lane keeps the half of the
-    // queries whose bit matches its own and adds what its partner kept of them, so that lane l
-    // ends with queries l, l + S, ... — log₂ S shuffles of ever fewer values, where a reduction
-    // per query (subgroupAdd) was about a third of the kernel's time on queries far from the
-    // mesh (lavapipe, 10⁶ queries around chair.obj shifted away: 81–84 → 67–68 ms).
+    // queries whose bit matches its own and adds what its partner kept of them, so that in the
+    // end lane l holds the sums of queries l, l + S, ... (l < 16) — log₂ S shuffles of ever fewer
+    // values (the steps between lanes 16 or more apart, in subgroups wider than 16, shuffle all
+    // 16), where a reduction per query (subgroupAdd) was about a third of the kernel's time on
+    // queries far from the mesh (lavapipe, 10⁶ queries around chair.obj moved away: 81–84 →
+    // 67–68 ms). The shuffles pair lanes by their subgroup index; the steps and slots are `if`s
+    // on constants (no `continue`), so that the loops unroll into registers.
+    const uint me = gl_SubgroupInvocationID;
     float w[16];
     uint t[16];
     [[unroll]] for (uint j = 0u; j < 16u; ++j) {
@@ -391,24 +395,25 @@ void main() {
         t[j] = j < Q ? terms[j >> 2u][j & 3u] : 0u;
     }
     [[unroll]] for (uint step = 0u; step < 6u; ++step) {
-        const uint b = 32u >> step;
-        if (b >= S) continue;
-        const bool high = (lane & b) != 0u;
-        // Slot j, with j's bits from b up (below S) clear, holds the lane's value for query j
-        // plus the lane's own bits above b; it pairs with slot j | b. Lanes 16 apart (wider
-        // subgroups) hold the same queries: they add all.
+        const uint b = 32u >> step;  // the partner's distance
+        const bool high = (me & b) != 0u;
+        // Slot j, with j's bits from b up (below S) clear, holds the lane's sum for query j plus
+        // the lane's own bits above b; it pairs with slot j | b. Lanes 16 or more apart hold the
+        // same queries: they add every slot. Slots from Q on hold queries past the group's.
         [[unroll]] for (uint j = 0u; j < 16u; ++j) {
-            if ((j & (S - 1u) & ~(b - 1u)) != 0u) continue;
-            const uint k = b < 16u ? j | b : j;
-            const float wk = high ? w[k] : w[j], ws = high ? w[j] : w[k];
-            const uint tk = high ? t[k] : t[j], ts = high ? t[j] : t[k];
-            w[j] = wk + subgroupShuffleXor(ws, b);
-            t[j] = tk + subgroupShuffleXor(ts, b);
+            if (b < S && j < Q && (j & (S - 1u) & ~(b - 1u)) == 0u) {
+                const uint k = b < 16u ? j | b : j;
+                const float wk = high ? w[k] : w[j], ws = high ? w[j] : w[k];
+                const uint tk = high ? t[k] : t[j], ts = high ? t[j] : t[k];
+                w[j] = wk + subgroupShuffleXor(ws, b);
+                t[j] = tk + subgroupShuffleXor(ts, b);
+            }
         }
     }
-    [[unroll]] for (uint j = 0u; j < 16u; j += S) {
-        const uint q = j + lane;
-        if (j < Q && q < Q && base + q < count) outv[base + q] = vec2(w[j], cut ? -1.0 : float(t[j]));
+    // Slot j of lane l (j a multiple of S) is query j + l.
+    [[unroll]] for (uint j = 0u; j < 16u; ++j) {
+        const uint q = j + me;
+        if (j % S == 0u && j < Q && q < Q && base + q < count) outv[base + q] = vec2(w[j], cut ? -1.0 : float(t[j]));
     }
 }
 #endif

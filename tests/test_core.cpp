@@ -66,6 +66,27 @@ TEST_CASE("grid bricks (a device's order of a grid): every node once, copies cla
                 }
                 for (int a = 0; a < 3; ++a) CHECK(hi[a] - lo[a] <= 1);
             }
+            // Item i's node from first principles: brick i / B³ in C order, its place i % B³ in
+            // Morton order (bit 3l + (2 − a) of the place is bit l of the offset along axis a).
+            const int bits = brick == 4 ? 2 : 1;
+            const std::size_t nb[3] = {std::size_t((dims[0] + brick - 1) / brick), std::size_t((dims[1] + brick - 1) / brick),
+                                       std::size_t((dims[2] + brick - 1) / brick)};
+            for (std::size_t i = 0; i < bricks.items(); ++i) {
+                const std::size_t b = i / per, m = i % per;
+                const std::size_t cell[3] = {b / (nb[1] * nb[2]), (b / nb[2]) % nb[1], b % nb[2]};
+                int got[3];
+                std::size_t linear = 0;
+                const bool real = bricks.node(i, got, linear);
+                bool inside = true;
+                for (int a = 0; a < 3; ++a) {
+                    std::size_t offset = 0;
+                    for (int l = 0; l < bits; ++l) offset |= ((m >> (3 * l + (2 - a))) & 1u) << l;
+                    const std::size_t v = (cell[a] << bits) + offset;
+                    inside = inside && v < std::size_t(dims[std::size_t(a)]);
+                    REQUIRE(got[a] == int(std::min<std::size_t>(v, std::size_t(dims[std::size_t(a)] - 1))));
+                }
+                REQUIRE(real == inside);
+            }
             // A cursor walked from any item gives node()'s answers (the device's upload and
             // read-back take the items so).
             for (const std::size_t start : {std::size_t(0), std::size_t(1), per - 1, per, bricks.items() / 2 + 3}) {

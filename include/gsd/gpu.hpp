@@ -46,7 +46,7 @@ struct DeviceInfo {
     bool subgroup_vote = false;    ///< compute shaders may vote across a subgroup (subgroupAny)
     bool subgroup_ballot = false;  ///< ... and broadcast within it (subgroupBroadcast)
     bool subgroup_arithmetic = false;  ///< ... and add across it (subgroupAdd; the renderer needs it)
-    bool subgroup_shuffle = false;     ///< ... and shuffle within it (subgroupShuffle; TorusNet on software devices)
+    bool subgroup_shuffle = false;     ///< ... and shuffle within it (subgroupShuffle; TorusNet and winding numbers on software devices)
     std::uint64_t max_storage_buffer_range = 0;
     bool usable = false;      ///< has what gsd needs (compute queue, push descriptors, Vulkan 1.1)
     std::string why_not;      ///< if not usable

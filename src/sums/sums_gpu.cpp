@@ -184,8 +184,9 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
         if (g == "8") software_group = 8;
         if (g == "12" && software_group >= 12) software_group = 12;
     }
-    // (Its lanes add up each query's sum by shuffles.)
-    const bool fits_shaped = d.node_count <= (1u << 24) && workgroup <= 64 && ctx->info().subgroup_shuffle;
+    // Its workgroup is one subgroup of at most 64 lanes (none on hardware: loop_capped_workgroup
+    // is 0 there), which add up each query's sum by shuffles.
+    const bool fits_shaped = d.node_count <= (1u << 24) && workgroup > 0 && workgroup <= 64 && ctx->info().subgroup_shuffle;
     const bool want_shaped = gpu::software_shaped(*ctx) && fits_shaped;
     // (The GPUs' build has no group: one value, so that trees of every size share its pipeline.)
     const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding,
