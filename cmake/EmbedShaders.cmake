@@ -22,10 +22,15 @@ function(gsd_embed_shaders target)
   if(GSD_OPTIMIZE_SHADERS)
     find_program(SPIRV_OPT spirv-opt REQUIRED)
   endif()
-  # A change of the option or of the tools rebuilds every shader (Ninja sees a changed command
-  # line; Makefiles need this stamp, rewritten only when its content changes).
+  # A change of the option, or of the tools or their versions, rebuilds every shader: this stamp
+  # is rewritten (at configure time) only when its content changes.
+  execute_process(COMMAND ${GLSLANG_VALIDATOR} --version OUTPUT_VARIABLE glslang_version ERROR_QUIET)
+  set(spirv_opt_version "")
+  if(GSD_OPTIMIZE_SHADERS)
+    execute_process(COMMAND ${SPIRV_OPT} --version OUTPUT_VARIABLE spirv_opt_version ERROR_VARIABLE spirv_opt_version)  # (on stderr)
+  endif()
   set(tools_stamp ${GSD_SHADER_DIR}/shader-tools.stamp)
-  file(CONFIGURE OUTPUT ${tools_stamp} CONTENT "${GLSLANG_VALIDATOR} optimize=${GSD_OPTIMIZE_SHADERS} ${SPIRV_OPT}\n")
+  file(CONFIGURE OUTPUT ${tools_stamp} CONTENT "${GLSLANG_VALIDATOR} ${glslang_version}optimize=${GSD_OPTIMIZE_SHADERS} ${SPIRV_OPT} ${spirv_opt_version}\n")
   file(GLOB shader_sources CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/shaders/*.comp)
   file(GLOB shader_includes CONFIGURE_DEPENDS ${CMAKE_SOURCE_DIR}/shaders/*.glsl ${CMAKE_SOURCE_DIR}/shaders/*.h)
   list(SORT shader_sources)
