@@ -8,6 +8,15 @@
 const int K_MAX = 32;     // largest fallback_k the kernel supports
 const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
 const float PI = 3.14159265358979;
+// PAT's terms that cannot count are left out on software devices (KIND 0): a point's weight is
+// e^(−λ(d − σ))·T(d/ρ) with λ = 2C/ρ and T decreasing, so against the nearest summed point's
+// (at d₁) it is at most e^(−λ(d − d₁)); past d₁ + PRUNE/λ a term weighs under e^(−PRUNE) of the
+// largest, below float32's resolution of the sums even with thousands of them (φ = G/W is a
+// weighted mean: each term moves it by at most its weight share times |g − φ|, and ∇φ's sums
+// carry the same weights). With C = 64 that is d₁ + 0.19ρ: a handful of tori where the ball of
+// r_eval (8 spacings) holds a couple of hundred and the fallback 32. Not SSPD (area weights
+// scale its terms) nor SHC (a signed sum whose scale is its value).
+const float PRUNE = 24.0;
 
 #define KNN_MAX K_MAX
 #include "box_tree_knn.glsl"
@@ -114,6 +123,28 @@ uint mark_points(vec3 x, uint begin, uint count, uint first, uint n, float bound
     return bits;
 }
 
+// mark_points for sum_ball: the points within the ball (bits, returned) and, of those, the ones
+// within `cut` of the nearest point the lane has met so far (summed), its squared distance
+// kept in near2 and the bound's square in reach2 (KIND 0; else cut is +∞ and every point in
+// the ball is summed). Points met before a nearer one stay summed: the bound only ever shrinks.
+uint mark_ball(vec3 x, uint begin, uint count, uint first, uint n, float r2, float cut, inout float near2,
+               inout float reach2, out uint summed) {
+    uint bits = 0u;
+    summed = 0u;
+    for (uint j = 0u; j < n; ++j) {
+        vec3 dv = x - point_at(begin + min(first + j, max(count, 1u) - 1u)).xyz;
+        float d2 = dot(dv, dv);
+        bool in_ball = first + j < count && d2 <= r2;
+        bool nearer = in_ball && d2 < near2;
+        float reach = sqrt(d2) + cut;
+        near2 = nearer ? d2 : near2;
+        reach2 = nearer ? reach * reach : reach2;
+        bits |= in_ball ? 1u << j : 0u;
+        summed |= in_ball && d2 <= reach2 ? 1u << j : 0u;
+    }
+    return bits;
+}
+
 // The offset of a lane's next marked point, taken off its mask; −1 when it has no more.
 int take_next(inout uint bits) {
     int j = findLSB(bits);
@@ -125,7 +156,13 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     const float r_eval = pc.r_eval, r2 = r_eval * r_eval;  // push constants: read outside the loops
     const float sigma = 0.5 * r_eval, lambda = pc.C / sigma;
     const uint first_leaf = pc.first_leaf;
-    uint found = 0u, node = 0u;
+    // PAT prunes (PRUNE above), so the walk takes the nearer child first, as knn_listed's does
+    // (`trail`: which levels of the path took the right child first): the first leaves it
+    // lists hold the nearest points, and the bound is tight from the start.
+    const float cut = KIND == 0 ? PRUNE / lambda : 3.0e38;
+    float near2 = 3.0e38, reach2 = 3.0e38;
+    uint found = 0u, node = 0u, trail = 0u;
+    float node_d2 = node_distance2(x, 0u);
     bool walking = live;
     uint opened[BALL_ROUND];
     while (true) {
@@ -133,16 +170,23 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
         uint n_opened = 0u;
         for (uint step = 0u; step < BALL_ROUND; ++step) {
             if (!walking) break;
-            bool near = box_distance2(x, node_lo(node), node_hi(node)) <= r2;
+            bool near = node_d2 <= r2;
             bool leaf = node >= first_leaf;
             opened[n_opened] = node;
             n_opened += near && leaf ? 1u : 0u;
-            if (near && !leaf) {
-                node = 2u * node + 1u;
-            } else {
-                node = next_in_depth_first(node);
-                walking = node != 0u;
-            }
+            bool descend = near && !leaf;
+            uint k1 = node + 1u;
+            int depth = findMSB(k1);
+            uint second = (k1 ^ trail) & ((1u << uint(depth)) - 1u);
+            int up = descend ? 0 : findLSB(~second);
+            walking = descend || up < depth;
+            uint next = walking ? ((k1 >> uint(up)) ^ 1u) - 1u : 0u;
+            uint l = descend ? 2u * node + 1u : next, r = descend ? l + 1u : next;
+            float dl = node_distance2(x, l), dr = descend ? node_distance2(x, r) : dl;
+            bool right_first = dr < dl;
+            node = right_first ? r : l;
+            node_d2 = right_first ? dr : dl;
+            trail = descend ? 2u * trail + (right_first ? 1u : 0u) : trail >> uint(up);
         }
         uint passes = subgroupMax(n_opened);
         TICK_UNIFORM(passes + 1u);
@@ -156,7 +200,8 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
             for (uint first = 0u; first < longest; first += 32u) {
                 uint n = min(longest - first, 32u);
                 TICK_UNIFORM(n + 1u);
-                uint bits = mark_points(x, begin, count, first, n, r2);
+                uint bits;
+                found += uint(bitCount(mark_ball(x, begin, count, first, n, r2, cut, near2, reach2, bits)));
                 uint rounds = subgroupMax(uint(bitCount(bits)));
                 TICK_UNIFORM(rounds + 1u);
                 for (uint r = 0u; r < rounds; ++r) {
@@ -167,7 +212,6 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
                     point_terms(p, t0, t1, t2);
                     if (j >= 0) {
                         add_term(a, x, pp, t0, t1, t2, sqrt(dot(dv, dv)), lambda, sigma, r_eval, true, grad);
-                        ++found;
                     }
                 }
             }
@@ -425,6 +469,16 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     rho_varies = true;
     far_p = point_at(ki[first + k - 1]).xyz;
     float sigma = 0.5 * rho, lambda = pc.C / sigma;
+#ifdef GSD_SOFTWARE_SHAPED
+    if (KIND == 0 && SHARED_KNN == 0) {
+        // PAT: the list's points within d₁ + PRUNE/λ (PRUNE above), a prefix of it.
+        float reach = kd[first] + PRUNE / lambda;
+        uint n_sum = 0u;
+        [[unroll]] for (int s = 0; s < K_MAX; ++s) n_sum += uint(s) >= first && kd[s] <= reach ? 1u : 0u;
+        for (uint m = first; m < first + n_sum; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
+        return;
+    }
+#endif
     for (uint m = first; m < first + k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
 }
 
