@@ -69,24 +69,26 @@ void main() {
     if (EXACT == 1) {
         // Pass 1: the farthest point sets ρ; pass 2 sums. Tiles are shared by the workgroup.
         rho = 0.0;
+        float nearest = 3.0e38;
         for (uint base = 0; base < pc.point_count; base += TILE) {
             uint n = load_tile(base);
             for (uint m = 0; m < n; ++m) {
                 float d = distance(x, tile_p[m].xyz);
                 if (d > rho) { rho = d; far_p = tile_p[m].xyz; }
+                nearest = min(nearest, d);
             }
             barrier();
         }
         rho = max(rho, 1e-30);
         rho_varies = true;
-        float sigma = 0.5 * rho, lambda = pc.C / sigma;
+        float sigma = 0.5 * rho, lambda = pc.C / sigma, ref = weight_ref(sigma, nearest);
         for (uint base = 0; base < pc.point_count; base += TILE) {
             uint n = load_tile(base);
             for (uint m = 0; m < n; ++m) {
                 vec4 t0, t1 = vec4(0.0), t2 = vec4(0.0);
                 if (KIND == 0) { t0 = tile_t[3 * m]; t1 = tile_t[3 * m + 1]; t2 = tile_t[3 * m + 2]; }
                 else t0 = tile_t[m];
-                add_term(a, x, tile_p[m].xyz, t0, t1, t2, distance(x, tile_p[m].xyz), lambda, sigma, rho, false, grad);
+                add_term(a, x, tile_p[m].xyz, t0, t1, t2, distance(x, tile_p[m].xyz), lambda, ref, rho, false, grad);
             }
             barrier();
         }

@@ -8,14 +8,15 @@
 const int K_MAX = 32;     // largest fallback_k the kernel supports
 const int STACK = 48;     // kd-tree depth bound (2^48 leaves)
 const float PI = 3.14159265358979;
-// PAT's terms that cannot count are left out on software devices (KIND 0): a point's weight is
+// PAT's terms that cannot count are left out (KIND 0): a point's weight is
 // e^(−λ(d − σ))·T(d/ρ) with λ = 2C/ρ and T decreasing, so against the nearest summed point's
 // (at d₁) it is at most e^(−λ(d − d₁)); past d₁ + PRUNE/λ a term weighs under e^(−PRUNE) of the
 // largest, below float32's resolution of the sums even with thousands of them (φ = G/W is a
 // weighted mean: each term moves it by at most its weight share times |g − φ|, and ∇φ's sums
 // carry the same weights). With C = 64 that is d₁ + 0.19ρ: a handful of tori where the ball of
-// r_eval (8 spacings) holds a couple of hundred and the fallback 32. Not SSPD (area weights
-// scale its terms) nor SHC (a signed sum whose scale is its value).
+// r_eval (8 spacings) holds a couple of hundred and the fallback 32. Where the walk meets the
+// nearest point late (the subgroup's shared walk on GPUs) fewer are left out, never one that
+// counts. Not SSPD (area weights scale its terms) nor SHC (a signed sum whose scale is its value).
 const float PRUNE = 24.0;
 
 #define KNN_MAX K_MAX
@@ -31,19 +32,44 @@ struct Acc { float W, G, D, GD, QD, QGD, shc; vec3 Gg, U, GU, QU, QGU; };
 
 Acc acc_zero() { return Acc(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)); }
 
+// Where the weights' exponent is 0 (add_term's `ref`). SHC's value depends on the scale of its
+// sum, so its terms are e^(−λ(d − σ)) as the thesis writes them. PAT's and SSPD's φ and ∇φ are
+// ratios of sums linear in the weights, so any common factor cancels, and they take the
+// nearest summed point's distance: every weight is then at most 1 (no sum of e^C, near 3.4e38
+// at the largest C, overflows float32) and the nearest's is not below its taper's floor (where
+// every weight is tapered to nothing, e^(−C) of it would have underflowed).
+float weight_ref(float sigma, float nearest) { return KIND == 2 ? sigma : nearest; }
+
+// The sums times f (the reference moved: e^(−λ(d − ref)) → e^(−λ(d − ref'))·…).
+void acc_scale(inout Acc a, float f) {
+    a.W *= f; a.G *= f; a.D *= f; a.GD *= f; a.QD *= f; a.QGD *= f; a.shc *= f;
+    a.Gg *= f; a.U *= f; a.GU *= f; a.QU *= f; a.QGU *= f;
+}
+
+// Moves the sums' reference down to `nearest` when it is nearer than `ref` (PAT, SSPD: a lane's
+// running nearest summed point; a reference of +∞ scales sums of nothing by 0).
+void acc_rebase(inout Acc a, inout float ref, float nearest, float lambda) {
+    if (KIND == 2) return;
+    bool moves = nearest < ref;
+    float f = exp(-lambda * (ref - nearest));
+    acc_scale(a, moves ? f : 1.0);
+    ref = moves ? nearest : ref;
+}
+
 // The taper T(v) = (1 − v²)³ + 1e-9 and its derivative (blend_taper in blend.hpp).
 float taper(float v) { float a = 1.0 - min(v * v, 1.0); return a * a * a + 1e-9; }
 float taper_derivative(float v) { float a = 1.0 - min(v * v, 1.0); return -6.0 * v * a * a; }
 
-// Adds point p with term data t0..t2 (PAT: the torus; else t0 = (n, area)) at distance d.
-void add_term(inout Acc a, vec3 x, vec3 p, vec4 t0, vec4 t1, vec4 t2, float d, float lambda, float sigma,
+// Adds point p with term data t0..t2 (PAT: the torus; else t0 = (n, area)) at distance d, with
+// e = e^(−λ(d − ref)) (ref: weight_ref).
+void add_term(inout Acc a, vec3 x, vec3 p, vec4 t0, vec4 t1, vec4 t2, float d, float lambda, float ref,
               float rho, bool tapered, bool grad) {
     float v = d / rho;
     float t = tapered ? taper(v) : 1.0;
     if (KIND == 2) {  // not tapered: SHC depends on the scale of its sum (blend_cpu.cpp)
         float dd = max(d, pc.dmin);
         a.shc += t0.w * (lambda * dd + 1.0) * dot(x - p, t0.xyz) / (2.0 * PI * dd * dd * dd) *
-                 exp(-lambda * (dd - sigma));
+                 exp(-lambda * (dd - ref));
         return;
     }
     float g, scale;
@@ -56,7 +82,7 @@ void add_term(inout Acc a, vec3 x, vec3 p, vec4 t0, vec4 t1, vec4 t2, float d, f
         gg = t0.xyz;
         scale = t0.w;
     }
-    float e = scale * exp(-lambda * (d - sigma));
+    float e = scale * exp(-lambda * (d - ref));
     float w = e * t;
     a.W += w;
     a.G += w * g;
@@ -85,10 +111,10 @@ void point_terms(uint j, out vec4 t0, out vec4 t1, out vec4 t2) {
     else t0 = term_at(j);
 }
 
-void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float sigma, float rho, bool tapered, bool grad) {
+void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float ref, float rho, bool tapered, bool grad) {
     vec4 t0, t1, t2;
     point_terms(j, t0, t1, t2);
-    add_term(a, x, point_at(j).xyz, t0, t1, t2, d, lambda, sigma, rho, tapered, grad);
+    add_term(a, x, point_at(j).xyz, t0, t1, t2, d, lambda, ref, rho, tapered, grad);
 }
 
 // Sums the ball of radius r_eval with ρ = r_eval (constant λ); returns how many points it held.
@@ -160,7 +186,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     // (`trail`: which levels of the path took the right child first): the first leaves it
     // lists hold the nearest points, and the bound is tight from the start.
     const float cut = KIND == 0 ? PRUNE / lambda : 3.0e38;
-    float near2 = 3.0e38, reach2 = 3.0e38;
+    float near2 = 3.0e38, reach2 = 3.0e38, ref = weight_ref(sigma, 3.0e38);
     uint found = 0u, node = 0u, trail = 0u;
     float node_d2 = node_distance2(x, 0u);
     bool walking = live;
@@ -202,6 +228,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
                 TICK_UNIFORM(n + 1u);
                 uint bits;
                 found += uint(bitCount(mark_ball(x, begin, count, first, n, r2, cut, near2, reach2, bits)));
+                acc_rebase(a, ref, sqrt(near2), lambda);
                 uint rounds = subgroupMax(uint(bitCount(bits)));
                 TICK_UNIFORM(rounds + 1u);
                 for (uint r = 0u; r < rounds; ++r) {
@@ -211,7 +238,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
                     vec4 t0, t1, t2;
                     point_terms(p, t0, t1, t2);
                     if (j >= 0) {
-                        add_term(a, x, pp, t0, t1, t2, sqrt(dot(dv, dv)), lambda, sigma, r_eval, true, grad);
+                        add_term(a, x, pp, t0, t1, t2, sqrt(dot(dv, dv)), lambda, ref, r_eval, true, grad);
                     }
                 }
             }
@@ -224,6 +251,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
 uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     float r2 = pc.r_eval * pc.r_eval;
     float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
+    float ref = weight_ref(sigma, 3.0e38), cut = PRUNE / lambda;
     uint found = 0;
     uint node = 0u;
     while (true) {
@@ -239,7 +267,10 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
                 vec3 dv = x - point_at(j).xyz;
                 float d2 = dot(dv, dv);
                 if (near && d2 <= r2) {
-                    add_point(a, x, j, sqrt(d2), lambda, sigma, pc.r_eval, true, grad);
+                    float d = sqrt(d2);
+                    acc_rebase(a, ref, d, lambda);
+                    // PAT: past the nearest point so far + PRUNE/λ a term cannot count.
+                    if (KIND != 0 || d <= ref + cut) add_point(a, x, j, d, lambda, ref, pc.r_eval, true, grad);
                     ++found;
                 }
             }
@@ -469,17 +500,15 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     rho_varies = true;
     far_p = point_at(ki[first + k - 1]).xyz;
     float sigma = 0.5 * rho, lambda = pc.C / sigma;
-#ifdef GSD_SOFTWARE_SHAPED
-    if (KIND == 0 && SHARED_KNN == 0) {
-        // PAT: the list's points within d₁ + PRUNE/λ (PRUNE above), a prefix of it.
+    float ref = weight_ref(sigma, kd[first]);  // the list is nearest first
+    // PAT: only the list's points within d₁ + PRUNE/λ can count (PRUNE above), a prefix of it.
+    uint n_sum = k;
+    if (KIND == 0) {
         float reach = kd[first] + PRUNE / lambda;
-        uint n_sum = 0u;
-        [[unroll]] for (int s = 0; s < K_MAX; ++s) n_sum += uint(s) >= first && kd[s] <= reach ? 1u : 0u;
-        for (uint m = first; m < first + n_sum; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
-        return;
+        n_sum = 0u;
+        for (int s = 0; s < K_MAX; ++s) n_sum += uint(s) >= first && uint(s) < first + k && kd[s] <= reach ? 1u : 0u;
     }
-#endif
-    for (uint m = first; m < first + k; ++m) add_point(a, x, ki[m], kd[m], lambda, sigma, rho, true, grad);
+    for (uint m = first; m < first + n_sum; ++m) add_point(a, x, ki[m], kd[m], lambda, ref, rho, true, grad);
 }
 
 // φ from the sums (and ∇φ into g when `grad`; SHC has none).

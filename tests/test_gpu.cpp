@@ -245,21 +245,25 @@ TEST_CASE("PAT's k-nearest fallback walked per subgroup (the hardware GPUs' path
         CHECK(compare(gpu_spread.phi, cpu_spread.phi, 1e-4).max_abs < 1e-4);
         CHECK(compare(gpu_spread.gradient, cpu_spread.gradient, 1e-3).max_abs < 1e-3);
     }
-    // The software kernel leaves out PAT terms past the nearest point + PRUNE/λ, λ = 2C/ρ
-    // (blend_field.glsl): at a small C that reach passes ρ and nothing is left out, at the
-    // largest C the most is; either way the field is the CPU's, near the cloud and far from it.
-    for (const double C : {4.0, 20.0, 64.0}) {
-        CAPTURE(C);
-        BlendOptions cpu_c = on("cpu", false), gpu_c = on("gpu", false);
-        cpu_c.C = gpu_c.C = C;
-        const FieldValues want = TorusField(f, cpu_c).evaluate(q, true), want_far = TorusField(f, cpu_c).evaluate(spread, true);
-        ::setenv("GSD_SOFTWARE_SHAPED", "1", 1);
-        const FieldValues got = TorusField(f, gpu_c).evaluate(q, true), got_far = TorusField(f, gpu_c).evaluate(spread, true);
-        ::unsetenv("GSD_SOFTWARE_SHAPED");
-        CHECK(compare(got.phi, want.phi, 1e-4).max_abs < 1e-4);
-        CHECK(compare(got.gradient, want.gradient, 1e-3).max_abs < 1e-3);
-        CHECK(compare(got_far.phi, want_far.phi, 1e-4).max_abs < 1e-4);
-        CHECK(compare(got_far.gradient, want_far.gradient, 1e-3).max_abs < 1e-3);
+    // Both kernels leave out PAT terms past the nearest point + PRUNE/λ, λ = 2C/ρ, and weigh
+    // from the nearest point (blend_field.glsl): at a small C the reach passes ρ and nothing is
+    // left out, at the largest the most is, and e^C would overflow float32 sums (it did up to
+    // 8d14b7c and after: ∇φ off by 0.06 at C = 80, φ by 0.02 at 87). Near the cloud and far.
+    for (const double C : {4.0, 20.0, 64.0, 80.0, 87.0}) {
+        for (const char* shaped : {"1", "0"}) {
+            CAPTURE(C);
+            CAPTURE(shaped);
+            BlendOptions cpu_c = on("cpu", false), gpu_c = on("gpu", false);
+            cpu_c.C = gpu_c.C = C;
+            const FieldValues want = TorusField(f, cpu_c).evaluate(q, true), want_far = TorusField(f, cpu_c).evaluate(spread, true);
+            ::setenv("GSD_SOFTWARE_SHAPED", shaped, 1);
+            const FieldValues got = TorusField(f, gpu_c).evaluate(q, true), got_far = TorusField(f, gpu_c).evaluate(spread, true);
+            ::unsetenv("GSD_SOFTWARE_SHAPED");
+            CHECK(compare(got.phi, want.phi, 1e-4).max_abs < 1e-4);
+            CHECK(compare(got.gradient, want.gradient, 1e-3).max_abs < 1e-3);
+            CHECK(compare(got_far.phi, want_far.phi, 1e-4).max_abs < 1e-4);
+            CHECK(compare(got_far.gradient, want_far.gradient, 1e-3).max_abs < 1e-3);
+        }
     }
     // A fallback of fewer than K_MAX points: the software kernel's list then holds its k in the
     // last slots of its registers (blend_field.glsl, knn_listed).
