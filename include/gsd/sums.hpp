@@ -96,6 +96,11 @@ public:
     bool has_gradient() const override { return false; }
     /// w in double, with the cost of the sums.
     WindingResult winding_numbers(PointsView queries, const ProgressFn& progress = {}) const;
+    /// When the options' device is a GPU, does now what the first evaluation would: builds the
+    /// tree, uploads it and makes the kernel's pipeline (tens of ms on a software device).
+    /// Thread-safe: run it on another thread while the queries are read (gsd's CLI does). On the
+    /// CPU path it does nothing. Errors are left for the evaluation to raise.
+    void prepare() const;
 
     const OrientedElements& elements() const;
     const WindingOptions& options() const;

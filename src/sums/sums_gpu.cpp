@@ -155,21 +155,17 @@ std::shared_ptr<const DeviceWindingTree> device_tree(const std::shared_ptr<gpu::
     return made;
 }
 
-}  // namespace
+// The winding kernel for the tree on this device, and the queries a workgroup of its software
+// build sums (`group`).
+struct WindingKernel {
+    const gpu::Kernel* kernel = nullptr;
+    std::uint32_t group = 8;
+};
 
-bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, PointsView queries,
-                 const std::vector<std::uint32_t>& morton, const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
-    why_not = gpu_unfit(*ctx, tree);
-    if (!why_not.empty()) return false;
-    auto clock = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
-    const double t_start = clock();
-    const std::shared_ptr<const DeviceWindingTree> kept =
-        device_tree(ctx, tree, float(opt.beta), float(sums::winding_reach_scale(opt.tolerance)));
-    const DeviceWindingTree& d = *kept;
-    const double t_uploaded = clock();
+WindingKernel winding_kernel(gpu::Context& ctx, const DeviceWindingTree& d) {
     // One subgroup walks together. On a software device a workgroup is one subgroup, so that
     // llvmpipe's loop limit (65535 iterations per SIMD group) is the subgroup's own count.
-    const std::uint32_t workgroup = gpu::loop_capped_workgroup(*ctx);
+    const std::uint32_t workgroup = gpu::loop_capped_workgroup(ctx);
     // Software devices: a group of queries a workgroup, the lanes sharing out the tree's nodes
     // (the tree and the elements read as texel buffers, bindings 0 and 1). A stack entry holds a
     // node index above the group's bits: 16 queries while node indices fit 16 bits, 12 while they
@@ -186,12 +182,37 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
     }
     // Its workgroup is one subgroup of at most 64 lanes (none on hardware: loop_capped_workgroup
     // is 0 there), which add up each query's sum by shuffles.
-    const bool fits_shaped = d.node_count <= (1u << 24) && workgroup > 0 && workgroup <= 64 && ctx->info().subgroup_shuffle;
-    const bool want_shaped = gpu::software_shaped(*ctx) && fits_shaped;
+    const bool fits_shaped = d.node_count <= (1u << 24) && workgroup > 0 && workgroup <= 64 && ctx.info().subgroup_shuffle;
+    const bool want_shaped = gpu::software_shaped(ctx) && fits_shaped;
     // (The GPUs' build has no group: one value, so that trees of every size share its pipeline.)
-    const gpu::Kernel& k = gpu::kernel(*ctx, gpu::kernel_table::sums_winding,
+    const gpu::Kernel& k = gpu::kernel(ctx, gpu::kernel_table::sums_winding,
                                        {d.element_kinds, std::int32_t(want_shaped ? software_group : 8u)}, workgroup,
                                        want_shaped);
+    return {&k, software_group};
+}
+
+}  // namespace
+
+void gpu_prepare_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, const WindingOptions& opt) {
+    if (!gpu_unfit(*ctx, tree).empty()) return;
+    const std::shared_ptr<const DeviceWindingTree> kept =
+        device_tree(ctx, tree, float(opt.beta), float(sums::winding_reach_scale(opt.tolerance)));
+    winding_kernel(*ctx, *kept);
+}
+
+bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, PointsView queries,
+                 const std::vector<std::uint32_t>& morton, const WindingOptions& opt, WindingResult& out, const ProgressFn& progress, std::string& why_not) {
+    why_not = gpu_unfit(*ctx, tree);
+    if (!why_not.empty()) return false;
+    auto clock = [] { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); };
+    const double t_start = clock();
+    const std::shared_ptr<const DeviceWindingTree> kept =
+        device_tree(ctx, tree, float(opt.beta), float(sums::winding_reach_scale(opt.tolerance)));
+    const DeviceWindingTree& d = *kept;
+    const double t_uploaded = clock();
+    const WindingKernel chosen = winding_kernel(*ctx, d);
+    const gpu::Kernel& k = *chosen.kernel;
+    const std::uint32_t software_group = chosen.group;
     const bool shaped = k.texel_bindings.all() != 0;
     // The loop cap, less what one step of the walk may still iterate after the check: a leaf's
     // elements, or (software-shaped) a round and the sums of both lists (at most 65 chunks of

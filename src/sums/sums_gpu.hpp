@@ -18,6 +18,10 @@ namespace gsd::sums {
 /// Why the device cannot hold the tree ("" when it can).
 std::string gpu_unfit(const gpu::Context& ctx, const sums::SumTree& tree);
 
+/// Uploads the tree and makes the winding kernel's pipeline for it, so that gpu_winding finds
+/// both made (WindingField::prepare). Nothing when the device cannot take the tree.
+void gpu_prepare_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& tree, const WindingOptions& options);
+
 /// Winding numbers on the device. False (and a reason) when the device cannot take the tree.
 /// `morton` is the queries' Morton order (spatial::morton_order), the order the device takes
 /// them in unless GSD_QUERY_ORDER=input.

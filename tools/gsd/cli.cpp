@@ -263,6 +263,14 @@ DevicePrefetch::~DevicePrefetch() {
     if (found_.valid()) found_.wait();
 }
 
+std::future<void> prepare_in_background(std::function<void()> work) {
+    try {
+        return std::async(std::launch::async, std::move(work));
+    } catch (const std::system_error&) {
+        return {};
+    }
+}
+
 namespace {
 
 // The options given on the command line, from the root command down to the one that ran:

@@ -158,6 +158,11 @@ private:
     std::future<void> found_;
 };
 
+/// Runs `work` on a thread of its own (a field's prepare() while the queries are read); the
+/// returned future waits for it when destroyed. No thread to be had: nothing (the work is done
+/// when first needed anyway).
+std::future<void> prepare_in_background(std::function<void()> work);
+
 /// A mesh file format that cannot hold curves (.ply .off .stl): curves must come from --curves.
 bool is_curveless_mesh_format(const std::string& path);
 

@@ -514,18 +514,21 @@ void add_winding(CLI::App& app) {
                 throw Error(*input, e.what());
             }
         }
+        const WindingField field(std::move(elements), *opt);
+        // The tree, its upload and the kernel's pipeline while the queries are read.
+        const std::future<void> prepared = prepare_in_background([&field] { field.prepare(); });
         auto eval = [&](const Points& q, const ProgressFn& p) {
-            WindingResult r = fast_winding_numbers(elements, q, *opt, p);
+            WindingResult r = field.winding_numbers(q, p);
             FieldValues v;
             v.phi.assign(r.w.begin(), r.w.end());
             v.device = r.device;
             if (globals().verbose)
-                note(std::to_string(elements.size()) + " elements, " + fmt("%.4g", double(r.terms) / std::max<double>(1, double(q.rows()))) +
+                note(std::to_string(field.elements().size()) + " elements, " + fmt("%.4g", double(r.terms) / std::max<double>(1, double(q.rows()))) +
                      " terms per query");
             return v;
         };
         evaluate_and_write(
-            *domain, bounding_box(elements.corners), *output, "", eval,
+            *domain, bounding_box(field.elements().corners), *output, "", eval,
             [&](const GridSpec& g, const ProgressFn& p) { return eval(g.nodes(), p); }, "winding", "winding",
             kWindingGridBytesPerNode);
     });
