@@ -17,6 +17,7 @@
 
 #include <filesystem>
 #include <set>
+#include <thread>
 
 #include <cmath>
 #include <cstdlib>
@@ -433,6 +434,38 @@ TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud)
         MESSAGE("winding: max |w_gpu − w_cpu| / max(1, |w_cpu|) = " << worst);
         CHECK(worst < tol);
     }
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
+}
+
+TEST_CASE("WindingField::prepare on another thread, beside evaluations: the same winding numbers") {
+    REQUIRE(device());
+    shapes::MeshCorruption d;
+    d.holes = 2;
+    d.flip_fraction = 0.1;
+    const PolygonMesh m = shapes::corrupt(shapes::mesh(*shapes::by_name("torus"), 30), d, 6);
+    const Points q = mixed_queries(shapes::by_name("torus")->sample(1000, 2), 3);
+    WindingOptions gpu_opt;
+    gpu_opt.device = "gpu";
+    const WindingResult want = fast_winding_numbers(OrientedElements::from_mesh(m), q, gpu_opt);
+    CHECK(want.device != "cpu");
+    // prepare() first, then an evaluation; and one racing a prepare() and another evaluation.
+    const WindingField first(OrientedElements::from_mesh(m), gpu_opt);
+    first.prepare();
+    CHECK(first.winding_numbers(q).w == want.w);
+    const WindingField raced(OrientedElements::from_mesh(m), gpu_opt);
+    WindingResult a, b;
+    std::thread t1([&] { raced.prepare(); a = raced.winding_numbers(q); });
+    std::thread t2([&] { b = raced.winding_numbers(q); });
+    t1.join();
+    t2.join();
+    CHECK(a.w == want.w);
+    CHECK(b.w == want.w);
+    // On the CPU path it does nothing, and the field is the same.
+    WindingOptions cpu_opt;
+    cpu_opt.device = "cpu";
+    const WindingField on_cpu(OrientedElements::from_mesh(m), cpu_opt);
+    on_cpu.prepare();
+    CHECK(on_cpu.winding_numbers(q).w == fast_winding_numbers(OrientedElements::from_mesh(m), q, cpu_opt).w);
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
