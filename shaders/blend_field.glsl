@@ -178,6 +178,28 @@ int take_next(inout uint bits) {
     return j;
 }
 
+// One step of the stackless walk that takes the nearer child first (sum_ball and knn_listed on
+// software devices): into the nearer child when `descend`, else past the children it took
+// second (`trail`: a bit per level of the path, aligned with the bits of the node's 1-based
+// index, set where it took the right child first) to the sibling of the first one it meets.
+// node_d2 becomes the new node's squared box distance; false when the walk is over.
+bool nearer_first_step(vec3 x, bool descend, inout uint node, inout uint trail, inout float node_d2) {
+    uint k1 = node + 1u;
+    int depth = findMSB(k1);
+    uint second = (k1 ^ trail) & ((1u << uint(depth)) - 1u);
+    int up = descend ? 0 : findLSB(~second);
+    bool walking = descend || up < depth;
+    uint next = walking ? ((k1 >> uint(up)) ^ 1u) - 1u : 0u;
+    // The boxes of the children, or twice that of the next node.
+    uint a = descend ? 2u * node + 1u : next, b = descend ? a + 1u : next;
+    float da = node_distance2(x, a), db = node_distance2(x, b);
+    bool right_first = db < da;
+    node = descend && right_first ? b : a;
+    node_d2 = descend && right_first ? db : da;
+    trail = descend ? 2u * trail + (right_first ? 1u : 0u) : trail >> uint(up);
+    return walking;
+}
+
 uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     const float r_eval = pc.r_eval, r2 = r_eval * r_eval;  // push constants: read outside the loops
     const float sigma = 0.5 * r_eval, lambda = pc.C / sigma;
@@ -200,19 +222,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
             bool leaf = node >= first_leaf;
             opened[n_opened] = node;
             n_opened += near && leaf ? 1u : 0u;
-            bool descend = near && !leaf;
-            uint k1 = node + 1u;
-            int depth = findMSB(k1);
-            uint second = (k1 ^ trail) & ((1u << uint(depth)) - 1u);
-            int up = descend ? 0 : findLSB(~second);
-            walking = descend || up < depth;
-            uint next = walking ? ((k1 >> uint(up)) ^ 1u) - 1u : 0u;
-            uint l = descend ? 2u * node + 1u : next, r = descend ? l + 1u : next;
-            float dl = node_distance2(x, l), dr = descend ? node_distance2(x, r) : dl;
-            bool right_first = dr < dl;
-            node = right_first ? r : l;
-            node_d2 = right_first ? dr : dl;
-            trail = descend ? 2u * trail + (right_first ? 1u : 0u) : trail >> uint(up);
+            walking = nearer_first_step(x, near && !leaf, node, trail, node_d2);
         }
         uint passes = subgroupMax(n_opened);
         TICK_UNIFORM(passes + 1u);
@@ -434,21 +444,7 @@ void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MA
             bool leaf = node >= first_leaf;
             listed[n_listed] = node;
             n_listed += near && leaf ? 1u : 0u;
-            bool descend = near && !leaf;
-            // Else climb past the levels taken second and step to the sibling.
-            uint k1 = node + 1u;
-            int depth = findMSB(k1);
-            uint second = (k1 ^ trail) & ((1u << uint(depth)) - 1u);
-            int up = descend ? 0 : findLSB(~second);
-            walking = descend || up < depth;
-            uint next = walking ? ((k1 >> uint(up)) ^ 1u) - 1u : 0u;
-            // The boxes of the children, or twice that of the next node.
-            uint a = descend ? 2u * node + 1u : next, b = descend ? a + 1u : next;
-            float da = node_distance2(x, a), db = node_distance2(x, b);
-            bool right_first = db < da;
-            node = descend && right_first ? b : a;
-            node_d2 = descend && right_first ? db : da;
-            trail = descend ? 2u * trail + (right_first ? 1u : 0u) : trail >> uint(up);
+            walking = nearer_first_step(x, near && !leaf, node, trail, node_d2);
         }
         uint passes = subgroupMax(n_listed);
         TICK_UNIFORM(passes + 1u);
