@@ -13,8 +13,10 @@ const float PI = 3.14159265358979;
 // (at d₁) it is at most e^(−λ(d − d₁)); past d₁ + PRUNE/λ a term weighs under e^(−PRUNE) of the
 // largest, below float32's resolution of the sums even with thousands of them (φ = G/W is a
 // weighted mean: each term moves it by at most its weight share times |g − φ|, and ∇φ's sums
-// carry the same weights). With C = 64 that is d₁ + 0.19ρ: a handful of tori where the ball of
-// r_eval (8 spacings) holds a couple of hundred and the fallback 32. Where the walk meets the
+// carry the same factor e^(−λd); its taper-derivative terms too, and they are left out only
+// where d₁ + PRUNE/λ < ρ, i.e. T(d₁/ρ) ≥ 0.017 at C ≤ 87, so each stays under 5e-9 of the
+// nearest's weight). With C = 64 that is d₁ + 0.19ρ: a handful of tori where the ball of
+// r_eval (8 spacings) holds tens to hundreds and the fallback 32. Where the walk meets the
 // nearest point late (the subgroup's shared walk on GPUs) fewer are left out, never one that
 // counts. Not SSPD (area weights scale its terms) nor SHC (a signed sum whose scale is its value).
 const float PRUNE = 24.0;
@@ -27,7 +29,8 @@ const float PRUNE = 24.0;
 #define TICK_UNIFORM(n)
 #endif
 
-// Running sums, as in src/blend/blend_cpu.cpp: w = e·T(d/ρ), q = e·T'(d/ρ), e = A·exp(−λ(d − σ)).
+// Running sums, as in src/blend/blend_cpu.cpp: w = e·T(d/ρ), q = e·T'(d/ρ), e = A·exp(−λ(d − ref))
+// (ref: weight_ref; the CPU's σ).
 struct Acc { float W, G, D, GD, QD, QGD, shc; vec3 Gg, U, GU, QU, QGU; };
 
 Acc acc_zero() { return Acc(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0)); }
@@ -131,10 +134,11 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float ref, fl
 // sum_ball shaped for llvmpipe (the kernels software devices run: docs/gpu.md, "Kernels shaped
 // for software devices"), which runs a loop's body at least once and an if's body whatever the
 // lanes decide: the walk above paid a leaf's point at every node it visited. Here each lane
-// walks the tree on its own (stackless, the same order) and only lists the leaves its ball
-// meets, every lane writing its entry (the count says which hold); every BALL_ROUND steps the
-// listed leaves' points are summed in loops of their own. Each lane adds the same points in the
-// same order as the walk above. Needs GL_KHR_shader_subgroup_arithmetic.
+// walks the tree on its own (stackless, the nearer child first: nearer_first_step) and only
+// lists the leaves its ball meets, every lane writing its entry (the count says which hold);
+// every BALL_ROUND steps the listed leaves' points are summed in loops of their own. The same
+// set as the walk above up to PAT's pruning, whose running nearest comes sooner in this order;
+// the order of the sums differs. Needs GL_KHR_shader_subgroup_arithmetic.
 const uint BALL_ROUND = 32u;
 
 // Points [first, first + n) of a leaf's `count` from `begin` whose squared distance to x is at
@@ -162,7 +166,7 @@ uint mark_ball(vec3 x, uint begin, uint count, uint first, uint n, float r2, flo
         float d2 = dot(dv, dv);
         bool in_ball = first + j < count && d2 <= r2;
         bool nearer = in_ball && d2 < near2;
-        float reach = sqrt(d2) + cut;
+        float reach = KIND == 0 ? sqrt(d2) + cut : 3.0e38;  // (no root where nothing is pruned)
         near2 = nearer ? d2 : near2;
         reach2 = nearer ? reach * reach : reach2;
         bits |= in_ball ? 1u << j : 0u;
@@ -278,7 +282,7 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
                 float d2 = dot(dv, dv);
                 if (near && d2 <= r2) {
                     float d = sqrt(d2);
-                    acc_rebase(a, ref, d, lambda);
+                    if (d < ref) acc_rebase(a, ref, d, lambda);  // (divergent here anyway)
                     // PAT: past the nearest point so far + PRUNE/λ a term cannot count.
                     if (KIND != 0 || d <= ref + cut) add_point(a, x, j, d, lambda, ref, pc.r_eval, true, grad);
                     ++found;
@@ -503,13 +507,12 @@ void blend_accelerated(vec3 x, bool live, bool grad, out Acc a, out float rho, o
     float sigma = 0.5 * rho, lambda = pc.C / sigma;
     float ref = weight_ref(sigma, kd[first]);  // the list is nearest first
     // PAT: only the list's points within d₁ + PRUNE/λ can count (PRUNE above), a prefix of it.
-    uint n_sum = k;
-    if (KIND == 0) {
-        float reach = kd[first] + PRUNE / lambda;
-        n_sum = 0u;
-        for (int s = 0; s < K_MAX; ++s) n_sum += uint(s) >= first && uint(s) < first + k && kd[s] <= reach ? 1u : 0u;
+    // (A loop of at most k iterations, as the loop guard's count above has it.)
+    const float reach = KIND == 0 ? kd[first] + PRUNE / lambda : 3.0e38;
+    for (uint m = first; m < first + k; ++m) {
+        if (kd[m] > reach) break;
+        add_point(a, x, ki[m], kd[m], lambda, ref, rho, true, grad);
     }
-    for (uint m = first; m < first + n_sum; ++m) add_point(a, x, ki[m], kd[m], lambda, ref, rho, true, grad);
 }
 
 // φ from the sums (and ∇φ into g when `grad`; SHC has none).

@@ -16,8 +16,8 @@
 #include "support.hpp"
 
 #include <filesystem>
+#include <future>
 #include <set>
-#include <thread>
 
 #include <cmath>
 #include <cstdlib>
@@ -246,20 +246,27 @@ TEST_CASE("PAT's k-nearest fallback walked per subgroup (the hardware GPUs' path
         CHECK(compare(gpu_spread.phi, cpu_spread.phi, 1e-4).max_abs < 1e-4);
         CHECK(compare(gpu_spread.gradient, cpu_spread.gradient, 1e-3).max_abs < 1e-3);
     }
-    // Both kernels leave out PAT terms past the nearest point + PRUNE/λ, λ = 2C/ρ, and weigh
-    // from the nearest point (blend_field.glsl): at a small C the reach passes ρ and nothing is
-    // left out, at the largest the most is, and e^C would overflow float32 sums (it did up to
-    // 8d14b7c and after: ∇φ off by 0.06 at C = 80, φ by 0.02 at 87). Near the cloud and far.
+    // Every kernel build leaves out PAT terms past the nearest point + PRUNE/λ, λ = 2C/ρ, and
+    // weighs from the nearest point (blend_field.glsl): at a small C the reach passes ρ and
+    // nothing is left out, at the largest the most is, and e^C would overflow float32 sums (it
+    // did before this check, at bf9e67e: ∇φ off by 0.06 at C = 80, φ by 0.02 at 87). Near the
+    // cloud and far; the software build, the GPUs' build with each lane's k-nearest walk and
+    // with the subgroup's.
     for (const double C : {4.0, 20.0, 64.0, 80.0, 87.0}) {
-        for (const char* shaped : {"1", "0"}) {
+        for (const auto& setting : {std::pair{"1", "0"}, std::pair{"0", "0"}, std::pair{"0", "1"}}) {
+            const char* shaped = setting.first;  // (not structured bindings: clang's CAPTURE cannot take them)
+            const char* shared = setting.second;
             CAPTURE(C);
             CAPTURE(shaped);
+            CAPTURE(shared);
             BlendOptions cpu_c = on("cpu", false), gpu_c = on("gpu", false);
             cpu_c.C = gpu_c.C = C;
             const FieldValues want = TorusField(f, cpu_c).evaluate(q, true), want_far = TorusField(f, cpu_c).evaluate(spread, true);
             ::setenv("GSD_SOFTWARE_SHAPED", shaped, 1);
+            ::setenv("GSD_SHARED_KNN", shared, 1);
             const FieldValues got = TorusField(f, gpu_c).evaluate(q, true), got_far = TorusField(f, gpu_c).evaluate(spread, true);
             ::unsetenv("GSD_SOFTWARE_SHAPED");
+            ::unsetenv("GSD_SHARED_KNN");
             CHECK(compare(got.phi, want.phi, 1e-4).max_abs < 1e-4);
             CHECK(compare(got.gradient, want.gradient, 1e-3).max_abs < 1e-3);
             CHECK(compare(got_far.phi, want_far.phi, 1e-4).max_abs < 1e-4);
@@ -301,6 +308,16 @@ TEST_CASE("SSPD and signed Hopf-Cole on the device match the CPU reference") {
             if (kind == Baseline::Shc) CHECK(d.over * 2000 <= q.rows());
             else CHECK(d.max_abs < 1e-4);
         }
+    // SSPD's sums, accelerated and exact, are taken from the nearest summed point on the device:
+    // the largest C is within float32 too (blend_field.glsl, weight_ref).
+    for (bool exact : {false, true}) {
+        CAPTURE(exact);
+        BlendOptions cpu_c = on("cpu", exact), gpu_c = on("gpu", exact);
+        cpu_c.C = gpu_c.C = 87;
+        const FieldValues cpu = BaselineField(Baseline::Sspd, c, cpu_c).evaluate(q);
+        const FieldValues gpu = BaselineField(Baseline::Sspd, c, gpu_c).evaluate(q);
+        CHECK(compare(gpu.phi, cpu.phi, 1e-4).max_abs < 1e-4);
+    }
     CHECK(gpu::validation_error_count() == test::expected_validation_errors());
 }
 
@@ -453,11 +470,12 @@ TEST_CASE("WindingField::prepare on another thread, beside evaluations: the same
     first.prepare();
     CHECK(first.winding_numbers(q).w == want.w);
     const WindingField raced(OrientedElements::from_mesh(m), gpu_opt);
-    WindingResult a, b;
-    std::thread t1([&] { raced.prepare(); a = raced.winding_numbers(q); });
-    std::thread t2([&] { b = raced.winding_numbers(q); });
-    t1.join();
-    t2.join();
+    auto first_call = std::async(std::launch::async, [&] {
+        raced.prepare();
+        return raced.winding_numbers(q);
+    });
+    auto second_call = std::async(std::launch::async, [&] { return raced.winding_numbers(q); });
+    const WindingResult a = first_call.get(), b = second_call.get();
     CHECK(a.w == want.w);
     CHECK(b.w == want.w);
     // On the CPU path it does nothing, and the field is the same.

@@ -1,6 +1,8 @@
 #include "cli.hpp"
 
+#if defined(__GLIBC__)
 #include <malloc.h>
+#endif
 
 #include "core/threads.hpp"
 #include "gpu/device_choice.hpp"
@@ -96,8 +98,10 @@ void keep_freed_memory() {
     // points, values and bookkeeping a step, some 250 steps) paid that each step: 2.3·10⁴ page
     // faults for a 320×240 picture against 4.8·10³ on the CPU path. The CLI keeps up to 256 MB
     // freed for reuse; blocks of 64 MB or more still come from and go back to the kernel.
+#if defined(__GLIBC__)
     mallopt(M_MMAP_THRESHOLD, 64 << 20);
     mallopt(M_TRIM_THRESHOLD, 256 << 20);
+#endif
 }
 
 void place_threads(int argc, char** argv) {
@@ -266,7 +270,7 @@ DevicePrefetch::~DevicePrefetch() {
 std::future<void> prepare_in_background(std::function<void()> work) {
     try {
         return std::async(std::launch::async, std::move(work));
-    } catch (const std::system_error&) {
+    } catch (const std::exception&) {  // no thread (std::system_error), no memory
         return {};
     }
 }

@@ -138,9 +138,10 @@ std::string peak_memory();
 /// CPU path: every device choice on the command line and in $GSD_DEVICE is "cpu" or "auto",
 /// and "auto" cannot find a GPU (no GPU device node); not for `gsd info`. Call first thing in
 /// main(); with -v, prints what it did.
-/// Has glibc keep freed memory for reuse rather than return it at once (cli.cpp says why).
-void keep_freed_memory();
 void place_threads(int argc, char** argv);
+/// Has glibc keep freed memory for reuse rather than return it at once (cli.cpp says why);
+/// nothing with other C libraries. Call first thing in main().
+void keep_freed_memory();
 
 /// Finds the Vulkan devices on another thread while a command reads its input: loading the
 /// loader and its drivers takes tens of milliseconds (Mesa's software driver ~30 ms), which a
