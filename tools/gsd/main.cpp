@@ -631,6 +631,7 @@ void add_render(CLI::App& app) {
             picture = render_field(field, *box, *opt, start());
         }
         progress->finish();
+        if (globals().verbose && picture.empty_cells) note("empty-space skipping: " + std::to_string(picture.empty_cells) + " cells hold no surface");
         write_png(*output, picture.image);
         note("wrote " + *output + " (" + std::to_string(picture.image.width) + "×" + std::to_string(picture.image.height) +
              ", " + fmt("%.1f", 100 * picture.hit_fraction) + " % of rays on the surface, marched on " + picture.device +
