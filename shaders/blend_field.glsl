@@ -275,11 +275,15 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     float r2 = pc.r_eval * pc.r_eval;
     float sigma = 0.5 * pc.r_eval, lambda = pc.C / sigma;
     float ref = weight_ref(sigma, 3.0e38), cut = PRUNE / lambda;
+    const uint k_points = pc.k_fallback;
     uint found = 0;
     uint node = 0u;
     while (true) {
         TICK_UNIFORM(1u);
-        bool near = live && node_distance2(x, node) <= r2;
+        // PAT, once the ball holds k points: only nodes within the reach can add to the sums
+        // (as the software build's walk above).
+        float reach = ref + cut, open2 = KIND == 0 && found >= k_points ? min(r2, reach * reach) : r2;
+        bool near = live && node_distance2(x, node) <= open2;
         if (subgroupAny(near)) {
             if (node < pc.first_leaf) {
                 node = 2u * node + 1u;
