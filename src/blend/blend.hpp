@@ -119,6 +119,9 @@ void record_render(GpuField& field, gpu::Recorder& rec, const Params& p, const g
                    std::uint32_t rays_per_lane, std::uint32_t loop_cap);
 void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries, Output out,
                   std::size_t chunk_size, const ProgressFn& progress);
+/// Builds the kernel evaluate_gpu runs for these parameters now (thread-safe: another thread
+/// may evaluate meanwhile), so that a later evaluation finds it made.
+void prepare_gpu(GpuField& field, const Params& params);
 
 /// Tori built on the device by the torus_from_jet kernel (12 floats each: q, k1, e1, k2, n, 0),
 /// for conformance tests.

@@ -156,6 +156,8 @@ public:
     }
 
     void evaluate(const Params& p, const Queries& q, Output out, std::size_t chunk_size, const ProgressFn& progress);
+    /// Builds the kernel evaluate() runs for p, ahead of the first evaluation.
+    void prepare(const Params& p) { blend_kernel(*ctx_, {int(kind_), p.exact ? 1 : 0, p.gradient ? 1 : 0, shared_knn(*ctx_)}); }
     /// Queries in an application's buffer, results into another (gsd/vulkan.hpp).
     void evaluate_into(const Params& p, const gpu::DeviceQueries& job, const gpu::SubmitSync& sync);
     void record_render(gpu::Recorder& rec, const Params& p, const gpu::Buffer& params, const gpu::Buffer& empty, const gpu::Buffer& hits,
@@ -351,6 +353,8 @@ void evaluate_gpu(GpuField& field, const Params& params, const Queries& queries,
                   std::size_t chunk_size, const ProgressFn& progress) {
     field.evaluate(params, queries, out, chunk_size, progress);
 }
+
+void prepare_gpu(GpuField& field, const Params& params) { field.prepare(params); }
 
 std::string gpu_field_device(const GpuField& field) { return field.device_name(); }
 const gpu::Context* gpu_field_context(const GpuField& field) { return field.context(); }

@@ -477,7 +477,9 @@ Context::State::~State() {
     // An application's device is never idled: everything gsd submitted to it was waited for
     // by the objects that submitted it, which hold this context and so went first.
     if (owns_device) vk.vkDeviceWaitIdle(device);
-    for (auto& [name, k] : kernels) {
+    for (auto& [name, slot] : kernels) {
+        const std::unique_ptr<Kernel>& k = slot->kernel;
+        if (!k) continue;
         vk.vkDestroyPipeline(device, k->pipeline, nullptr);
         vk.vkDestroyPipelineLayout(device, k->layout, nullptr);
         vk.vkDestroyDescriptorSetLayout(device, k->set_layout, nullptr);
@@ -558,8 +560,15 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
                       std::to_string(texel_bindings.float1) + "." + std::to_string(texel_bindings.double1) + "." +
                       std::to_string(texel_bindings.double2);
     for (auto c : constants) key.append(",").append(std::to_string(c));
-    std::lock_guard<std::mutex> lock(st.kernels_mutex);
-    if (auto it = st.kernels.find(key); it != st.kernels.end()) return *it->second;
+    State::KernelSlot* slot = nullptr;
+    {
+        std::lock_guard<std::mutex> lock(st.kernels_mutex);
+        std::unique_ptr<State::KernelSlot>& s = st.kernels[key];
+        if (!s) s = std::make_unique<State::KernelSlot>();
+        slot = s.get();
+    }
+    std::lock_guard<std::mutex> building(slot->building);
+    if (slot->kernel) return *slot->kernel;
 
     const detail::EmbeddedShader& code = embedded_shader(shader);
     // The binding count a caller states must be the shader's own (a miscount shows otherwise only
@@ -567,12 +576,17 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     if (const std::uint32_t declared = spirv_binding_count(code); declared != bindings)
         throw Error("gpu", "kernel " + shader + " is called with " + std::to_string(bindings) + " bindings; its shader declares " +
                                std::to_string(declared));
-    VkShaderModule& module = st.modules[shader];
-    if (!module) {
-        VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
-        mi.codeSize = code.word_count * sizeof(std::uint32_t);
-        mi.pCode = code.words;
-        check(st.vk.vkCreateShaderModule(st.device, &mi, nullptr, &module), "vkCreateShaderModule");
+    VkShaderModule module = VK_NULL_HANDLE;
+    {
+        std::lock_guard<std::mutex> lock(st.kernels_mutex);
+        VkShaderModule& kept = st.modules[shader];
+        if (!kept) {
+            VkShaderModuleCreateInfo mi{VK_STRUCTURE_TYPE_SHADER_MODULE_CREATE_INFO};
+            mi.codeSize = code.word_count * sizeof(std::uint32_t);
+            mi.pCode = code.words;
+            check(st.vk.vkCreateShaderModule(st.device, &mi, nullptr, &kept), "vkCreateShaderModule");
+        }
+        module = kept;
     }
 
     auto k = std::make_unique<Kernel>();
@@ -618,7 +632,8 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
         t.first += std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - start).count();
         ++t.second;
     }
-    return *(st.kernels[key] = std::move(k));
+    slot->kernel = std::move(k);
+    return *slot->kernel;
 }
 
 // ---- Buffer --------------------------------------------------------------------------------

@@ -136,8 +136,15 @@ struct Context::State {
     bool has_float64 = false;
     std::uint32_t max_groups_x = 65535;
     VkPipelineCache cache = VK_NULL_HANDLE;
-    std::mutex kernels_mutex, queue_mutex;
-    std::map<std::string, std::unique_ptr<Kernel>> kernels;
+    /// A kernel per key, built once by the first caller, under its slot's own lock: another
+    /// kernel can be built at the same time on another thread (a pipeline built ahead, in the
+    /// background), and a thread asking for one already built never waits on a build.
+    struct KernelSlot {
+        std::mutex building;
+        std::unique_ptr<Kernel> kernel;  // null until built (and after a build that threw)
+    };
+    std::mutex kernels_mutex, queue_mutex;  // kernels_mutex: the two maps below
+    std::map<std::string, std::unique_ptr<KernelSlot>> kernels;
     std::map<std::string, VkShaderModule> modules;
     /// $GSD_GPU_PROFILE=1 (and the queue has timestamps): every dispatch and copy is timed on
     /// the device, summed per kernel, and printed when the context ends (docs/gpu.md).

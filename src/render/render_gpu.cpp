@@ -17,6 +17,8 @@
 #include <algorithm>
 #include <cstdlib>
 #include <cstring>
+#include <future>
+#include <system_error>
 
 namespace gsd::render {
 
@@ -245,6 +247,21 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
     blend::Params p = engine.params(false);
     p.exact = false;
     m.empty = empty_space_on_device(*field, p, m, empty_cells);
+    // ∇φ at the hits takes a kernel of its own: built on a thread of its own while the rays
+    // march, as the march's host steps leave a core idle now and then. (Its errors come again,
+    // and are reported, from the evaluation that needs it.)
+    blend::Params with_gradient = p;
+    with_gradient.gradient = true;
+    std::future<void> gradient_kernel;  // waited for on the way out
+    try {
+        gradient_kernel = std::async(std::launch::async, [field, with_gradient] {
+            try {
+                blend::prepare_gpu(*field, with_gradient);
+            } catch (const std::exception&) {
+            }
+        });
+    } catch (const std::system_error&) {  // no thread: the evaluation builds it
+    }
     if (marches_as_wavefront(*ctx)) return march_blend_wavefront(*field, p, cam, m, hits, progress);
     const std::uint32_t no_cells = 0;
     const gpu::Buffer empty = m.empty ? gpu::upload(*ctx, m.empty->bits.data(), m.empty->bits.size() * 4) : gpu::upload(*ctx, &no_cells, 4);
