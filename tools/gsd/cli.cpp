@@ -7,6 +7,7 @@
 #include "core/threads.hpp"
 #include "gpu/device_choice.hpp"
 
+#include <dlfcn.h>
 #include <sys/stat.h>
 
 #include <gsd/io.hpp>
@@ -102,6 +103,17 @@ void keep_freed_memory() {
     mallopt(M_MMAP_THRESHOLD, 64 << 20);
     mallopt(M_TRIM_THRESHOLD, 256 << 20);
 #endif
+}
+
+void quiet_blas_threads() {
+    // OpenBLAS (Debian's libblas, which CHOLMOD and LAPACK bring in) starts its worker threads
+    // when it loads, and each spins for about 0.1 s waiting for work before it sleeps: on the
+    // 2-core machine that took a core from the first tenth of a second of every command (the
+    // Vulkan device's making, a small grid's whole evaluation). No gsd command calls the BLAS
+    // before main(); one that does later starts the threads again. Looked up by name, so a
+    // different BLAS is left alone.
+    using Shutdown = int (*)();
+    if (auto shutdown = reinterpret_cast<Shutdown>(dlsym(RTLD_DEFAULT, "blas_thread_shutdown_"))) shutdown();
 }
 
 void place_threads(int argc, char** argv) {

@@ -142,6 +142,9 @@ void place_threads(int argc, char** argv);
 /// Has glibc keep freed memory for reuse rather than return it at once (cli.cpp says why);
 /// nothing with other C libraries. Call first thing in main().
 void keep_freed_memory();
+/// Stops OpenBLAS's worker threads, which start spinning as the library loads (cli.cpp says
+/// why); nothing where the BLAS is another. Call first thing in main().
+void quiet_blas_threads();
 
 /// Finds the Vulkan devices on another thread while a command reads its input: loading the
 /// loader and its drivers takes tens of milliseconds (Mesa's software driver ~30 ms), which a

@@ -737,6 +737,7 @@ void hint_swallowed_positional(const CLI::App& app) {
 
 int main(int argc, char** argv) {
     keep_freed_memory();
+    quiet_blas_threads();
     place_threads(argc, argv);
     CLI::App app{"gsd — generalized signed distance and winding numbers from imperfect geometry"};
     app.set_version_flag("--version", std::string(version()));
