@@ -59,8 +59,11 @@ bool skip_empty(vec3 o, vec3 d, float span, inout float t, int sign) {
     if (rp.cells.w == 0u) return true;
     float h = rp.empty.w;
     vec3 f = (o + t * d - rp.empty.xyz) / h;
-    if (!(all(greaterThanEqual(f, vec3(0.0))) && all(lessThan(f, vec3(rp.cells.xyz))))) return true;
-    ivec3 c = ivec3(f);
+    // A ray starts on the box's face, where f is 0 or n up to rounding: within a hair of the
+    // grid it is in the cell at the face (EmptySpace::skip).
+    vec3 n = vec3(rp.cells.xyz);
+    if (!(all(greaterThanEqual(f, vec3(-1e-5))) && all(lessThanEqual(f, n + 1e-5)))) return true;
+    ivec3 c = clamp(ivec3(floor(f)), ivec3(0), ivec3(rp.cells.xyz) - 1);
     if (!empty_cell(c) || (sign != 0 && negative_cell(c) != (sign < 0))) return true;
     vec3 next, delta;
     ivec3 dir;

@@ -16,8 +16,11 @@ double EmptySpace::skip(const Eigen::Vector3d& o, const Eigen::Vector3d& d, doub
     const Eigen::Vector3d x = o + t * d;
     for (int a = 0; a < 3; ++a) {
         const double f = (x[a] - lo[a]) / h;
-        if (!(f >= 0 && f < n[a])) return t;  // outside the grid (or NaN)
-        c[a] = int(f);                        // f ≥ 0: truncation is the floor
+        // A ray starts on the box's face, where f is 0 or n up to rounding: within a hair of
+        // the grid it is in the cell at the face (or every ray entering through a far face,
+        // and some through a near one, would start unskipped).
+        if (!(f >= -1e-9 && f <= n[a] + 1e-9)) return t;  // outside the grid (or NaN)
+        c[a] = std::clamp(int(std::floor(f)), 0, n[a] - 1);
     }
     const std::size_t first = cell(c);
     if (!is_empty(first) || (sign != 0 && is_negative(first) != (sign < 0))) return t;
