@@ -281,8 +281,10 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
     while (true) {
         TICK_UNIFORM(1u);
         // PAT, once the ball holds k points: only nodes within the reach can add to the sums
-        // (as the software build's walk above).
-        float reach = ref + cut, open2 = KIND == 0 && found >= k_points ? min(r2, reach * reach) : r2;
+        // (as the software build's walk above). The points are tested against the reach itself
+        // (d = sqrt(d²), not correctly rounded on every GPU), the nodes against its square: a
+        // margin far above their roundings keeps every point the test sums in a node opened.
+        float reach = ref + cut, open2 = KIND == 0 && found >= k_points ? min(r2, reach * reach * 1.0001) : r2;
         bool near = live && node_distance2(x, node) <= open2;
         if (subgroupAny(near)) {
             if (node < pc.first_leaf) {

@@ -590,6 +590,18 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     }
 
     auto k = std::make_unique<Kernel>();
+    // A step that throws leaves the slot empty (the next caller tries again); what the steps
+    // before it made is destroyed here, not leaked.
+    struct Unfinished {
+        State& st;
+        Kernel* k;
+        ~Unfinished() {
+            if (!k) return;
+            if (k->pipeline) st.vk.vkDestroyPipeline(st.device, k->pipeline, nullptr);
+            if (k->layout) st.vk.vkDestroyPipelineLayout(st.device, k->layout, nullptr);
+            if (k->set_layout) st.vk.vkDestroyDescriptorSetLayout(st.device, k->set_layout, nullptr);
+        }
+    } unfinished{st, k.get()};
     k->name = shader;
     k->bindings = bindings;
     k->push_bytes = push_bytes;
@@ -632,6 +644,7 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
         t.first += std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - start).count();
         ++t.second;
     }
+    unfinished.k = nullptr;
     slot->kernel = std::move(k);
     return *slot->kernel;
 }

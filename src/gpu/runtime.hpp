@@ -138,7 +138,8 @@ struct Context::State {
     VkPipelineCache cache = VK_NULL_HANDLE;
     /// A kernel per key, built once by the first caller, under its slot's own lock: another
     /// kernel can be built at the same time on another thread (a pipeline built ahead, in the
-    /// background), and a thread asking for one already built never waits on a build.
+    /// background), and a thread asking for one already built waits at most for a lookup (or a
+    /// shader module's making, under kernels_mutex), never for a pipeline's build.
     struct KernelSlot {
         std::mutex building;
         std::unique_ptr<Kernel> kernel;  // null until built (and after a build that threw)
