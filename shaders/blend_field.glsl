@@ -143,7 +143,7 @@ void add_point(inout Acc a, vec3 x, uint j, float d, float lambda, float ref, fl
 // the reach of the terms that count a leaf adds nothing to the sums, and the count only decides
 // the fallback; φ is bit-identical. Short rounds let that reach close in sooner. With rounds of
 // 8 steps (32 before): the kernel a third faster on the queries of a picture of snail.ply's
-// PAT field, 12–15 % on holey-bunny's, 2–5 % on tooth's (whose queries mostly fall back).
+// PAT field, 12–15 % on holey-bunny's, 2–5 % on tooth's (half of whose time is the fallback's).
 const uint BALL_ROUND = 8u;
 
 // Points [first, first + n) of a leaf's `count` from `begin` whose squared distance to x is at
