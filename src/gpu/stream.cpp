@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <string>
 #include <array>
 #include <memory>
 #ifdef _OPENMP
@@ -44,12 +46,17 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     constexpr std::size_t kSlots = 3;
     std::array<Slot, kSlots> slots;
     const std::size_t used = std::min(kSlots, (job.count + chunk - 1) / chunk);
+    // Where the host's buffers are the device's own memory (a software device, an integrated
+    // GPU), the kernel reads the upload buffer and writes the read-back one: no copies.
+    const bool direct = host_buffers_are_device_local(c);
     for (std::size_t i = 0; i < used; ++i) {
         Slot& s = slots[i];
         s.up = Buffer(c, chunk * job.in_bytes, Memory::Upload);
-        s.in = Buffer(c, chunk * job.in_bytes, Memory::Device);
-        s.out = Buffer(c, chunk * job.out_bytes, Memory::Device);
         s.down = Buffer(c, chunk * job.out_bytes, Memory::Download);
+        if (!direct) {
+            s.in = Buffer(c, chunk * job.in_bytes, Memory::Device);
+            s.out = Buffer(c, chunk * job.out_bytes, Memory::Device);
+        }
         s.rec = std::make_unique<Recorder>(c);
     }
     // A software device (llvmpipe) runs the kernels on the host's own cores, a thread each, while
@@ -85,18 +92,33 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
         job.fill(first, s.count, s.up.mapped());
         t_fill += clock() - t0;
         s.rec->begin();
-        s.rec->copy(s.up, 0, s.in, 0, s.count * job.in_bytes);
-        s.rec->barrier();
-        job.record(*s.rec, s.in, s.out, s.count);
-        s.rec->barrier();
-        s.rec->copy(s.out, 0, s.down, 0, s.count * job.out_bytes);
-        s.rec->barrier();
+        if (direct) {
+            // The submission makes the host's writes visible; the barrier, the kernel's to the host.
+            job.record(*s.rec, s.up, s.down, s.count);
+            s.rec->barrier();
+        } else {
+            s.rec->copy(s.up, 0, s.in, 0, s.count * job.in_bytes);
+            s.rec->barrier();
+            job.record(*s.rec, s.in, s.out, s.count);
+            s.rec->barrier();
+            s.rec->copy(s.out, 0, s.down, 0, s.count * job.out_bytes);
+            s.rec->barrier();
+        }
         s.rec->submit();
     }
     for (std::size_t m = 0; m < used; ++m) drain(slots[(index + m) % used]);
     if (profile)
         std::fprintf(stderr, "gsd: %s: %zu items in %zu chunks; host fill %.1f ms, waiting %.1f ms, drain %.1f ms\n", job.stage,
                      job.count, index, 1e3 * t_fill, 1e3 * t_wait, 1e3 * t_drain);
+}
+
+bool host_buffers_are_device_local(const Context& ctx) {
+    if (const char* v = std::getenv("GSD_STREAM_COPIES"); v && std::string(v) == "1") return false;  // tests: both ways
+    const VkPhysicalDeviceMemoryProperties& m = ctx.state().mem_props;
+    auto local = [&](Memory kind) {
+        return (m.memoryTypes[ctx.memory_type(~0u, kind)].propertyFlags & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) != 0;
+    };
+    return local(Memory::Upload) && local(Memory::Download);
 }
 
 std::size_t default_chunk(const Context& ctx) { return ctx.info().is_software() ? 65536 : std::size_t(1) << 20; }

@@ -48,6 +48,10 @@ private:
 
 /// Items per chunk for a device: a GPU wants millions of queries in flight (2^20), a software
 /// device's few cores 65 536 (progress and the first results come sooner).
+/// Whether the memory the host writes and reads (Memory::Upload, Memory::Download) is the
+/// device's own (DEVICE_LOCAL: software devices, integrated GPUs): stream() then binds those
+/// buffers to the kernels and copies nothing. $GSD_STREAM_COPIES=1 copies anyway (tests).
+bool host_buffers_are_device_local(const Context& ctx);
 std::size_t default_chunk(const Context& ctx);
 
 /// A StreamJob::fill for query points: items [first, first + n) as float vec4 (w = 0), item i
