@@ -266,6 +266,55 @@ TEST_CASE("render: a ray starting on the box's face skips the empty cells from t
         }
 }
 
+// The wavefront march hands its calls of at most kFewPoints points (a band's last rays) to the
+// field's host evaluator where there is one: the same field, so the same picture, and the
+// device's name stays the one its other calls gave.
+TEST_CASE("render: the wavefront's last few rays go to the host evaluator, the picture unchanged") {
+    auto sphere = [](const Points& x, bool gradient, const char* device) {
+        FieldValues v;
+        v.device = device;
+        for (Eigen::Index i = 0; i < x.rows(); ++i) {
+            const Eigen::Vector3d p = x.row(i).transpose();
+            v.phi.push_back(float(p.norm() - 0.6));
+            if (gradient)
+                for (int a = 0; a < 3; ++a) v.gradient.push_back(float(p[a] / std::max(p.norm(), 1e-12)));
+        }
+        return v;
+    };
+    FieldRenderOptions o = small("cpu");
+    o.width = 96;
+    o.height = 72;
+    const render::Camera cam = render::make_camera(kBox, o, o.width, o.height);
+    const render::March m = render::make_march(kBox, o);
+    std::size_t device_calls = 0, few_calls = 0, largest_few = 0, smallest_device = SIZE_MAX;
+    render::PointEvaluator plain;
+    plain.has_gradient = true;
+    plain.evaluate = [&](const Points& x, bool gradient) { return sphere(x, gradient, "the device"); };
+    render::PointEvaluator tail = plain;
+    tail.shares_cores = true;
+    tail.evaluate = [&](const Points& x, bool gradient) {
+        ++device_calls;
+        smallest_device = std::min(smallest_device, std::size_t(x.rows()));
+        return sphere(x, gradient, "the device");
+    };
+    tail.evaluate_few = [&](const Points& x, bool gradient) {
+        ++few_calls;
+        largest_few = std::max(largest_few, std::size_t(x.rows()));
+        return sphere(x, gradient, "cpu");
+    };
+    std::string plain_device, tail_device;
+    const std::vector<float> a = render::march_wavefront(plain, cam, m, plain_device, {});
+    const std::vector<float> b = render::march_wavefront(tail, cam, m, tail_device, {});
+    CHECK(few_calls > 0);
+    CHECK(largest_few <= render::PointEvaluator::kFewPoints);
+    CHECK(smallest_device > render::PointEvaluator::kFewPoints);  // (∇φ at the hits: ~450 points)
+    CHECK(tail_device == "the device");
+    CHECK(a == b);
+    std::size_t hit = 0;
+    for (std::size_t p = 0; p < a.size(); p += 4) hit += a[p] > 0;
+    CHECK(hit > 200);  // the sphere is in the picture
+}
+
 TEST_CASE("render: shading faces the light, a color field colors the surface") {
     const GridSpec g = GridSpec::cube(40, kBox);
     const std::vector<float> phi = sphere_grid(g);

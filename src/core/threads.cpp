@@ -51,4 +51,19 @@ std::string bind_openmp_threads() {
 #endif
 }
 
+OneOpenMPThread::OneOpenMPThread(bool active) {
+#ifdef _OPENMP
+    if (active) {
+        saved_ = omp_get_max_threads();
+        omp_set_num_threads(1);
+    }
+#endif
+}
+
+OneOpenMPThread::~OneOpenMPThread() {
+#ifdef _OPENMP
+    if (saved_ > 0) omp_set_num_threads(saved_);
+#endif
+}
+
 }  // namespace gsd::detail

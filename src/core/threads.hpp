@@ -1,5 +1,5 @@
-// threads.hpp — placing the OpenMP threads of a program (the gsd CLI) on the CPUs. Private;
-// the library never calls this: an application embedding gsd owns its threads.
+// threads.hpp — the OpenMP threads: placing a program's (the gsd CLI's) on the CPUs, and
+// keeping host work to one thread beside a software device's. Private.
 #pragma once
 
 #include <string>
@@ -18,6 +18,22 @@ namespace gsd::detail {
 /// inherit its single CPU — OpenVDB's TBB workers when a grid is written as .vdb — hence only
 /// for work that stays on the CPU path. All threads are bound, or none.
 /// Returns a line saying what was done, or why not (for -v).
+/// The library never calls this: an application embedding gsd owns its threads.
 std::string bind_openmp_threads();
+
+/// While it lives (and `active`), parallel regions this thread starts have one thread. For
+/// host work between a software device's dispatches: OpenMP's workers, left spinning at their
+/// barriers after a region, would take the cores the device's threads run on (gpu::stream says
+/// what that cost).
+class OneOpenMPThread {
+public:
+    explicit OneOpenMPThread(bool active);
+    ~OneOpenMPThread();
+    OneOpenMPThread(const OneOpenMPThread&) = delete;
+    OneOpenMPThread& operator=(const OneOpenMPThread&) = delete;
+
+private:
+    int saved_ = 0;
+};
 
 }  // namespace gsd::detail

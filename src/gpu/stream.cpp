@@ -1,5 +1,7 @@
 #include "gpu/stream.hpp"
 
+#include "core/threads.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -7,26 +9,8 @@
 #include <string>
 #include <array>
 #include <memory>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 namespace gsd::gpu {
-
-OneOpenMPThread::OneOpenMPThread(bool active) {
-#ifdef _OPENMP
-    if (active) {
-        saved_ = omp_get_max_threads();
-        omp_set_num_threads(1);
-    }
-#endif
-}
-
-OneOpenMPThread::~OneOpenMPThread() {
-#ifdef _OPENMP
-    if (saved_ > 0) omp_set_num_threads(saved_);
-#endif
-}
 
 void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     if (job.count == 0) return;
@@ -64,7 +48,7 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     // spin at their barriers waiting for them. There they run on this thread alone (lavapipe, 2
     // cores: gsd winding of a 160³ grid 4.24–4.27 → 3.86–3.94 s, gsd pat eval of a 128³ grid
     // 4.16–4.18 → 3.66–3.69 s, run with OMP_NUM_THREADS=1 against without).
-    const OneOpenMPThread serial(c.info().is_software());
+    const detail::OneOpenMPThread serial(c.info().is_software());
     std::size_t done = 0;
     // Host time spent filling, waiting and draining (printed with GSD_GPU_PROFILE=1): where a
     // call's time goes when the kernels are not what bounds it.

@@ -31,21 +31,6 @@ struct StreamJob {
 
 void stream(Context& ctx, const StreamJob& job, const ProgressFn& progress);
 
-/// While it lives (and `active`), parallel regions this thread starts have one thread. For
-/// host work between a software device's dispatches: OpenMP's workers, left spinning at their
-/// barriers after a region, would take the cores the device's threads run on (stream() says
-/// what that cost).
-class OneOpenMPThread {
-public:
-    explicit OneOpenMPThread(bool active);
-    ~OneOpenMPThread();
-    OneOpenMPThread(const OneOpenMPThread&) = delete;
-    OneOpenMPThread& operator=(const OneOpenMPThread&) = delete;
-
-private:
-    int saved_ = 0;
-};
-
 /// Items per chunk for a device: a GPU wants millions of queries in flight (2^20), a software
 /// device's few cores 65 536 (progress and the first results come sooner).
 /// Whether the memory the host writes and reads (Memory::Upload, Memory::Download) is the

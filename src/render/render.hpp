@@ -107,6 +107,14 @@ Eigen::Vector4d march_ray(const Sampler& field, const Eigen::Vector3d& o, const 
 struct PointEvaluator {
     std::function<FieldValues(const Points&, bool gradient)> evaluate;
     bool has_gradient = false;
+    /// Its evaluations run on the host's own cores (a software device's threads): between
+    /// them the march's steps keep to one OpenMP thread (detail::OneOpenMPThread says why); only
+    /// the rays' set-up, before any evaluation, takes the whole team.
+    bool shares_cores = false;
+    /// Optional: the same field evaluated on the host, for calls of at most kFewPoints points —
+    /// a band's last rays, where a round trip to the device costs more than their sums.
+    std::function<FieldValues(const Points&, bool gradient)> evaluate_few;
+    static constexpr std::size_t kFewPoints = 128;
 };
 
 /// Per-pixel hits, 4 floats each (t, ∇φ; t = −1 for a miss), of any field marched on the CPU a

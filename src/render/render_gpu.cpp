@@ -211,23 +211,39 @@ bool marches_as_wavefront(const gpu::Context& ctx) {
     return gpu::software_shaped(ctx);
 }
 
-bool march_blend_wavefront(blend::GpuField& field, const blend::Params& p, const Camera& cam, const March& m,
-                           std::vector<float>& hits, const ProgressFn& progress) {
-    PointEvaluator eval;
-    eval.has_gradient = true;
-    eval.evaluate = [&](const Points& x, bool gradient) {
+// The march's last few rays take their φ from the blend's CPU path (PointEvaluator::
+// evaluate_few): at 128 points or fewer a dispatch's round trip costs more than the sums. In a
+// 320×240 picture of a 2048-point PAT field on lavapipe ~180 of its ~250 evaluations were such
+// calls, 30 ms of waiting on the device and as much again of host steps between them.
+bool march_blend_wavefront(const blend::Engine& engine, blend::GpuField& field, const blend::Params& p, const Camera& cam,
+                           const March& m, std::vector<float>& hits, const ProgressFn& progress) {
+    auto values = [&p](const Points& x, bool gradient, auto&& sum) {
         FieldValues v;
         v.phi.resize(std::size_t(x.rows()));
         if (gradient) v.gradient.resize(3 * std::size_t(x.rows()));
         blend::Params q = p;
         q.gradient = gradient;
-        blend::evaluate_gpu(field, q, blend::Queries(PointsView(x)), blend::Output{v.phi.data(), gradient ? v.gradient.data() : nullptr},
-                            m.chunk, {});
+        sum(q, blend::Queries(PointsView(x)), blend::Output{v.phi.data(), gradient ? v.gradient.data() : nullptr});
+        return v;
+    };
+    PointEvaluator eval;
+    eval.has_gradient = true;
+    eval.shares_cores = blend::gpu_field_context(field)->info().is_software();
+    eval.evaluate = [&](const Points& x, bool gradient) {
+        FieldValues v = values(x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
+            blend::evaluate_gpu(field, q, at, out, m.chunk, {});
+        });
         v.device = blend::gpu_field_device(field);
         return v;
     };
+    eval.evaluate_few = [&](const Points& x, bool gradient) {
+        FieldValues v = values(x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
+            blend::evaluate_cpu(engine.source(), engine.search_tree(), q, at, out, {});
+        });
+        v.device = "cpu";
+        return v;
+    };
     std::string device;
-    const gpu::OneOpenMPThread serial(blend::gpu_field_context(field)->info().is_software());
     hits = march_wavefront(eval, cam, m, device, progress);
     return true;
 }
@@ -246,10 +262,11 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
     }
     blend::Params p = engine.params(false);
     p.exact = false;
-    m.empty = empty_space_on_device(*field, p, m, empty_cells);
-    // ∇φ at the hits takes a kernel of its own: built on a thread of its own while the rays
-    // march, as the march's host steps leave a core idle now and then. (Its errors come again,
-    // and are reported, from the evaluation that needs it.)
+    // ∇φ at the hits takes a kernel of its own: built on a thread of its own while this one
+    // builds φ's (for the empty space below). On lavapipe each is ~50 ms of one core; built
+    // later, beside the rays' set-up, it held that up (320×240 picture of a 2048-point PAT
+    // field: 0.98× the time, farm-bench). (Its errors come again, and are reported, from the
+    // evaluation that needs it.)
     blend::Params with_gradient = p;
     with_gradient.gradient = true;
     std::future<void> gradient_kernel;  // waited for on the way out
@@ -262,7 +279,8 @@ bool march_blend_gpu(const blend::Engine& engine, const std::shared_ptr<gpu::Con
         });
     } catch (const std::system_error&) {  // no thread: the evaluation builds it
     }
-    if (marches_as_wavefront(*ctx)) return march_blend_wavefront(*field, p, cam, m, hits, progress);
+    m.empty = empty_space_on_device(*field, p, m, empty_cells);
+    if (marches_as_wavefront(*ctx)) return march_blend_wavefront(engine, *field, p, cam, m, hits, progress);
     const std::uint32_t no_cells = 0;
     const gpu::Buffer empty = m.empty ? gpu::upload(*ctx, m.empty->bits.data(), m.empty->bits.size() * 4) : gpu::upload(*ctx, &no_cells, 4);
     const Tiling tiles = tiling_for(*ctx);
