@@ -13,6 +13,7 @@
 #include "blend/blend.hpp"
 #include "gpu/device_choice.hpp"
 #include "gpu/runtime.hpp"
+#include "sums/sum_tree.hpp"
 #include "support.hpp"
 
 #include <filesystem>
@@ -421,10 +422,20 @@ TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud)
     d.flip_fraction = 0.1;
     const PolygonMesh m = shapes::corrupt(shapes::mesh(*shapes::by_name("torus"), 40), d, 4);
     const PointCloud c = shapes::by_name("capsule")->sample(3000, 5);
+    // A tree too shallow for the software kernel's start over its top four levels (it starts
+    // from the root there).
+    PolygonMesh octahedron;  // 8 faces, one flipped
+    octahedron.vertices.resize(6, 3);
+    octahedron.vertices << 0.5, 0, 0, -0.5, 0, 0, 0, 0.5, 0, 0, -0.5, 0, 0, 0, 0.5, 0, 0, -0.5;
+    for (const auto& f : {std::array{0u, 2u, 4u}, {2u, 1u, 4u}, {1u, 3u, 4u}, {3u, 0u, 4u}, {2u, 0u, 5u}, {1u, 2u, 5u}, {3u, 1u, 5u}, {5u, 3u, 0u}})
+        octahedron.add_face({f[0], f[1], f[2]});
+    const OrientedElements tiny = OrientedElements::from_mesh(octahedron);
+    REQUIRE(sums::SumTree(tiny).first_leaf() <= 14);
     // Point dipoles grow as 1/r² next to a point, and some queries are within 0.02 of one, where
     // |w| reaches tens: errors are relative to max(1, |w|), and the cloud gets a looser float32
     // tolerance than the mesh's solid angles.
-    for (const auto& [e, tol] : {std::pair{OrientedElements::from_mesh(m), 1e-4}, std::pair{OrientedElements::from_cloud(c), 5e-4}}) {
+    for (const auto& [e, tol] : {std::pair{OrientedElements::from_mesh(m), 1e-4}, std::pair{OrientedElements::from_cloud(c), 5e-4},
+                                 std::pair{tiny, 1e-4}}) {
         const Points q = mixed_queries(c, 7);
         WindingOptions cpu, one, many;
         cpu.device = "cpu";
