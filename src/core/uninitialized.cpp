@@ -1,5 +1,6 @@
 #include "core/uninitialized.hpp"
 
+#include <cstdint>
 #include <cstdlib>
 #include <new>
 
@@ -23,5 +24,17 @@ void* allocate_large(std::size_t bytes) {
 }
 
 void release_large(void* p) noexcept { std::free(p); }
+
+void advise_huge_pages(void* p, std::size_t bytes) noexcept {
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
+    constexpr std::uintptr_t huge = std::uintptr_t(2) << 20;
+    const auto begin = (reinterpret_cast<std::uintptr_t>(p) + huge - 1) & ~(huge - 1);
+    const auto end = (reinterpret_cast<std::uintptr_t>(p) + bytes) & ~(huge - 1);
+    if (end > begin) (void)madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#else
+    (void)p;
+    (void)bytes;
+#endif
+}
 
 }  // namespace gsd::detail

@@ -31,6 +31,9 @@ constexpr std::size_t kLargeBlock = std::size_t(4) << 20;
 /// release_large.
 void* allocate_large(std::size_t bytes);
 void release_large(void* p) noexcept;
+/// Advises the whole 2 MiB pages inside [p, p + bytes) as huge pages, for memory allocated
+/// elsewhere and not yet touched (a software Vulkan device's buffers: gpu::Buffer).
+void advise_huge_pages(void* p, std::size_t bytes) noexcept;
 
 /// An allocator whose construct() with no arguments default-initializes (leaves trivial types
 /// unset); with arguments it constructs as usual. Blocks of kLargeBlock bytes or more come

@@ -46,6 +46,7 @@ public:
 
 private:
     void release();
+    void advise_software_memory(Context& ctx, std::uint32_t type, VkDeviceSize bytes);
     Context* ctx_ = nullptr;
     VkBuffer buffer_ = VK_NULL_HANDLE;
     VkDeviceMemory memory_ = VK_NULL_HANDLE;
