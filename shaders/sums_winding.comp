@@ -299,6 +299,7 @@ void main() {
         const uint fars = uint(far0) + uint(far1) + uint(far2) + uint(far3);
         const uint pushes = fars + (open3 != 0u ? 1u << 10u : 0u);
         const uint before = subgroupExclusiveAdd(pushes), total = subgroupAdd(pushes);
+        // Masked stores (the main loop writes idle lanes to spare slots instead): once a group.
         uint at = before & 0x3ffu;
         if (far0) far_entries[at++] = a0;  // the root's index is 0
         if (far1) far_entries[at++] = n1 << Q | a1;
@@ -318,7 +319,9 @@ void main() {
         n_leaves = rest != 0u && first_leaf == 0u ? 1u : 0u;
         top = rest != 0u && first_leaf != 0u ? 1u : 0u;
     }
-    uint iters = 1u;  // the subgroup's loop iterations, all loops together (uniform), the start's included
+    // The subgroup's loop iterations, all loops together (uniform); the start's round counts as
+    // one, so the guard stays on the safe side of llvmpipe's limit whichever start ran.
+    uint iters = 1u;
     bool cut = false;
     sync_subgroup();
     while (true) {

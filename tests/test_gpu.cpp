@@ -16,6 +16,7 @@
 #include "sums/sum_tree.hpp"
 #include "support.hpp"
 
+#include <array>
 #include <filesystem>
 #include <future>
 #include <set>
@@ -431,11 +432,22 @@ TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud)
         octahedron.add_face({f[0], f[1], f[2]});
     const OrientedElements tiny = OrientedElements::from_mesh(octahedron);
     REQUIRE(sums::SumTree(tiny).first_leaf() <= 14);
+    // And the shallowest tree that takes the start over the top four levels: every child of
+    // the depth-3 nodes is a leaf.
+    OrientedElements shallow;
+    for (int n = 16; n <= 64 && shallow.size() == 0; ++n) {
+        PointCloud part;
+        part.points = c.points.topRows(n);
+        part.normals = c.normals.topRows(n);
+        const OrientedElements e = OrientedElements::from_cloud(part);
+        if (sums::SumTree(e).first_leaf() == 15) shallow = e;
+    }
+    REQUIRE(shallow.size() > 0);
     // Point dipoles grow as 1/r² next to a point, and some queries are within 0.02 of one, where
     // |w| reaches tens: errors are relative to max(1, |w|), and the cloud gets a looser float32
     // tolerance than the mesh's solid angles.
     for (const auto& [e, tol] : {std::pair{OrientedElements::from_mesh(m), 1e-4}, std::pair{OrientedElements::from_cloud(c), 5e-4},
-                                 std::pair{tiny, 1e-4}}) {
+                                 std::pair{tiny, 1e-4}, std::pair{shallow, 5e-4}}) {
         const Points q = mixed_queries(c, 7);
         WindingOptions cpu, one, many;
         cpu.device = "cpu";

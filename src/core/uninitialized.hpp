@@ -73,4 +73,21 @@ struct UninitializedAllocator : std::allocator<T> {
 template <class T>
 using UninitializedVector = std::vector<T, UninitializedAllocator<T>>;
 
+/// A plain std::vector (one an API returns) sized to n value-initialized elements, its new
+/// storage advised as huge pages before the zeroing first touches it where it is large: the
+/// zeroing runs on one thread, a fault per 4 KiB page (~11 µs each on the machine measured).
+/// The device multigrid's 16 MB result: `shm grid tooth.ply --grid 128` on lavapipe
+/// 27.9–29.9k → 25.4–26.1k page faults, step 3 0.63–0.68 → 0.58–0.61 s, three runs in turn.
+template <class T>
+void resize_in_huge_pages(std::vector<T>& v, std::size_t n) {
+    if (n > v.capacity() && n >= (kLargeBlock + sizeof(T) - 1) / sizeof(T)) {
+        std::vector<T> fresh;
+        fresh.reserve(n);  // storage not yet touched
+        advise_huge_pages(fresh.data(), n * sizeof(T));
+        fresh.assign(v.begin(), v.end());
+        v.swap(fresh);
+    }
+    v.resize(n);
+}
+
 }  // namespace gsd::detail

@@ -3,6 +3,7 @@
 #include <gsd/gpu.hpp>
 
 #include "gpu/device_choice.hpp"
+#include "gpu/on_device.hpp"
 
 #include <algorithm>
 #include <cctype>
@@ -31,6 +32,7 @@ Selection select(const Device& device) {
 }
 
 std::string device_name(const Context&) { return "cpu"; }
+bool shares_host_cores(const Context&) { return false; }
 std::uint64_t validation_error_count() { return 0; }
 bool validation_active() { return false; }
 

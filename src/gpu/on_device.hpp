@@ -32,6 +32,10 @@ inline constexpr bool kBuiltWithVulkan = true;
 inline constexpr bool kBuiltWithVulkan = false;
 #endif
 
+/// Whether the context's device runs its kernels on the host's own cores (a software device
+/// such as lavapipe): host work beside its dispatches takes cores from it.
+bool shares_host_cores(const Context& ctx);
+
 /// Where a stage ran: the device's name, or empty when the caller's CPU path is to run.
 struct DeviceRun {
     std::string device;

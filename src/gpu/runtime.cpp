@@ -6,6 +6,7 @@
 
 #include "core/uninitialized.hpp"
 #include "gpu/device_choice.hpp"
+#include "gpu/on_device.hpp"
 
 #include "gsd_shader_registry.h"
 
@@ -299,6 +300,7 @@ bool validation_active() {
     return g_validation_active;
 }
 std::string device_name(const Context& ctx) { return ctx.info().name; }
+bool shares_host_cores(const Context& ctx) { return ctx.info().is_software(); }
 
 Selection select(const Device& device) {
     Selection sel;
@@ -676,7 +678,7 @@ Buffer::Buffer(Context& ctx, VkDeviceSize bytes, Memory memory) : ctx_(&ctx), si
     }
 }
 
-// A software device's memory is host memory that nothing has touched yet: where it is large,
+// A software device's memory is host memory, as a rule not touched yet: where it is large,
 // huge pages spare the page faults its first use would take, a thread of the device's at a
 // time (~11 µs a 4 KiB page on the virtual machines measured; core/uninitialized.hpp).
 // `gsd shm grid tooth.ply --grid 128` on lavapipe: 33.5–34.0k → 28.7–29.9k page faults, its

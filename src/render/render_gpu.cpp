@@ -211,37 +211,37 @@ bool marches_as_wavefront(const gpu::Context& ctx) {
     return gpu::software_shaped(ctx);
 }
 
-// The march's last few rays take their φ from the blend's CPU path (PointEvaluator::
-// evaluate_few): at 128 points or fewer a dispatch's round trip costs more than the sums. In a
-// 320×240 picture of a 2048-point PAT field on lavapipe ~180 of its ~250 evaluations were such
-// calls, 30 ms of waiting on the device and as much again of host steps between them.
+// φ (and ∇φ) of the blend at the rows of x, `sum` filling them for the parameters p with
+// the gradient as asked: the device's evaluation or the CPU path's.
+template <class Sum>
+FieldValues blend_values(const blend::Params& p, const Points& x, bool gradient, Sum&& sum, std::string device) {
+    FieldValues v;
+    v.phi.resize(std::size_t(x.rows()));
+    if (gradient) v.gradient.resize(3 * std::size_t(x.rows()));
+    blend::Params q = p;
+    q.gradient = gradient;
+    sum(q, blend::Queries(PointsView(x)), blend::Output{v.phi.data(), gradient ? v.gradient.data() : nullptr});
+    v.device = std::move(device);
+    return v;
+}
+
+// The march's last few rays take their φ (and the fewest hits their ∇φ) from the blend's CPU
+// path (PointEvaluator::evaluate_few): at 128 points or fewer a dispatch's round trip costs
+// more than the sums (docs/render.md).
 bool march_blend_wavefront(const blend::Engine& engine, blend::GpuField& field, const blend::Params& p, const Camera& cam,
                            const March& m, std::vector<float>& hits, const ProgressFn& progress) {
-    auto values = [&p](const Points& x, bool gradient, auto&& sum) {
-        FieldValues v;
-        v.phi.resize(std::size_t(x.rows()));
-        if (gradient) v.gradient.resize(3 * std::size_t(x.rows()));
-        blend::Params q = p;
-        q.gradient = gradient;
-        sum(q, blend::Queries(PointsView(x)), blend::Output{v.phi.data(), gradient ? v.gradient.data() : nullptr});
-        return v;
-    };
     PointEvaluator eval;
     eval.has_gradient = true;
     eval.shares_cores = blend::gpu_field_context(field)->info().is_software();
     eval.evaluate = [&](const Points& x, bool gradient) {
-        FieldValues v = values(x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
+        return blend_values(p, x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
             blend::evaluate_gpu(field, q, at, out, m.chunk, {});
-        });
-        v.device = blend::gpu_field_device(field);
-        return v;
+        }, blend::gpu_field_device(field));
     };
     eval.evaluate_few = [&](const Points& x, bool gradient) {
-        FieldValues v = values(x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
+        return blend_values(p, x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
             blend::evaluate_cpu(engine.source(), engine.search_tree(), q, at, out, {});
-        });
-        v.device = "cpu";
-        return v;
+        }, "cpu");
     };
     std::string device;
     hits = march_wavefront(eval, cam, m, device, progress);

@@ -39,6 +39,7 @@ std::vector<float> phi_at(const PointEvaluator& field, const Rays& rays, const s
         const Ray& r = rays[which[std::size_t(k)]];
         p.row(Eigen::Index(k)) = (r.o + t_of(std::size_t(k), r) * r.d).transpose();
     }
+    if (which.empty()) return {};
     if (field.evaluate_few && which.size() <= PointEvaluator::kFewPoints) return field.evaluate_few(p, false).phi;
     FieldValues v = field.evaluate(p, false);
     device = v.device;
@@ -50,7 +51,8 @@ std::vector<Eigen::Vector3d> gradients_at(const PointEvaluator& field, const Poi
     std::vector<Eigen::Vector3d> g(std::size_t(x.rows()));
     if (x.rows() == 0) return g;
     if (field.has_gradient) {
-        const FieldValues v = field.evaluate(x, true);
+        const bool few = field.evaluate_few && std::size_t(x.rows()) <= PointEvaluator::kFewPoints;
+        const FieldValues v = few ? field.evaluate_few(x, true) : field.evaluate(x, true);
         for (std::size_t i = 0; i < g.size(); ++i) g[i] = {v.gradient[3 * i], v.gradient[3 * i + 1], v.gradient[3 * i + 2]};
         return g;
     }
@@ -64,24 +66,32 @@ std::vector<Eigen::Vector3d> gradients_at(const PointEvaluator& field, const Poi
     return g;
 }
 
+// The march of a band's listed rays: those still marching, those bracketing a crossing, and
+// the hits found (ray, t).
+struct BandMarch {
+    const PointEvaluator& field;
+    Rays& rays;
+    const March& m;
+    std::string& device;
+    std::vector<std::size_t> marching, bisecting;
+    std::vector<std::pair<std::size_t, double>> found;
 
-// Marches the listed rays of a band to their hits (or misses), writing hits[4·pixel ...].
-// `progress(done)`: the fraction of the listed rays that finished, after each step.
-void march_rays(const PointEvaluator& field, Rays& rays, std::vector<std::size_t> marching, const March& m,
-                std::vector<float>& hits, std::string& device, const std::function<void(double)>& progress) {
-    const std::size_t listed = marching.size();
-    std::vector<std::size_t> bisecting, next;
-    std::vector<std::pair<std::size_t, double>> found;  // (ray, t of its hit)
-    const std::vector<float> start = phi_at(field, rays, marching, [](std::size_t, const Ray& r) { return r.t; }, device);
-    for (std::size_t i = 0; i < marching.size(); ++i) {
-        Ray& r = rays[marching[i]];
-        r.phi = start[i];
-        if (std::abs(r.phi) < m.hit_eps) found.push_back({marching[i], r.t});
-        else next.push_back(marching[i]);
+    // φ where each ray starts; a ray starting on the surface has hit it.
+    void start() {
+        const std::vector<float> phi = phi_at(field, rays, marching, [](std::size_t, const Ray& r) { return r.t; }, device);
+        std::vector<std::size_t> next;
+        for (std::size_t i = 0; i < marching.size(); ++i) {
+            Ray& r = rays[marching[i]];
+            r.phi = phi[i];
+            if (std::abs(r.phi) < m.hit_eps) found.push_back({marching[i], r.t});
+            else next.push_back(marching[i]);
+        }
+        marching.swap(next);
     }
-    marching.swap(next);
-    for (int s = 0; s < m.max_steps && !marching.empty(); ++s) {
-        // Each ray's next step; those past the box's far side are misses.
+
+    // One step of every marching ray (past empty cells where it can skip); those past the box's
+    // far side are misses.
+    void step() {
         std::vector<double> step_to(marching.size());
         std::vector<char> goes_on(marching.size());
 #pragma omp parallel for schedule(static)
@@ -93,7 +103,7 @@ void march_rays(const PointEvaluator& field, Rays& rays, std::vector<std::size_t
             r.fresh = t != stepped;
             step_to[i] = t;
         }
-        next.clear();
+        std::vector<std::size_t> next;
         std::vector<double> tn;
         for (std::size_t i = 0; i < marching.size(); ++i)
             if (goes_on[i]) {
@@ -102,55 +112,81 @@ void march_rays(const PointEvaluator& field, Rays& rays, std::vector<std::size_t
             }
         const std::vector<float> pn = phi_at(field, rays, next, [&](std::size_t k, const Ray&) { return tn[k]; }, device);
         marching.clear();
-        for (std::size_t i = 0; i < next.size(); ++i) {
-            Ray& r = rays[next[i]];
-            if (r.fresh && std::abs(pn[i]) < m.hit_eps) {  // after a skip: a fresh start at tn
-                found.push_back({next[i], tn[i]});
-            } else if (r.fresh) {
-                r.t = tn[i];
-                r.phi = pn[i];
-                marching.push_back(next[i]);
-            } else if ((pn[i] < 0) != (r.phi < 0)) {  // crossed within the step: bisect [t, tn]
-                r.a = r.t;
-                r.b = tn[i];
-                r.pa = r.phi;
-                bisecting.push_back(next[i]);
-            } else if (std::abs(pn[i]) < m.hit_eps) {
-                found.push_back({next[i], tn[i]});
-            } else {
-                r.t = tn[i];
-                r.phi = pn[i];
-                marching.push_back(next[i]);
-            }
-        }
-        if (progress) progress(1.0 - double(marching.size()) / double(std::max<std::size_t>(listed, 1)));
+        for (std::size_t i = 0; i < next.size(); ++i) take_step(next[i], tn[i], pn[i]);
     }
-    for (int k = 0; k < m.bisection && !bisecting.empty(); ++k) {
-        const std::vector<float> pm = phi_at(field, rays, bisecting, [](std::size_t, const Ray& r) { return 0.5 * (r.a + r.b); }, device);
-        for (std::size_t i = 0; i < bisecting.size(); ++i) {
-            Ray& r = rays[bisecting[i]];
-            const double mid = 0.5 * (r.a + r.b);
-            if ((pm[i] < 0) == (r.pa < 0)) {
-                r.a = mid;
-                r.pa = pm[i];
-            } else {
-                r.b = mid;
-            }
+
+    // Ray k sampled φ = pn at tn.
+    void take_step(std::size_t k, double tn, float pn) {
+        Ray& r = rays[k];
+        if (r.fresh && std::abs(pn) < m.hit_eps) {  // after a skip: a fresh start at tn
+            found.push_back({k, tn});
+        } else if (r.fresh) {
+            r.t = tn;
+            r.phi = pn;
+            marching.push_back(k);
+        } else if ((pn < 0) != (r.phi < 0)) {  // crossed within the step: bisect [t, tn]
+            r.a = r.t;
+            r.b = tn;
+            r.pa = r.phi;
+            bisecting.push_back(k);
+        } else if (std::abs(pn) < m.hit_eps) {
+            found.push_back({k, tn});
+        } else {
+            r.t = tn;
+            r.phi = pn;
+            marching.push_back(k);
         }
     }
-    for (std::size_t k : bisecting) found.push_back({k, 0.5 * (rays[k].a + rays[k].b)});
-    Points at(Eigen::Index(found.size()), 3);
-    for (std::size_t i = 0; i < found.size(); ++i) {
-        const Ray& r = rays[found[i].first];
-        at.row(Eigen::Index(i)) = (r.o + found[i].second * r.d).transpose();
+
+    // The crossings' brackets halved m.bisection times; their midpoints are hits.
+    void bisect() {
+        for (int k = 0; k < m.bisection && !bisecting.empty(); ++k) {
+            const std::vector<float> pm = phi_at(field, rays, bisecting, [](std::size_t, const Ray& r) { return 0.5 * (r.a + r.b); }, device);
+            for (std::size_t i = 0; i < bisecting.size(); ++i) {
+                Ray& r = rays[bisecting[i]];
+                const double mid = 0.5 * (r.a + r.b);
+                if ((pm[i] < 0) == (r.pa < 0)) {
+                    r.a = mid;
+                    r.pa = pm[i];
+                } else {
+                    r.b = mid;
+                }
+            }
+        }
+        for (std::size_t k : bisecting) found.push_back({k, 0.5 * (rays[k].a + rays[k].b)});
+        bisecting.clear();
     }
-    const std::vector<Eigen::Vector3d> g = gradients_at(field, at, m.hit_eps);
-    for (std::size_t i = 0; i < found.size(); ++i) {
-        const Ray& r = rays[found[i].first];
-        float* h = &hits[std::size_t(4 * r.pixel)];
-        h[0] = float(r.entry + found[i].second);
-        for (int a = 0; a < 3; ++a) h[1 + a] = float(g[i][a]);
+
+    // Each hit's t (from the camera) and ∇φ into hits[4·pixel ...].
+    void write_hits(std::vector<float>& hits) const {
+        Points at(Eigen::Index(found.size()), 3);
+        for (std::size_t i = 0; i < found.size(); ++i) {
+            const Ray& r = rays[found[i].first];
+            at.row(Eigen::Index(i)) = (r.o + found[i].second * r.d).transpose();
+        }
+        const std::vector<Eigen::Vector3d> g = gradients_at(field, at, m.hit_eps);
+        for (std::size_t i = 0; i < found.size(); ++i) {
+            const Ray& r = rays[found[i].first];
+            float* h = &hits[std::size_t(4 * r.pixel)];
+            h[0] = float(r.entry + found[i].second);
+            for (int a = 0; a < 3; ++a) h[1 + a] = float(g[i][a]);
+        }
     }
+};
+
+// Marches the listed rays of a band to their hits (or misses), writing hits[4·pixel ...].
+// `progress(done)`: the fraction of the listed rays that finished, after each step.
+void march_rays(const PointEvaluator& field, Rays& rays, std::vector<std::size_t> listed, const March& m,
+                std::vector<float>& hits, std::string& device, const std::function<void(double)>& progress) {
+    const double count = double(std::max<std::size_t>(listed.size(), 1));
+    BandMarch band{field, rays, m, device, std::move(listed), {}, {}};
+    band.start();
+    for (int s = 0; s < m.max_steps && !band.marching.empty(); ++s) {
+        band.step();
+        if (progress) progress(1.0 - double(band.marching.size()) / count);
+    }
+    band.bisect();
+    band.write_hits(hits);
 }
 
 }  // namespace

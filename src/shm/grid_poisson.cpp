@@ -4,6 +4,7 @@
 #include "gpu/on_device.hpp"
 #include <gsd/shm.hpp>
 
+#include "core/uninitialized.hpp"
 #include "shm/multigrid.hpp"
 #include "shm/poisson_gpu.hpp"
 
@@ -359,7 +360,8 @@ std::vector<double> GridPoissonSolver::divergence(std::span<const float> Y) cons
     const double h[3] = {g.box.extent().x() / (g.nx - 1), g.box.extent().y() / (g.ny - 1), g.box.extent().z() / (g.nz - 1)};
     const int n[3] = {g.nx, g.ny, g.nz};
     const Level& lv = impl_->H.levels[0];
-    std::vector<double> b(g.node_count());
+    std::vector<double> b;
+    detail::resize_in_huge_pages(b, g.node_count());
     // Edge (p, p+e_a) carries Ȳ_a = (Y_a(p) + Y_a(p+e_a))/2: it adds −Ȳ_a/Δ_a to b_p and +Ȳ_a/Δ_a to
     // b_{p+e_a} (normal equations of Σ_edges ((φ_q − φ_p)/Δ_a − Ȳ_a)²). Each node gathers its six
     // edges, in parallel: first the edges from its lower neighbours, then its own, along x, y, z —

@@ -10,6 +10,7 @@
 // (docs/gpu.md, "No clears, no copies").
 #include "shm/poisson_gpu.hpp"
 
+#include "core/uninitialized.hpp"
 #include "gpu/runtime.hpp"
 #include "push_constants.h"
 
@@ -230,7 +231,8 @@ public:
             if (history) history->push_back(rel);
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
-        std::vector<double> phi(n0, 0.0);
+        std::vector<double> phi;
+        detail::resize_in_huge_pages(phi, n0);
         if (host_grids_ && cycles == 0) {  // φ = 0, never stored (host grids are not cleared)
             return phi;
         } else if (host_grids_) {  // in place, in rows
