@@ -1,6 +1,7 @@
 #include "gpu/stream.hpp"
 
 #include "core/threads.hpp"
+#include "gpu/on_device.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -48,7 +49,7 @@ void stream(Context& c, const StreamJob& job, const ProgressFn& progress) {
     // spin at their barriers waiting for them. There they run on this thread alone (lavapipe, 2
     // cores: gsd winding of a 160³ grid 4.24–4.27 → 3.86–3.94 s, gsd pat eval of a 128³ grid
     // 4.16–4.18 → 3.66–3.69 s, run with OMP_NUM_THREADS=1 against without).
-    const detail::OneOpenMPThread serial(c.info().is_software());
+    const detail::OneOpenMPThread serial(shares_host_cores(c));
     std::size_t done = 0;
     // Host time spent filling, waiting and draining (printed with GSD_GPU_PROFILE=1): where a
     // call's time goes when the kernels are not what bounds it.

@@ -115,6 +115,11 @@ struct PointEvaluator {
     /// a band's last rays, where a round trip to the device costs more than their sums.
     std::function<FieldValues(const Points&, bool gradient)> evaluate_few;
     static constexpr std::size_t kFewPoints = 128;
+
+    /// The evaluator for a call of `points` points: evaluate_few where it applies.
+    const std::function<FieldValues(const Points&, bool gradient)>& for_points(std::size_t points) const {
+        return evaluate_few && points <= kFewPoints ? evaluate_few : evaluate;
+    }
 };
 
 /// Per-pixel hits, 4 floats each (t, ∇φ; t = −1 for a miss), of any field marched on the CPU a

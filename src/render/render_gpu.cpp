@@ -11,6 +11,7 @@
 
 #include "blend/blend.hpp"
 #include "gpu/runtime.hpp"
+#include "gpu/on_device.hpp"
 #include "gpu/stream.hpp"
 #include "push_constants.h"
 
@@ -232,7 +233,7 @@ bool march_blend_wavefront(const blend::Engine& engine, blend::GpuField& field, 
                            const March& m, std::vector<float>& hits, const ProgressFn& progress) {
     PointEvaluator eval;
     eval.has_gradient = true;
-    eval.shares_cores = blend::gpu_field_context(field)->info().is_software();
+    eval.shares_cores = gpu::shares_host_cores(*blend::gpu_field_context(field));
     eval.evaluate = [&](const Points& x, bool gradient) {
         return blend_values(p, x, gradient, [&](const blend::Params& q, const blend::Queries& at, blend::Output out) {
             blend::evaluate_gpu(field, q, at, out, m.chunk, {});

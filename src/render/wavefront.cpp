@@ -40,9 +40,9 @@ std::vector<float> phi_at(const PointEvaluator& field, const Rays& rays, const s
         p.row(Eigen::Index(k)) = (r.o + t_of(std::size_t(k), r) * r.d).transpose();
     }
     if (which.empty()) return {};
-    if (field.evaluate_few && which.size() <= PointEvaluator::kFewPoints) return field.evaluate_few(p, false).phi;
-    FieldValues v = field.evaluate(p, false);
-    device = v.device;
+    const auto& evaluate = field.for_points(which.size());
+    FieldValues v = evaluate(p, false);
+    if (&evaluate == &field.evaluate) device = v.device;  // not the host evaluator's "cpu"
     return std::move(v.phi);
 }
 
@@ -51,8 +51,7 @@ std::vector<Eigen::Vector3d> gradients_at(const PointEvaluator& field, const Poi
     std::vector<Eigen::Vector3d> g(std::size_t(x.rows()));
     if (x.rows() == 0) return g;
     if (field.has_gradient) {
-        const bool few = field.evaluate_few && std::size_t(x.rows()) <= PointEvaluator::kFewPoints;
-        const FieldValues v = few ? field.evaluate_few(x, true) : field.evaluate(x, true);
+        const FieldValues v = field.for_points(std::size_t(x.rows()))(x, true);
         for (std::size_t i = 0; i < g.size(); ++i) g[i] = {v.gradient[3 * i], v.gradient[3 * i + 1], v.gradient[3 * i + 2]};
         return g;
     }

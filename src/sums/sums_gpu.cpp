@@ -283,7 +283,6 @@ bool gpu_winding(const std::shared_ptr<gpu::Context>& ctx, const sums::SumTree& 
 #pragma omp parallel for schedule(static) reduction(+ : chunk_terms)
         for (std::size_t i = 0; i < m; ++i) {
             const std::uint32_t q = order[first + i];
-            if (i + kAhead < m) __builtin_prefetch(&out.w[order[first + i + kAhead]], 1);
             out.w[q] = r[2 * i];
             if (r[2 * i + 1] < 0) redo[q] = 1;
             else if (!redo[q]) chunk_terms += std::size_t(r[2 * i + 1]);
