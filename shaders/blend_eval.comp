@@ -14,6 +14,7 @@
 #include "torus.glsl"
 
 layout(local_size_x_id = 0) in;
+#include "workgroup_order.glsl"  // workgroup_share (after the size: it reads gl_WorkGroupSize)
 layout(constant_id = 1) const int KIND = 0;      // 0 PAT, 1 SSPD, 2 SHC
 layout(constant_id = 2) const int EXACT = 0;     // 1: sum over every point
 layout(constant_id = 3) const int GRADIENT = 0;  // 1: write (φ, ∇φ) per query
@@ -57,7 +58,7 @@ uint load_tile(uint base) {
 }
 
 void main() {
-    uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    uint i = workgroup_share_item();
     bool valid = i < pc.query_count;
     vec3 x = valid ? qs[i].xyz : vec3(0.0);
     const bool grad = GRADIENT == 1;

@@ -45,6 +45,7 @@ float field_phi(vec3 x, bool live, bool grad, out vec3 g) {
 const bool SHADE_HITS = true;  // a trilinear gradient costs little: the march writes it
 #define RENDER_PARAMS_BINDING 1
 #define RENDER_OUT_BINDING 2
+#include "workgroup_order.glsl"  // workgroup_share
 #include "render_march.glsl"
 
 void main() { render_main(pc.first_pixel, pc.pixel_count); }

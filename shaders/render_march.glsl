@@ -242,7 +242,7 @@ bool past_loop_limit() {
 // lane (the default, render_gpu.cpp says why) that is the tile marched together; with more, a
 // lane never waits for its neighbours' longer rays while the block has rays left.
 void render_main(uint first_pixel, uint pixel_count) {
-    uint group = gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x;
+    uint group = workgroup_share();  // workgroup_order.glsl: the including shader's
     uint lane0 = group * gl_WorkGroupSize.x + subgroupBroadcastFirst(gl_LocalInvocationIndex);
     uint lanes = subgroupBallotBitCount(subgroupBallot(true));
     uint next = min(lane0 * rp.tile.z, pixel_count);                // the block's next ray

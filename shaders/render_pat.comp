@@ -40,6 +40,7 @@ const bool SHADE_HITS = false;
 #define RENDER_PARAMS_BINDING 3
 #define RENDER_OUT_BINDING 4
 #define RENDER_EMPTY_BINDING 5
+#include "workgroup_order.glsl"  // workgroup_share
 #include "render_march.glsl"
 
 void main() { render_main(pc.first_pixel, pc.pixel_count); }

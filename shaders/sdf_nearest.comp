@@ -14,6 +14,7 @@
 #include "box_tree.glsl"
 
 layout(local_size_x_id = 0) in;
+#include "workgroup_order.glsl"  // workgroup_share (after the size: it reads gl_WorkGroupSize)
 
 const int STACK = 64;
 const uint NONE = 0xffffffffu;
@@ -116,7 +117,7 @@ uint nearest(vec3 x, bool live, inout uint group_iters) {
 #endif
 
 void main() {
-    uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    uint q = workgroup_share_item();
     bool live = q < pc.count;
     vec3 x = live ? qs[q].xyz : vec3(0.0);
     uint group_iters = 0u;

@@ -27,6 +27,7 @@
 #include "box_tree.glsl"  // next_in_depth_first
 
 layout(local_size_x_id = 0) in;
+#include "workgroup_order.glsl"  // workgroup_share (after the size: it reads gl_WorkGroupSize)
 
 // Per node, first a vec4: the acceptance test (c, reach²) — reach² = sums::winding_reach2 for
 // this call's β and tolerance, made on the host in float32 as the CPU's float walk makes it, so
@@ -94,7 +95,7 @@ float element_winding(vec3 x, vec4 ea, vec4 eb, vec4 ec) {
 
 #ifndef GSD_SOFTWARE_SHAPED
 void main() {
-    uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    uint q = workgroup_share_item();
     bool valid = q < pc.count;  // lanes past the end walk along, idle: the subgroup stays whole
     vec3 x = valid ? qs[q].xyz : vec3(0.0);
     float w_far = 0.0, w_near = 0.0;
@@ -254,7 +255,7 @@ void main() {
     const uint S = gl_WorkGroupSize.x, lane = gl_LocalInvocationID.x;
     // Push constants read inside a loop are gathered lane by lane; read them once.
     const uint count = pc.count, first_leaf = pc.first_leaf, group_cap = pc.group_cap, records = pc.node_count;
-    const uint base = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * Q;
+    const uint base = workgroup_share() * Q;  // workgroup_order.glsl
     // The group's queries, every lane all of them (one address for all lanes: one load each).
     const uint last = count - 1u;
     [[unroll]] for (uint g = 0u; g < G; ++g) {

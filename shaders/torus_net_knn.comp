@@ -6,6 +6,7 @@
 // first. Duplicates of the point are ordinary neighbors; only its own index is skipped.
 
 layout(local_size_x_id = 0) in;
+#include "workgroup_order.glsl"  // workgroup_share (after the size: it reads gl_WorkGroupSize)
 layout(constant_id = 1) const int K = 32;  // tokens per point (≥ 2)
 
 #include "box_tree.glsl"
@@ -26,7 +27,7 @@ layout(push_constant) uniform Push { TorusNetKnnPush pc; };  // push_constants.h
 #include "box_tree_knn.glsl"
 
 void main() {
-    uint i = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    uint i = workgroup_share_item();
     if (i >= pc.count) return;
     uint c = centers[i];
     float kd[K];

@@ -18,6 +18,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <dlfcn.h>
+#include <sched.h>
+#include <thread>
 #include <sstream>
 #include <utility>
 
@@ -564,6 +566,8 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
                       std::to_string(texel_bindings.float1) + "." + std::to_string(texel_bindings.double1) + "." +
                       std::to_string(texel_bindings.double2);
     for (auto c : constants) key.append(",").append(std::to_string(c));
+    const std::uint32_t threads = dispatch_threads(*this);
+    key.append("|").append(std::to_string(threads));
     State::KernelSlot* slot = nullptr;
     {
         std::lock_guard<std::mutex> lock(st.kernels_mutex);
@@ -632,6 +636,10 @@ const Kernel& Context::kernel(const std::string& shader, std::uint32_t bindings,
     values.insert(values.end(), constants.begin(), constants.end());
     std::vector<VkSpecializationMapEntry> entries(values.size());
     for (std::uint32_t i = 0; i < values.size(); ++i) entries[i] = {i, i * 4, 4};
+    // Every kernel gets the device's dispatch threads (workgroup_order.glsl); a shader without
+    // that constant ignores the entry.
+    values.push_back(std::int32_t(threads));
+    entries.push_back({kDispatchThreadsConstant, std::uint32_t(entries.size() * 4), 4});
     VkSpecializationInfo spec{std::uint32_t(entries.size()), entries.data(), values.size() * 4, values.data()};
     VkComputePipelineCreateInfo ci{VK_STRUCTURE_TYPE_COMPUTE_PIPELINE_CREATE_INFO};
     ci.stage = {VK_STRUCTURE_TYPE_PIPELINE_SHADER_STAGE_CREATE_INFO};
@@ -977,6 +985,22 @@ std::uint32_t software_loop_cap(const Context& ctx) {
         if (cap > 0 && cap < 65535 - 1024) return std::uint32_t(cap);
     }
     return 65535u - 1024u;  // room below 65 535 for the few iterations a kernel does not count
+}
+
+std::uint32_t dispatch_threads(const Context& ctx) {
+    // Only llvmpipe is known to split a dispatch so (SwiftShader and GPUs schedule workgroups as
+    // they free up).
+    if (!ctx.info().is_software() || ctx.info().name.rfind("llvmpipe", 0) != 0) return 1;
+    long threads = 0;
+    if (const char* v = std::getenv("GSD_DISPATCH_THREADS")) threads = std::strtol(v, nullptr, 10);  // tests
+    else if (const char* lp = std::getenv("LP_NUM_THREADS")) threads = std::strtol(lp, nullptr, 10);
+    else {
+        // llvmpipe's own count: the CPUs the process may run on (Mesa's util_cpu_caps).
+        cpu_set_t allowed;
+        threads = sched_getaffinity(0, sizeof(allowed), &allowed) == 0 ? CPU_COUNT(&allowed) : long(std::thread::hardware_concurrency());
+        threads = std::min(threads, 32L);  // Mesa 22-23's LP_MAX_THREADS
+    }
+    return std::uint32_t(std::clamp(threads, 1L, 1024L));
 }
 
 bool software_shaped(const Context& ctx) {

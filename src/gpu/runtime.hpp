@@ -242,6 +242,17 @@ std::uint32_t software_loop_cap(const Context& ctx);
 /// $GSD_SOFTWARE_SHAPED=0|1 overrides (tests run both against the CPU). The software builds use
 /// subgroup arithmetic: a device without it keeps the GPUs' kernels.
 bool software_shaped(const Context& ctx);
+/// How many threads a dispatch's workgroups are split between, each taking one contiguous
+/// block of them (llvmpipe: a dispatch of N workgroups is N / T consecutive ones a thread, T its
+/// thread count: $LP_NUM_THREADS, else the CPUs the process may use, at most 32); 1 on every
+/// other device, which hands workgroups out as its cores free up. Where a kernel's work varies
+/// along its queries' order (Morton order: near the input and far from it), such blocks leave
+/// threads idle while the dearest block finishes, so the kernels take their work in the order
+/// of workgroup_order.glsl, which spreads every block over the whole dispatch. Every pipeline
+/// gets it as specialization constant kDispatchThreadsConstant. $GSD_DISPATCH_THREADS sets it
+/// on llvmpipe (tests: results do not depend on it).
+std::uint32_t dispatch_threads(const Context& ctx);
+constexpr std::uint32_t kDispatchThreadsConstant = 63;  // workgroup_order.glsl: DISPATCH_THREADS
 /// The pipeline of a kernel of the table (kernel_table.hpp) for these specialization constants
 /// and workgroup size (0: the context's default): for a shader built both ways, NAME_software
 /// with the table's texel bindings where software_shaped(ctx), else NAME with storage buffers.
