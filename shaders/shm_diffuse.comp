@@ -24,10 +24,17 @@
 #include "box_tree.glsl"
 
 layout(local_size_x_id = 0) in;
+#include "workgroup_order.glsl"  // workgroup_share (after the size: it reads gl_WorkGroupSize)
 layout(constant_id = 1) const int TOGETHER = 1;  // the subgroup walks together (software devices)
+// Which kinds of element the tree holds (sums::DeviceSumTree::element_kinds: bit 0 triangles,
+// bit 1 points, a = b = c). A cloud's points are summed whole, one term each, and are nearest
+// at their own position: for a tree of points only (2) the triangles' code is left out —
+// llvmpipe runs every branch of it and every store of the refinement's piece stack whether a
+// lane takes them or not.
+layout(constant_id = 2) const int ELEMENT_KINDS = 3;
 
 const int STACK = 64;
-const int PIECES = 68;
+const int PIECES = 24;  // a split piece's entry a level: at most 21 (levels up to 20)
 const int MAX_SPLITS = 4096;  // sums::kMaxSplits
 const float NEEDLE_ASPECT = 768.0;  // sums::kNeedleAspectGpu: below the CPU's 1024, so the GPU never refines what the CPU bisects
 
@@ -69,6 +76,15 @@ const uint NONE = 0xffffffffu;
 
 uint iters = 0u;  // this lane's iterations in its refinements (render_march.glsl's guard, below)
 
+// Squared distance from x to element j (a point where the tree holds points only).
+float element_distance2(vec3 x, uint j) {
+    if (ELEMENT_KINDS == 2) {
+        vec3 d = x - ELEM(3u * j).xyz;
+        return dot(d, d);
+    }
+    return triangle_distance2(x, ELEM(3u * j).xyz, ELEM(3u * j + 1u).xyz, ELEM(3u * j + 2u).xyz);
+}
+
 // The distance to the nearest element for every lane, the subgroup walking together (as the
 // k-nearest walk of blend_field.glsl): a node is opened when any lane's best so far reaches its
 // box, children first in the order most of those lanes prefer, and each lane takes the elements
@@ -87,7 +103,7 @@ float nearest_distance(vec3 x, bool live, inout uint group_iters) {
         if (i >= pc.first_leaf) {
             group_iters += node_end(i) - node_begin(i);
             for (uint j = node_begin(i); j < node_end(i); ++j) {
-                float d2 = triangle_distance2(x, ELEM(3u * j).xyz, ELEM(3u * j + 1u).xyz, ELEM(3u * j + 2u).xyz);
+                float d2 = element_distance2(x, j);
                 if (need) best2 = min(best2, d2);
             }
         } else {
@@ -114,7 +130,7 @@ float nearest_distance_alone(vec3 x) {
         if (box_distance2(x, node_lo(i), node_hi(i)) >= best2) continue;
         if (i >= pc.first_leaf) {
             for (uint j = node_begin(i); j < node_end(i); ++j)
-                best2 = min(best2, triangle_distance2(x, ELEM(3u * j).xyz, ELEM(3u * j + 1u).xyz, ELEM(3u * j + 2u).xyz));
+                best2 = min(best2, element_distance2(x, j));
         } else {
             uint l = 2u * i + 1u, r = 2u * i + 2u;
             bool left_first = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
@@ -169,6 +185,19 @@ void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
 // at once (the software kernel runs every lane through its element passes).
 void add_element(uint j, vec3 x, float rmin, float R, bool live, inout vec3 X, inout uint terms, inout bool wide) {
     if (!live) R = -3.0e38;  // every piece out of reach
+    if (ELEMENT_KINDS == 2) {
+        // A point: the refinement's first piece, accepted whole (ρ = 0) — the same term as
+        // below, without its covariance (zero) and its piece stack.
+        vec4 p = ELEM(3u * j);
+        float dist = length(x - p.xyz);
+        ++iters;
+        if (dist > R) return;
+        vec3 v = vec3(p.w, ELEM(3u * j + 1u).w, ELEM(3u * j + 2u).w);
+        float f = dist > 0.0 ? radial(dist, rmin).x : exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor);
+        X += v * f;
+        ++terms;
+        return;
+    }
     vec4 ea = ELEM(3u * j), eb = ELEM(3u * j + 1u), ec = ELEM(3u * j + 2u);
     vec3 a = ea.xyz, ab = eb.xyz - a, ac = ec.xyz - a, v = vec3(ea.w, eb.w, ec.w), cd, co;
     float rho0;
@@ -180,45 +209,63 @@ void add_element(uint j, vec3 x, float rmin, float R, bool live, inout vec3 X, i
     // whether a lane takes it or not, and the clipping, run so for every element, made step 1
     // 2.5× slower there.
     float longest2 = max(dot(ab, ab), max(dot(ac, ac), dot(ac - ab, ac - ab)));
-    if (live && (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac)))) {
-        wide = true;
-        return;
-    }
+    bool too_wide = live && (rho0 > R || longest2 > NEEDLE_ASPECT * length(cross(ab, ac)));
+    wide = wide || too_wide;
+    if (too_wide) R = -3.0e38;  // left to the CPU: nothing of it summed here
     float area = length(v);
-    vec4 pieces[PIECES];  // (s, t, h, σ·(level + 1)) of a sub-triangle being refined
+    // The refinement, depth first: the element, then where a piece is split its four
+    // half-sized children, the last first (as the CPU). Shaped for llvmpipe, which stores a
+    // lane's value to a private array component by component behind a branch on the lane's mask
+    // bit, and for a masked-off lane reloads the old value first — in this loop, where most lanes
+    // have finished their element long before the last, that reload was most of step 1's time
+    // (perf, `shm grid bunny_small.obj`). So the loop keeps every lane in it, the subgroup
+    // deciding together when to stop, and every store is unmasked: a lane with nothing to store
+    // writes the spare slot PIECES. And a split piece's four children are one entry — (s, t, h,
+    // w) of the first and, in h's low mantissa bits (h is a power of two), how many are left
+    // after the one taken —, not four.
+    vec4 pieces[PIECES + 1];
     int np = 0, splits = 0;
-    pieces[np++] = vec4(0.0, 0.0, 1.0, 1.0);
-    while (np > 0) {
-        vec4 pq = pieces[--np];
-        ++iters;
+    bool whole = true;  // the element itself, not yet taken
+    while (true) {
+        bool refining = whole || np > 0;
+        if (!subgroupAny(refining)) break;
+        vec4 top = pieces[max(np - 1, 0)];
+        uint bits = floatBitsToUint(top.z), k = bits & 3u;
+        float half_size = uintBitsToFloat(bits & ~3u), sh = sign(top.w) * half_size;
+        bool taken = refining && !whole;  // from the stack: its entry loses a child, or goes
+        pieces[taken && k != 0u ? np - 1 : PIECES].z = uintBitsToFloat(bits - 1u);
+        np -= taken && k == 0u ? 1 : 0;
+        vec4 pq = whole ? vec4(0.0, 0.0, 1.0, 1.0)
+                        : vec4(top.x + ((k & 1u) != 0u ? sh : 0.0), top.y + ((k & 2u) != 0u ? sh : 0.0), half_size,
+                               k == 3u ? -top.w : top.w);
+        whole = false;
+        iters += refining ? 1u : 0u;
         float sigma = sign(pq.w), level = abs(pq.w) - 1.0;
         vec3 g = a + (pq.x + sigma * pq.z / 3.0) * ab + (pq.y + sigma * pq.z / 3.0) * ac;
         float rho = rho0 * pq.z;
         vec3 dg = x - g;
         float dist = length(dg);
-        if (dist - rho > R) continue;
+        bool reached = refining && !(dist - rho > R);
         float share = pq.z * pq.z;
         vec3 m0 = v * share;
-        if (accept(rho, dist, area * share, rmin)) {
-            vec3 u = dg / dist;
-            vec3 f = radial(dist, rmin);
-            float A = f.z - f.y / dist, B = f.y / dist;
-            float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
-                       2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
-            float ct = cd.x + cd.y + cd.z;
-            X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
-        } else if (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS) {
-            X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
-        } else {
-            float h = pq.z * 0.5, sh = sigma * h, w = sigma * (level + 2.0);
-            ++splits;
-            pieces[np++] = vec4(pq.x, pq.y, h, w);
-            pieces[np++] = vec4(pq.x + sh, pq.y, h, w);
-            pieces[np++] = vec4(pq.x, pq.y + sh, h, w);
-            pieces[np++] = vec4(pq.x + sh, pq.y + sh, h, -w);
-            continue;
-        }
-        ++terms;
+        bool accepted = reached && accept(rho, dist, area * share, rmin);
+        bool floor_term = reached && !accepted && (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS);
+        bool split = reached && !accepted && !floor_term;
+        vec3 u = dg / dist;
+        vec3 f = radial(dist, rmin);
+        float A = f.z - f.y / dist, B = f.y / dist;
+        float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
+                   2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
+        float ct = cd.x + cd.y + cd.z;
+        if (accepted) X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
+        if (floor_term) X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+        terms += accepted || floor_term ? 1u : 0u;
+        // Children (s, t), (s + σh, t), (s, t + σh), (s + σh, t + σh) of half size h, the last
+        // turned over (−w).
+        float h = pq.z * 0.5, w = sigma * (level + 2.0);
+        splits += split ? 1 : 0;
+        pieces[split ? min(np, PIECES - 1) : PIECES] = vec4(pq.x, pq.y, uintBitsToFloat(floatBitsToUint(h) | 3u), w);
+        np += split ? 1 : 0;
     }
 }
 
@@ -325,7 +372,7 @@ void walk_listed(vec3 x, bool live, float rmin, float R, inout vec3 X, inout uin
 #endif
 
 void main() {
-    uint q = gl_WorkGroupID.y * gl_NumWorkGroups.x * gl_WorkGroupSize.x + gl_GlobalInvocationID.x;
+    uint q = workgroup_share_item();
     bool valid = q < pc.count;  // lanes past the end walk along, idle: the subgroup stays whole
     vec3 x = valid ? qs[q].xyz : vec3(0.0);
     vec3 X = vec3(0.0);

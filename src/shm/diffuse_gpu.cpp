@@ -42,7 +42,7 @@ public:
             if (std::string(w) == "alone") together = false;
         }
         // Software devices read the tree, its moments and the elements as texel buffers.
-        const gpu::Kernel& k = gpu::kernel(*ctx_, gpu::kernel_table::shm_diffuse, {together ? 1 : 0},
+        const gpu::Kernel& k = gpu::kernel(*ctx_, gpu::kernel_table::shm_diffuse, {together ? 1 : 0, tree_.element_kinds},
                                            gpu::loop_capped_workgroup(*ctx_));
         const std::uint32_t cap = gpu::software_loop_cap(*ctx_);
         std::vector<char> redo(n, 0);

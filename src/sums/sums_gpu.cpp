@@ -7,6 +7,7 @@
 #include "push_constants.h"
 #include "sums/sum_tree.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -26,6 +27,18 @@ void outward(const double* lo, const double* hi, gpu::DeviceNode& out) {
         out.lo[a] = double(l) > lo[a] ? std::nextafter(l, -INFINITY) : l;
         out.hi[a] = double(h) < hi[a] ? std::nextafter(h, INFINITY) : h;
     }
+}
+
+// Which kinds of element records (3 vec4 each: (a, v.x), (b, v.y), (c, v.z)) hold, as the
+// kernels test them: bit 0 triangles, bit 1 points (a = b = c).
+std::int32_t element_kinds(const float* records, std::size_t count) {
+    std::int32_t kinds = 0;
+    for (std::size_t j = 0; j < count && kinds != 3; ++j) {
+        const float* e = records + 12 * j;
+        const bool point = std::equal(e, e + 3, e + 4) && std::equal(e, e + 3, e + 8);
+        kinds |= point ? 2 : 1;
+    }
+    return kinds;
 }
 
 }  // namespace
@@ -73,6 +86,7 @@ DeviceSumTree upload(gpu::Context& ctx, const sums::SumTree& tree) {
         }
     }
     DeviceSumTree d;
+    d.element_kinds = element_kinds(el.data(), tree.size());
     d.nodes = gpu::upload(ctx, dn.data(), dn.size() * sizeof(gpu::DeviceNode));
     d.moments = gpu::upload(ctx, mom.data(), mom.size() * 4);
     d.elements = gpu::upload(ctx, el.data(), el.size() * 4);
@@ -128,10 +142,8 @@ DeviceWindingTree upload_winding(gpu::Context& ctx, const sums::SumTree& tree, f
             for (int a = 0; a < 3; ++a) el[12 * j + std::size_t(4 * k + a)] = float((p[3 * k + a] - origin[a]) * scale);
             el[12 * j + std::size_t(4 * k + 3)] = float(v[k] * scale * scale);
         }
-        const float* e = &el[12 * j];  // the shader's test for a point: a = b = c, as it reads them
-        const bool point = std::equal(e, e + 3, e + 4) && std::equal(e, e + 3, e + 8);
-        d.element_kinds |= point ? 2 : 1;
     }
+    d.element_kinds = element_kinds(el.data(), tree.size());
     d.nodes = gpu::upload(ctx, nd.data(), nd.size() * 4);
     d.elements = gpu::upload(ctx, el.data(), el.size() * 4);
     d.first_leaf = tree.first_leaf();

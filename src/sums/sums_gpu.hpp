@@ -38,6 +38,9 @@ namespace gsd::sums {
 struct DeviceSumTree {
     gpu::Buffer nodes, moments, elements;
     std::uint32_t first_leaf = 0;
+    /// The kinds of element it holds, as the kernels read them: bit 0 triangles, bit 1 points
+    /// (a = b = c in float32). Kernels specialized for one kind leave the other's code out.
+    std::int32_t element_kinds = 0;
 };
 DeviceSumTree upload(gpu::Context& ctx, const sums::SumTree& tree);
 
