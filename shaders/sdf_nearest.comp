@@ -56,15 +56,17 @@ float element_distance2(vec3 x, uint j) {
 uint nearest(vec3 x, bool live, inout uint group_iters) {
     float best2 = 3.0e38;
     uint best = NONE;
-    uint stack[STACK];
+    // Pushes to the spare slot STACK rather than under a branch (shm_diffuse.comp's
+    // nearest_distance says why).
+    uint stack[STACK + 1];
     int top = 0;
     stack[top++] = 0u;
     while (top > 0) {
         uint i = stack[--top];
         ++group_iters;
         bool need = live && box_distance2(x, node_lo(i), node_hi(i)) < best2;
-        if (!subgroupAny(need)) continue;
-        if (i >= pc.first_leaf) {
+        bool opened = subgroupAny(need), leaf = i >= pc.first_leaf;
+        if (opened && leaf) {
             group_iters += node_end(i) - node_begin(i);
             for (uint j = node_begin(i); j < node_end(i); ++j) {
                 float d2 = element_distance2(x, j);
@@ -73,15 +75,15 @@ uint nearest(vec3 x, bool live, inout uint group_iters) {
                     best = j;
                 }
             }
-        } else {
-            uint l = 2u * i + 1u, r = 2u * i + 2u;
-            bool prefers_left = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
-            uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
-            uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
-            bool left_first = left >= right;
-            stack[top++] = left_first ? r : l;  // the preferred child is popped first
-            stack[top++] = left_first ? l : r;
         }
+        uint l = leaf ? i : 2u * i + 1u, r = leaf ? i : 2u * i + 2u;
+        bool prefers_left = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
+        uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
+        uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
+        bool left_first = left >= right, push = opened && !leaf;
+        stack[push ? top : STACK] = left_first ? r : l;  // the preferred child is popped first
+        stack[push ? top + 1 : STACK] = left_first ? l : r;
+        top += push ? 2 : 0;
         if (pc.group_cap != 0u && group_iters >= pc.group_cap) break;
     }
     return best;
