@@ -752,12 +752,13 @@ Recorder::~Recorder() {
     ctx_.vk().vkDestroyCommandPool(ctx_.device(), pool_, nullptr);
 }
 
-void Recorder::begin() {
+void Recorder::begin(Reuse reuse) {
     wait();
     release_views();
     check(ctx_.vk().vkResetCommandBuffer(cmd_, 0), "vkResetCommandBuffer");
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    bi.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    bi.flags = reuse == Reuse::Once ? VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT : 0;
+    ended_ = false;
     check(ctx_.vk().vkBeginCommandBuffer(cmd_, &bi), "vkBeginCommandBuffer");
     timed_.clear();
     if (ctx_.state().profile) {
@@ -796,7 +797,7 @@ void Recorder::collect_times() {
         t.first += double(ticks[2 * i + 1] - ticks[2 * i]) * s.timestamp_ns;
         ++t.second;
     }
-    timed_.clear();
+    // timed_ is kept until the next begin(): a recording submitted again times the same commands.
 }
 
 void Recorder::copy(const Buffer& src, VkDeviceSize so, const Buffer& dst, VkDeviceSize d, VkDeviceSize bytes) {
@@ -907,7 +908,8 @@ void Recorder::barrier() {
 }
 
 void Recorder::submit() {
-    check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+    if (!ended_) check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+    ended_ = true;
     VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
     si.commandBufferCount = 1;
     si.pCommandBuffers = &cmd_;
@@ -939,7 +941,8 @@ void Recorder::submit(const SubmitSync& sync) {
                                                    std::to_string(sync.wait.size()) + "), or none");
     std::vector<VkPipelineStageFlags> stages = sync.wait_stages;
     if (stages.empty()) stages.assign(sync.wait.size(), VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-    check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+    if (!ended_) check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+    ended_ = true;
     VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
     si.waitSemaphoreCount = std::uint32_t(sync.wait.size());
     si.pWaitSemaphores = sync.wait.data();

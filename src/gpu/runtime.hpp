@@ -172,7 +172,11 @@ public:
     Recorder(const Recorder&) = delete;
     Recorder& operator=(const Recorder&) = delete;
 
-    void begin();
+    /// How often what is recorded is submitted: once, or again and again (each submit() after
+    /// the first, without a begin() between, submits the same commands once the last is done).
+    enum class Reuse { Once, Again };
+    /// Waits for the last submission and starts recording anew.
+    void begin(Reuse reuse = Reuse::Once);
     void copy(const Buffer& src, VkDeviceSize src_offset, const Buffer& dst, VkDeviceSize dst_offset,
               VkDeviceSize bytes);
     /// Zeroes `bytes` (a multiple of 4) of a buffer from `offset`.
@@ -194,7 +198,7 @@ public:
     void barrier_after_external();
     /// Makes the compute shaders' writes visible to anything later on the queue and to the host.
     void barrier_before_external();
-    /// Ends and submits; returns at once.
+    /// Ends the recording (the first time after begin()) and submits; returns at once.
     void submit();
     /// Ends and submits with an application's semaphores and fence (see SubmitSync); this
     /// recorder's own fence still tracks the work, so wait() and done() keep working.
@@ -217,6 +221,7 @@ private:
     VkCommandBuffer cmd_ = VK_NULL_HANDLE;
     VkFence fence_ = VK_NULL_HANDLE;
     bool pending_ = false;
+    bool ended_ = false;  ///< the recording since begin() is ended (submitted at least once)
     VkQueryPool queries_ = VK_NULL_HANDLE;
     std::vector<std::string> timed_;  ///< labels of the timestamp pairs recorded since begin()
     /// Texel views of the bindings recorded since begin(): alive until the submission is done.

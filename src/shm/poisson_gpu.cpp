@@ -216,12 +216,21 @@ public:
             rec.wait();
             rel = bnorm > 0 ? std::sqrt(partial_sum()) / bnorm : 0.0;
         }
-        gpu::Recorder rec(c);
+        // Every cycle's commands are the same but for the first's on host grids (φ = e, not φ +=
+        // e): each kind is recorded once and submitted again, not recorded ~60 dispatches a
+        // cycle while the device waits (on lavapipe 27 ms of a 0.6 s solve at 128³).
+        gpu::Recorder first(c), again(c);
+        bool again_recorded = false;
         int cycles = 0;
         for (int it = 0; it < max_cycles && rel > tol; ++it, ++cycles) {
-            rec.begin();
-            record_cycle(rec, 0, f_cycle);
-            record_refine(rec, true, it == 0 && host_grids_);
+            const bool phi_zero = it == 0 && host_grids_;
+            gpu::Recorder& rec = phi_zero ? first : again;
+            if (phi_zero || !again_recorded) {
+                rec.begin(gpu::Recorder::Reuse::Again);
+                record_cycle(rec, 0, f_cycle);
+                record_refine(rec, true, phi_zero);
+                again_recorded = again_recorded || !phi_zero;
+            }
             rec.submit();
             rec.wait();
             rel = std::sqrt(partial_sum()) / bnorm;
