@@ -34,7 +34,7 @@ layout(constant_id = 1) const int TOGETHER = 1;  // the subgroup walks together 
 layout(constant_id = 2) const int ELEMENT_KINDS = 3;
 
 const int STACK = 64;
-const int PIECES = 24;  // a split piece's entry a level: at most 21 (levels up to 20)
+const int PIECES = 24;  // one entry a level that splits (levels 0–19: 20 at most); > that, never full
 const int MAX_SPLITS = 4096;  // sums::kMaxSplits
 const float NEEDLE_ASPECT = 768.0;  // sums::kNeedleAspectGpu: below the CPU's 1024, so the GPU never refines what the CPU bisects
 
@@ -184,8 +184,8 @@ void triangle_shape(vec3 ab, vec3 ac, out vec3 cd, out vec3 co, out float rho) {
 }
 
 // Element j's part of X for one lane (the refinement of SumTree::screened_element); sets `wide`
-// when the element is to be left to the CPU. A lane that is not `live` adds nothing and stops
-// at once (the software kernel runs every lane through its element passes).
+// when the element is to be left to the CPU. A lane that is not `live` adds nothing (the
+// software kernel runs every lane through its element passes): its one piece is out of reach.
 void add_element(uint j, vec3 x, float rmin, float R, bool live, inout vec3 X, inout uint terms, inout bool wide) {
     if (!live) R = -3.0e38;  // every piece out of reach
     if (ELEMENT_KINDS == 2) {
@@ -228,7 +228,7 @@ void add_element(uint j, vec3 x, float rmin, float R, bool live, inout vec3 X, i
     // after the one taken —, not four.
     vec4 pieces[PIECES + 1];
     int np = 0, splits = 0;
-    bool whole = true;  // the element itself, not yet taken
+    bool whole = !too_wide;  // the element itself, not yet taken (none for the CPU's)
     while (true) {
         bool refining = whole || np > 0;
         if (!subgroupAny(refining)) break;
@@ -254,14 +254,18 @@ void add_element(uint j, vec3 x, float rmin, float R, bool live, inout vec3 X, i
         bool accepted = reached && accept(rho, dist, area * share, rmin);
         bool floor_term = reached && !accepted && (rho <= pc.r_floor || level >= 20.0 || splits >= MAX_SPLITS);
         bool split = reached && !accepted && !floor_term;
-        vec3 u = dg / dist;
-        vec3 f = radial(dist, rmin);
-        float A = f.z - f.y / dist, B = f.y / dist;
-        float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
-                   2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
-        float ct = cd.x + cd.y + cd.z;
-        if (accepted) X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
-        if (floor_term) X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+        // (Branches with no store in them: llvmpipe runs both anyway, a GPU the one it takes.)
+        if (accepted) {
+            vec3 u = dg / dist;
+            vec3 f = radial(dist, rmin);
+            float A = f.z - f.y / dist, B = f.y / dist;
+            float cq = cd.x * u.x * u.x + cd.y * u.y * u.y + cd.z * u.z * u.z +
+                       2.0 * (co.x * u.x * u.y + co.y * u.x * u.z + co.z * u.y * u.z);
+            float ct = cd.x + cd.y + cd.z;
+            X += m0 * (f.x + 0.5 * share * (A * cq + B * ct));
+        } else if (floor_term) {
+            X += m0 * (exp(-pc.lambda * (dist - rmin)) / max(dist, pc.r_floor));
+        }
         terms += accepted || floor_term ? 1u : 0u;
         // Children (s, t), (s + σh, t), (s, t + σh), (s + σh, t + σh) of half size h, the last
         // turned over (−w).

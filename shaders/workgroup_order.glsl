@@ -23,6 +23,7 @@ uint workgroup_share() {
     uint w = (gl_WorkGroupID.z * gl_NumWorkGroups.y + gl_WorkGroupID.y) * gl_NumWorkGroups.x + gl_WorkGroupID.x;
     if (DISPATCH_THREADS <= 1u) return w;
     uint per_thread = (gl_NumWorkGroups.x * gl_NumWorkGroups.y * gl_NumWorkGroups.z) / DISPATCH_THREADS;
+    if (per_thread == 0u) return w;  // fewer workgroups than threads: one each
     return w < per_thread * DISPATCH_THREADS ? (w % per_thread) * DISPATCH_THREADS + w / per_thread : w;
 }
 

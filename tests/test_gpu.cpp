@@ -390,6 +390,39 @@ TEST_CASE("real, sparse and corrupted clouds: device agrees with the CPU to 2e-4
 }
 #endif
 
+TEST_CASE("results do not depend on how many threads a dispatch's workgroups are shared between") {
+    // On llvmpipe each thread takes one block of a dispatch's workgroups, and the kernels that
+    // walk trees take their work in the order of workgroup_order.glsl, which depends on the
+    // thread count (gpu::dispatch_threads; GSD_DISPATCH_THREADS sets it): a permutation of the
+    // workgroups, whatever the count — more threads than workgroups too —, so the same results
+    // to the bit. (Elsewhere the variable changes nothing, and the check holds trivially.)
+    REQUIRE(device());
+    shapes::MeshCorruption d;
+    d.holes = 2;
+    d.flip_fraction = 0.1;
+    const OrientedElements mesh = OrientedElements::from_mesh(shapes::corrupt(shapes::mesh(*shapes::by_name("torus"), 24), d, 3));
+    const PointCloud c = shapes::by_name("capsule")->sample(1500, 5);
+    const FittedTori f = JetFitter().fit(c);
+    const Points q = mixed_queries(c, 11);
+    WindingOptions w;
+    w.device = "gpu";
+    w.chunk_size = 1000;  // chunks of many workgroups, and a last one of few
+    auto run = [&](const char* threads) {
+        if (threads) ::setenv("GSD_DISPATCH_THREADS", threads, 1);
+        auto r = std::make_pair(fast_winding_numbers(mesh, q, w).w, TorusField(f, on("gpu")).evaluate(q).phi);
+        ::unsetenv("GSD_DISPATCH_THREADS");
+        return r;
+    };
+    const auto base = run(nullptr);
+    for (const char* threads : {"1", "3", "7", "1000"}) {
+        CAPTURE(std::string(threads));
+        const auto other = run(threads);
+        CHECK(other.first == base.first);
+        CHECK(other.second == base.second);
+    }
+    CHECK(gpu::validation_error_count() == test::expected_validation_errors());
+}
+
 TEST_CASE("fast winding numbers on the device match the CPU (broken mesh, cloud), whatever the chunk size") {
     REQUIRE(device());
     // Both kernels, the GPUs' and the one shaped for software devices (gpu::software_shaped),

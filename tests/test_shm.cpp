@@ -335,10 +335,25 @@ TEST_CASE("step 1 on the device: points, triangles and both together match the C
         ShmOptions cpu, gpu_opt;
         cpu.device = "cpu";
         gpu_opt.device = "gpu";
-        const double worst = largest_gap(SignedHeatGrid(src, g, cpu).diffused_directions(),
-                                         SignedHeatGrid(src, g, gpu_opt).diffused_directions());
+        const std::vector<float> want = SignedHeatGrid(src, g, cpu).diffused_directions();
+        const std::vector<float> got = SignedHeatGrid(src, g, gpu_opt).diffused_directions();
+        const double worst = largest_gap(want, got);
         MESSAGE("step 1 on " << name << ": max |Y_gpu − Y_cpu| = " << worst);
         CHECK(worst < 1e-4);
+        if (!gpu::select("gpu").context->info().is_software()) continue;
+        // On a software device, also each lane walking alone and the GPUs' kernel (the same
+        // element code), and the workgroups shared out between another count of threads (the
+        // same directions to the bit).
+        for (const auto& setting : {std::pair{"GSD_SHM_WALK", "alone"}, std::pair{"GSD_SOFTWARE_SHAPED", "0"},
+                                    std::pair{"GSD_DISPATCH_THREADS", "3"}}) {
+            const std::string var = setting.first;
+            CAPTURE(var);
+            ::setenv(setting.first, setting.second, 1);
+            const std::vector<float> y = SignedHeatGrid(src, g, gpu_opt).diffused_directions();
+            ::unsetenv(setting.first);
+            CHECK(largest_gap(want, y) < 1e-4);
+            if (var == "GSD_DISPATCH_THREADS") CHECK(y == got);
+        }
     }
     CHECK(gpu::validation_error_count() == 0);
 }

@@ -759,6 +759,7 @@ void Recorder::begin(Reuse reuse) {
     VkCommandBufferBeginInfo bi{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
     bi.flags = reuse == Reuse::Once ? VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT : 0;
     ended_ = false;
+    reuse_ = reuse;
     check(ctx_.vk().vkBeginCommandBuffer(cmd_, &bi), "vkBeginCommandBuffer");
     timed_.clear();
     if (ctx_.state().profile) {
@@ -907,9 +908,18 @@ void Recorder::barrier() {
                          0, 1, &mb, 0, nullptr, 0, nullptr);
 }
 
-void Recorder::submit() {
-    if (!ended_) check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
+void Recorder::end_for_submit() {
+    if (ended_) {
+        if (reuse_ == Reuse::Once) throw Error("gpu", "a recording made for one submission was submitted again");
+        wait();  // neither the command buffer nor the fence may be in use twice at once
+        return;
+    }
+    check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
     ended_ = true;
+}
+
+void Recorder::submit() {
+    end_for_submit();
     VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
     si.commandBufferCount = 1;
     si.pCommandBuffers = &cmd_;
@@ -941,8 +951,7 @@ void Recorder::submit(const SubmitSync& sync) {
                                                    std::to_string(sync.wait.size()) + "), or none");
     std::vector<VkPipelineStageFlags> stages = sync.wait_stages;
     if (stages.empty()) stages.assign(sync.wait.size(), VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT);
-    if (!ended_) check(ctx_.vk().vkEndCommandBuffer(cmd_), "vkEndCommandBuffer");
-    ended_ = true;
+    end_for_submit();
     VkSubmitInfo si{VK_STRUCTURE_TYPE_SUBMIT_INFO};
     si.waitSemaphoreCount = std::uint32_t(sync.wait.size());
     si.pWaitSemaphores = sync.wait.data();

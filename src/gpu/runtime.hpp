@@ -173,7 +173,8 @@ public:
     Recorder& operator=(const Recorder&) = delete;
 
     /// How often what is recorded is submitted: once, or again and again (each submit() after
-    /// the first, without a begin() between, submits the same commands once the last is done).
+    /// the first, without a begin() between, waits for the last submission and submits the same
+    /// commands again; a recording made for once refuses that).
     enum class Reuse { Once, Again };
     /// Waits for the last submission and starts recording anew.
     void begin(Reuse reuse = Reuse::Once);
@@ -216,12 +217,16 @@ private:
     void time_start();
     void time_end(const std::string& label);
     void collect_times();
+    /// Ends the recording before its first submission; before a later one, waits for the last
+    /// (or refuses, for a recording made for once).
+    void end_for_submit();
     Context& ctx_;
     VkCommandPool pool_ = VK_NULL_HANDLE;
     VkCommandBuffer cmd_ = VK_NULL_HANDLE;
     VkFence fence_ = VK_NULL_HANDLE;
     bool pending_ = false;
     bool ended_ = false;  ///< the recording since begin() is ended (submitted at least once)
+    Reuse reuse_ = Reuse::Once;
     VkQueryPool queries_ = VK_NULL_HANDLE;
     std::vector<std::string> timed_;  ///< labels of the timestamp pairs recorded since begin()
     /// Texel views of the bindings recorded since begin(): alive until the submission is done.

@@ -226,7 +226,7 @@ public:
             const bool phi_zero = it == 0 && host_grids_;
             gpu::Recorder& rec = phi_zero ? first : again;
             if (phi_zero || !again_recorded) {
-                rec.begin(gpu::Recorder::Reuse::Again);
+                rec.begin(phi_zero ? gpu::Recorder::Reuse::Once : gpu::Recorder::Reuse::Again);
                 record_cycle(rec, 0, f_cycle);
                 record_refine(rec, true, phi_zero);
                 again_recorded = again_recorded || !phi_zero;
