@@ -229,13 +229,15 @@ uint sum_ball(vec3 x, bool live, inout Acc a, bool grad) {
         // Once the ball is known to hold k points (no fallback), only the nodes within the
         // reach of the terms that count can add to the sums: the walk skips the rest of the ball.
         const float open2 = found >= k ? min(r2, reach2) : r2;
+        // Every lane takes every step, a lane whose walk is over idly: under a lane mask
+        // llvmpipe would store `opened` lane by lane, reloading each masked-off lane's old value
+        // first (docs/gpu.md, "Kernels shaped for software devices"). Its store goes past its count.
         for (uint step = 0u; step < BALL_ROUND; ++step) {
-            if (!walking) break;
-            bool near = node_d2 <= open2;
+            bool near = walking && node_d2 <= open2;
             bool leaf = node >= first_leaf;
             opened[n_opened] = node;
             n_opened += near && leaf ? 1u : 0u;
-            walking = nearer_first_step(x, near && !leaf, node, trail, node_d2);
+            walking = nearer_first_step(x, near && !leaf, node, trail, node_d2) && walking;
         }
         uint passes = subgroupMax(n_opened);
         TICK_UNIFORM(passes + 1u);
@@ -457,13 +459,12 @@ void knn_listed(vec3 x, bool live, uint k, out float kd[K_MAX], out uint ki[K_MA
         float worst = d[K_MAX - 1];
         float w2 = worst * worst;
         uint n_listed = 0u;
-        for (uint step = 0u; step < KNN_ROUND; ++step) {
-            if (!walking) break;
-            bool near = node_d2 <= w2;
+        for (uint step = 0u; step < KNN_ROUND; ++step) {  // every lane every step (sum_ball's)
+            bool near = walking && node_d2 <= w2;
             bool leaf = node >= first_leaf;
             listed[n_listed] = node;
             n_listed += near && leaf ? 1u : 0u;
-            walking = nearer_first_step(x, near && !leaf, node, trail, node_d2);
+            walking = nearer_first_step(x, near && !leaf, node, trail, node_d2) && walking;
         }
         uint passes = subgroupMax(n_listed);
         TICK_UNIFORM(passes + 1u);

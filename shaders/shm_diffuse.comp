@@ -331,9 +331,11 @@ void walk_listed(vec3 x, bool live, float rmin, float R, inout vec3 X, inout uin
         }
         group_iters += ROUND + 2u;
         uint n_accepted = 0u, n_opened = 0u;
+        // Every lane takes every step, a lane whose walk is over idly (its stores go past its
+        // counts): under a lane mask llvmpipe would store lane by lane, reloading each masked-off
+        // lane's old value first (add_element's refinement says more).
         for (uint step = 0u; step < ROUND; ++step) {
-            if (!walking) break;
-            bool reached = box_distance2(x, node_lo(node), node_hi(node)) <= R * R;
+            bool reached = walking && box_distance2(x, node_lo(node), node_hi(node)) <= R * R;
             vec3 d = x - mom3(node, 0u);
             bool accepted = reached && accept(mom(node, 3u), length(d), mom(node, 7u), rmin);
             bool leaf = node >= first_leaf;
@@ -345,7 +347,7 @@ void walk_listed(vec3 x, bool live, float rmin, float R, inout vec3 X, inout uin
                 node = 2u * node + 1u;
             } else {
                 node = next_in_depth_first(node);
-                walking = node != 0u;
+                walking = walking && node != 0u;
             }
         }
         uint passes = subgroupMax(n_accepted);
