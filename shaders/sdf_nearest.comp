@@ -50,43 +50,12 @@ float element_distance2(vec3 x, uint j) {
 }
 
 #ifdef GSD_SOFTWARE_SHAPED
-// The subgroup walks together: a node is opened when any lane's best so far reaches its box,
-// children first in the order most of those lanes prefer; each lane takes the elements of the
-// leaves it still needed. `group_iters` counts the walk's iterations (llvmpipe's loop limit).
+#include "nearest_element.glsl"
+
+// The subgroup walks together (nearest_element.glsl).
 uint nearest(vec3 x, bool live, inout uint group_iters) {
-    float best2 = 3.0e38;
-    uint best = NONE;
-    // Pushes to the spare slot STACK rather than under a branch (shm_diffuse.comp's
-    // nearest_distance says why).
-    uint stack[STACK + 1];
-    int top = 0;
-    stack[top++] = 0u;
-    while (top > 0) {
-        uint i = stack[--top];
-        ++group_iters;
-        bool need = live && box_distance2(x, node_lo(i), node_hi(i)) < best2;
-        bool opened = subgroupAny(need), leaf = i >= pc.first_leaf;
-        if (opened && leaf) {
-            group_iters += node_end(i) - node_begin(i);
-            for (uint j = node_begin(i); j < node_end(i); ++j) {
-                float d2 = element_distance2(x, j);
-                if (need && d2 < best2) {
-                    best2 = d2;
-                    best = j;
-                }
-            }
-        }
-        uint l = leaf ? i : 2u * i + 1u, r = leaf ? i : 2u * i + 2u;
-        bool prefers_left = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
-        uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
-        uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
-        bool left_first = left >= right, push = opened && !leaf;
-        stack[push ? top : STACK] = left_first ? r : l;  // the preferred child is popped first
-        stack[push ? top + 1 : STACK] = left_first ? l : r;
-        top += push ? 2 : 0;
-        if (pc.group_cap != 0u && group_iters >= pc.group_cap) break;
-    }
-    return best;
+    float best2;
+    return nearest_element_together(x, live, pc.group_cap, group_iters, best2);
 }
 #else
 // One lane's own walk, best first.

@@ -85,40 +85,13 @@ float element_distance2(vec3 x, uint j) {
     return triangle_distance2(x, ELEM(3u * j).xyz, ELEM(3u * j + 1u).xyz, ELEM(3u * j + 2u).xyz);
 }
 
-// The distance to the nearest element for every lane, the subgroup walking together (as the
-// k-nearest walk of blend_field.glsl): a node is opened when any lane's best so far reaches its
-// box, children first in the order most of those lanes prefer, and each lane takes the elements
-// of the leaves it still needed. Exact for every lane: a node no lane needs holds nothing nearer
-// for any. Uniform control flow; `group_iters` counts the walk's iterations.
+#include "nearest_element.glsl"
+
+// The distance to the nearest element for every lane, the subgroup walking together
+// (nearest_element.glsl; no cap: the sum's walk after it checks `group_iters`).
 float nearest_distance(vec3 x, bool live, inout uint group_iters) {
-    float best2 = 3.0e38;
-    // The stack's pushes are not under a branch: llvmpipe would store them under the lanes'
-    // mask, reloading each masked-off lane's old value first — for every leaf and every node no
-    // lane needs (shm_diffuse's refinement says more). They go to the spare slot STACK instead.
-    uint stack[STACK + 1];
-    int top = 0;
-    stack[top++] = 0u;
-    while (top > 0) {
-        uint i = stack[--top];
-        ++group_iters;
-        bool need = live && box_distance2(x, node_lo(i), node_hi(i)) < best2;
-        bool opened = subgroupAny(need), leaf = i >= pc.first_leaf;
-        if (opened && leaf) {
-            group_iters += node_end(i) - node_begin(i);
-            for (uint j = node_begin(i); j < node_end(i); ++j) {
-                float d2 = element_distance2(x, j);
-                if (need) best2 = min(best2, d2);
-            }
-        }
-        uint l = leaf ? i : 2u * i + 1u, r = leaf ? i : 2u * i + 2u;
-        bool prefers_left = box_distance2(x, node_lo(l), node_hi(l)) <= box_distance2(x, node_lo(r), node_hi(r));
-        uint left = subgroupBallotBitCount(subgroupBallot(need && prefers_left));
-        uint right = subgroupBallotBitCount(subgroupBallot(need && !prefers_left));
-        bool left_first = left >= right, push = opened && !leaf;
-        stack[push ? top : STACK] = left_first ? r : l;  // the preferred child is popped first
-        stack[push ? top + 1 : STACK] = left_first ? l : r;
-        top += push ? 2 : 0;
-    }
+    float best2;
+    nearest_element_together(x, live, 0u, group_iters, best2);
     return sqrt(best2);
 }
 

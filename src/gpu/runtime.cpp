@@ -1007,10 +1007,14 @@ std::uint32_t dispatch_threads(const Context& ctx) {
     if (const char* v = std::getenv("GSD_DISPATCH_THREADS")) threads = std::strtol(v, nullptr, 10);  // tests
     else if (const char* lp = std::getenv("LP_NUM_THREADS")) threads = std::strtol(lp, nullptr, 10);
     else {
-        // llvmpipe's own count: the CPUs the process may run on (Mesa's util_cpu_caps).
-        cpu_set_t allowed;
-        threads = sched_getaffinity(0, sizeof(allowed), &allowed) == 0 ? CPU_COUNT(&allowed) : long(std::thread::hardware_concurrency());
-        threads = std::min(threads, 32L);  // Mesa 22-23's LP_MAX_THREADS
+        // llvmpipe's own count, read once as llvmpipe does: the CPUs the process may run on
+        // (Mesa's util_cpu_caps), at most Mesa 22-23's LP_MAX_THREADS.
+        static const long cpus = [] {
+            cpu_set_t allowed;
+            const long n = sched_getaffinity(0, sizeof(allowed), &allowed) == 0 ? CPU_COUNT(&allowed) : long(std::thread::hardware_concurrency());
+            return std::min(n, 32L);
+        }();
+        threads = cpus;
     }
     return std::uint32_t(std::clamp(threads, 1L, 1024L));
 }
