@@ -3,7 +3,11 @@
 // Prolongation: e_fine += P e_coarse, trilinear from the coarse cells' centers (each axis's
 // sources c0, c1 and weights w0, w1). Rows of fine cells along z (mg_common.glsl; the software
 // build a quad a lane); pc.dims is the fine level, pc.odims the coarse. The fine e is bound
-// twice, read and written (each cell its own).
+// twice, read and written (each cell its own). Only the cells of color pc.color are updated: the
+// post-smoothing's first half-sweep, of the other color, reads no cell of its own color and
+// overwrites them all, so their prolonged values would go unread (poisson_gpu.cpp). A row's
+// lanes take its cells of that color (as mg_smooth.comp's), the software build a block's quad
+// of them a lane.
 #include "mg_common.glsl"
 #ifdef GSD_SOFTWARE_SHAPED
 layout(binding = 1) uniform samplerBuffer ec_quads;
@@ -45,8 +49,9 @@ float along_z(Window w, uint base, uint k) {
 }
 
 void main() {
+    uint odd = (gl_WorkGroupID.z + gl_GlobalInvocationID.y + pc.color) & 1u;
     bool inside;
-    uvec3 c = quad_cell(inside);
+    uvec3 c = lane_quad(2u * gl_GlobalInvocationID.x + odd, inside);
     uint b = c.z >> 1u;
     vec4 x = axis_cell(0u, c.x, 1u), y = axis_cell(1u, c.y, 1u);  // (c0, c1, w0, w1)
     uvec2 ci = uvec2(x.xy), cj = uvec2(y.xy);
@@ -71,9 +76,12 @@ float along_z(uint ci, uint cj, uvec2 ck, vec2 wk) {
     return wk.x * ec[row + ck.x] + wk.y * ec[row + ck.y];
 }
 void main() {
-    bool inside;
-    uvec3 c = row_cell(inside);
-    uint p = index_of(c, pc.dims, pc.zstride);
+    uvec3 d = pc.dims;
+    uvec3 c = uvec3(gl_WorkGroupID.z, gl_GlobalInvocationID.y, 2u * gl_GlobalInvocationID.x);
+    c.z += (c.x + c.y + pc.color) & 1u;
+    bool inside = c.z < d.z && c.y < d.y;
+    c.yz = min(c.yz, d.yz - 1u);  // past the grid: a real cell, nothing stored
+    uint p = index_of(c, d, pc.zstride);
     vec4 x = axis_cell(0u, c.x, 1u), y = axis_cell(1u, c.y, 1u), z = axis_cell(2u, c.z, 1u);  // (c0, c1, w0, w1)
     uvec2 ci = uvec2(x.xy), cj = uvec2(y.xy), ck = uvec2(z.xy);
     float s = x.z * (y.z * along_z(ci.x, cj.x, ck, z.zw) + y.w * along_z(ci.x, cj.y, ck, z.zw)) +

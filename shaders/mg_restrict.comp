@@ -22,14 +22,23 @@ void main() {
     uint b = c.z >> 1u, quads = pc.ozstride / 4u;
     uvec4 ix = uvec4(axis_cell(0u, c.x, 2u)), iy = uvec4(axis_cell(1u, c.y, 2u));
     vec4 wx = axis_cell(0u, c.x, 3u), wy = axis_cell(1u, c.y, 3u);
+    // t is 0 on the fine cells of color pc.color (mg_residual.comp stores them so): in fine row
+    // (fi, fj) the quads of cells k with k ≡ fi + fj + pc.color (mod 2). Texel 4b − 1 + s holds
+    // cells k ≡ s + 1, so the row's other three texels are s ≡ fi + fj + pc.color: only those
+    // are read (the sums are the same, to the bit: the others would add 0).
     vec4 w[6];
     for (int s = 0; s < 6; ++s) w[s] = vec4(0.0);
     for (int i = 0; i < 4; ++i)
         for (int j = 0; j < 4; ++j) {
             float wij = wx[i] * wy[j];
             uint row = (ix[i] * pc.odims.y + iy[j]) * quads;
-            for (int s = 0; s < 6; ++s)
-                w[s] += wij * texelFetch(t_quads, int(row + uint(clamp(int(4u * b) - 1 + s, 0, int(quads) - 1))));
+            bool odd_first = ((ix[i] + iy[j] + pc.color) & 1u) != 0u;  // s = 1, 3, 5, else 0, 2, 4
+            for (int m = 0; m < 3; ++m) {
+                int s = 2 * m + (odd_first ? 1 : 0);
+                vec4 v = wij * texelFetch(t_quads, int(row + uint(clamp(int(4u * b) - 1 + s, 0, int(quads) - 1))));
+                w[2 * m] += odd_first ? vec4(0.0) : v;
+                w[2 * m + 1] += odd_first ? v : vec4(0.0);
+            }
         }
     // v[d + 1]: fine cell 16B + d (d = −1 … 16) of the summed row.
     float v[18];

@@ -103,13 +103,13 @@ struct TorusNetKnnPush {
 // The multigrid's level kernels (mg_common.glsl)
 struct MultigridPush {
     GSD_ALIGNED_VEC3 uvec3 dims;  // this level
-    uint color;                   // red-black color for the smoother
+    uint color;                   // red-black color: the smoother's; mg_prolong's cells; mg_residual's computed cells; mg_restrict: t's zero cells
     GSD_ALIGNED_VEC3 uvec3 axes_off;  // where this level's x, y, z tables start, in cells
     uint zstride;                     // cells stored per row of this level (≥ dims.z)
     GSD_ALIGNED_VEC3 uvec3 odims;  // the other level (coarser for prolongation, finer for restriction)
     uint ozstride;                 // cells stored per row of the other level
     GSD_ALIGNED_VEC3 uvec3 oaxes_off;
-    uint first_sweep;  // 1: the smoother takes e as 0 (a level's first half-sweep), mg_update φ (the first cycle)
+    uint first_sweep;  // 1: the smoother takes e as 0 (a level's first half-sweep); mg_refine: what it does (poisson_gpu.cpp's Refine)
     GSD_ALIGNED_VEC3 vec3 inv_h2;  // 1/Δ² of the finest grid per axis
     uint pad3;
     // This level's axes (x, y, z) for the software build's stencils: every cell of an axis has

@@ -210,16 +210,19 @@ TEST_CASE("GPU multigrid: relative residual 1e-6 within 20 cycles at 128^3, φ m
 // axis is one level, the dense solve alone. Both builds of the kernels (GSD_SOFTWARE_SHAPED) run
 // on them, the GPUs' build with its grids in device memory (GSD_GPU_HOST_GRIDS=0) as on a GPU.
 // Their scratch buffers start as NaN (GSD_GPU_POISON) rather than as whatever the allocation
-// held, so a kernel that reads a value before one is stored fails the solve.
+// held, so a kernel that reads a value before one is stored fails the solve. V-cycles and
+// F-cycles (whose second V-cycle on a level starts from a residual whose other color is 0).
 TEST_CASE("GPU multigrid on grids of any shape, both kernel builds: φ matches the CPU") {
     REQUIRE(gpu::select("gpu").context);
+    for (const bool f_cycle : {false, true})
     for (const GridSpec& g : {GridSpec{37, 50, 23, Box{{0, 0, 0}, {1.8, 2.5, 1.1}}}, GridSpec{33, 40, 65, Box{{0, 0, 0}, {1, 1.2, 2}}},
                               GridSpec{3, 4, 2, Box{{0, 0, 0}, {1, 1, 0.5}}}}) {
         CAPTURE(g.nx);
+        CAPTURE(f_cycle);
         const GridPoissonSolver cpu_solver(g, PoissonSolver::Multigrid, "cpu");
         const std::vector<double> b = cpu_solver.divergence(test_field(g));
         std::vector<double> cpu_history;
-        const std::vector<double> phi_cpu = cpu_solver.solve(b, {1e-8, 40}, &cpu_history);
+        const std::vector<double> phi_cpu = cpu_solver.solve(b, {1e-8, 40, f_cycle}, &cpu_history);
         for (const char* shaped : {"0", "1"}) {
             CAPTURE(shaped);
             setenv("GSD_SOFTWARE_SHAPED", shaped, 1);
@@ -227,7 +230,11 @@ TEST_CASE("GPU multigrid on grids of any shape, both kernel builds: φ matches t
             setenv("GSD_GPU_HOST_GRIDS", shaped, 1);
             const GridPoissonSolver gpu_solver(g, PoissonSolver::Multigrid, "gpu");
             std::vector<double> history;
-            const std::vector<double> phi = gpu_solver.solve(b, {1e-8, 40}, &history);
+            const std::vector<double> phi = gpu_solver.solve(b, {1e-8, 40, f_cycle}, &history);
+            // Solving with b moved in (φ may come back in b's memory) gives the same φ.
+            std::vector<double> b_copy = b;
+            const std::vector<double> phi_moved = gpu_solver.solve(std::move(b_copy), {1e-8, 40, f_cycle});
+            CHECK(phi_moved == phi);
             // A second solve that runs no cycle (b = 0) gives φ = 0, not what the first left.
             const std::vector<double> none = gpu_solver.solve(std::vector<double>(b.size(), 0.0), {1e-8, 40});
             CHECK(std::all_of(none.begin(), none.end(), [](double v) { return v == 0.0; }));

@@ -214,12 +214,19 @@ public:
     /// residual after each cycle or iteration goes to `residual_history` if given.
     std::vector<double> solve(const std::vector<double>& b, const PoissonSolveOptions& options = {},
                               std::vector<double>* residual_history = nullptr, const ProgressFn& progress = {}) const;
+    /// The same, free to return φ in b's memory (no new memory to zero: on a device it saves
+    /// the result's page faults, ~11 µs a page on the machine measured).
+    std::vector<double> solve(std::vector<double>&& b, const PoissonSolveOptions& options = {},
+                              std::vector<double>* residual_history = nullptr, const ProgressFn& progress = {}) const;
     /// y = L x (for tests and residuals).
     std::vector<double> apply(const std::vector<double>& x) const;
     /// The device that runs the multigrid ("cpu" or a Vulkan device name).
     std::string device() const;
 
 private:
+    std::vector<double> solve_using(const std::vector<double>& b, const PoissonSolveOptions& options,
+                                    std::vector<double>* residual_history, const ProgressFn& progress,
+                                    std::vector<double>* storage) const;
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

@@ -57,8 +57,7 @@ inline constexpr KernelSpec mg_smooth{"mg_smooth", 4, sizeof(MultigridPush), {0b
 inline constexpr KernelSpec mg_residual{"mg_residual", 4, sizeof(MultigridPush), {0b11u}, 3};
 inline constexpr KernelSpec mg_restrict{"mg_restrict", 3, sizeof(MultigridPush), {0b11u}};
 inline constexpr KernelSpec mg_prolong{"mg_prolong", 4, sizeof(MultigridPush), {0b111u}};
-inline constexpr KernelSpec mg_update{"mg_update", 3, sizeof(MultigridPush), {0b10u, 0u, 0u, 0b1u}};
-inline constexpr KernelSpec mg_refine{"mg_refine", 4, sizeof(MultigridPush), {0u, 0u, 0u, 0b11u}};
+inline constexpr KernelSpec mg_refine{"mg_refine", 7, sizeof(MultigridPush), {0b1u, 0u, 0u, 0b110u}};
 inline constexpr KernelSpec mg_coarse{"mg_coarse", 3, sizeof(CountPush)};
 inline constexpr KernelSpec mg_add{"mg_add", 2, sizeof(CountPush)};
 // Any field on a device (src/gpu/field_device.cpp, src/field/field_gpu.cpp): copies between
@@ -72,7 +71,7 @@ inline constexpr KernelSpec sharpen_restart{"sharpen_restart", 7, sizeof(Sharpen
 
 inline constexpr const KernelSpec* all[] = {&sums_winding, &shm_diffuse, &sdf_nearest, &torus_from_jet, &blend_eval, &render_pat,
                                             &render_grid,  &torus_net_knn, &torus_net,    &mg_smooth,  &mg_residual,
-                                            &mg_restrict,  &mg_prolong,  &mg_update,     &mg_refine,  &mg_coarse,
+                                            &mg_restrict,  &mg_prolong,  &mg_refine,  &mg_coarse,
                                             &mg_add,       &sharpen_dual, &sharpen_primal,
                                             &sharpen_restart, &copy_words,   &field_combine};
 }  // namespace kernel_table

@@ -258,9 +258,10 @@ struct GridPoissonSolver::Impl {
         return gpu.get();
     }
 
+    // `storage`: a vector whose memory the device's φ may be returned in (GpuMultigrid::solve).
     std::vector<double> multigrid(const std::vector<double>& b, double tol, int max_it, std::vector<double>* history,
-                                  bool f_cycle, const ProgressFn& progress) const {
-        if (shm::GpuMultigrid* g = gpu_multigrid()) return g->solve(b, tol, max_it, history, f_cycle, progress);
+                                  bool f_cycle, const ProgressFn& progress, std::vector<double>* storage) const {
+        if (shm::GpuMultigrid* g = gpu_multigrid()) return g->solve(b, tol, max_it, history, f_cycle, progress, storage);
         CpuMultigrid mg(H);
         const std::size_t n = b.size();
         std::vector<double> x(n, 0.0), r = b, Ax(n);
@@ -388,11 +389,23 @@ std::vector<double> GridPoissonSolver::divergence(std::span<const float> Y) cons
 
 std::vector<double> GridPoissonSolver::solve(const std::vector<double>& b, const PoissonSolveOptions& o,
                                              std::vector<double>* history, const ProgressFn& progress) const {
+    return solve_using(b, o, history, progress, nullptr);
+}
+
+std::vector<double> GridPoissonSolver::solve(std::vector<double>&& b, const PoissonSolveOptions& o,
+                                             std::vector<double>* history, const ProgressFn& progress) const {
+    return solve_using(b, o, history, progress, &b);
+}
+
+std::vector<double> GridPoissonSolver::solve_using(const std::vector<double>& b, const PoissonSolveOptions& o,
+                                                   std::vector<double>* history, const ProgressFn& progress,
+                                                   std::vector<double>* storage) const {
     if (b.size() != impl_->grid.node_count()) throw Error("Poisson right-hand side has the wrong size");
     if (o.max_iterations < 0) throw Error("max_iterations", "must be ≥ 0 (0: the solver's default)");
     switch (impl_->kind) {
         case PoissonSolver::Multigrid:
-            return impl_->multigrid(b, o.tolerance, o.max_iterations ? o.max_iterations : 50, history, o.f_cycle, progress);
+            return impl_->multigrid(b, o.tolerance, o.max_iterations ? o.max_iterations : 50, history, o.f_cycle, progress,
+                                    storage);
         case PoissonSolver::CG:
             return impl_->conjugate_gradient(b, o.tolerance, o.max_iterations ? o.max_iterations : 5000, history, progress);
         case PoissonSolver::Direct: {

@@ -163,11 +163,16 @@ public:
         // (no staging buffer, no copy).
         const gpu::Memory grid_memory = host_grids_ ? gpu::Memory::Download : gpu::Memory::Device;
         phi_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
-        b_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
+        res_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
         // mg_refine's workgroups (run_rows), one partial sum each.
         const MgPush fine = push_for(0, 0);
         const RowGroups g = row_groups(fine, row_lanes(0));
         groups0_ = g.x * g.y * g.z;
+        if (software_) {  // a partial sum per subgroup (shaders/mg_refine.comp): llvmpipe's are its SIMD width
+            const RowShape shape = row_shape(row_lanes(0), fine.dims[1]);
+            const std::uint32_t simd = std::max<std::uint32_t>(ctx_->info().subgroup_size, 1);
+            groups0_ *= (shape.x * shape.rows + simd - 1) / simd;
+        }
         partial_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Device);
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
         // Every kernel stores every quad of a row, the padding's as zeros, and every value is
@@ -184,22 +189,24 @@ public:
                 for (const gpu::Buffer* b : {&r_[l], &e_[l], &t_[l], &save_[l]})
                     if (b->handle()) rec.fill(*b, 0, cells(l) * 4, 0x7fc00000u);  // float32 quiet NaN
             rec.fill(phi_, 0, cells(0) * 8, 0x7ff80000u);  // a float64 NaN in every word pair
+            rec.fill(res_, 0, cells(0) * 8, 0x7ff80000u);
         }
         rec.submit();
         rec.wait();
     }
 
     std::vector<double> solve(const std::vector<double>& b, double tol, int max_cycles, std::vector<double>* history,
-                              bool f_cycle, const ProgressFn& progress) override {
+                              bool f_cycle, const ProgressFn& progress, std::vector<double>* storage) override {
         gpu::Context& c = *ctx_;
         const std::size_t n0 = H_.levels[0].count(), stored = cells(0);
         const double bnorm = std::sqrt(std::inner_product(b.begin(), b.end(), b.begin(), 0.0));
         double rel = bnorm > 0 ? 1.0 : 0.0;  // φ = 0: the residual is b
+        // The float64 residual starts as b (φ = 0), and so does its float32 copy, the cycle's
+        // right-hand side. φ is not cleared: the first cycle's refinement stores φ = e.
         if (host_grids_) {
-            // Host memory (a software device): b, and the first residual r = float(b), in place.
-            // φ is not cleared: the first cycle's update stores φ = e.
-            to_rows(b.data(), static_cast<double*>(b_.mapped()));
-            const double* rows = static_cast<const double*>(b_.mapped());
+            // Host memory (a software device): in place.
+            to_rows(b.data(), static_cast<double*>(res_.mapped()));
+            const double* rows = static_cast<const double*>(res_.mapped());
             float* r0 = static_cast<float*>(r_[0].mapped());
 #pragma omp parallel for schedule(static)
             for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(stored); ++i) r0[i] = float(rows[i]);
@@ -208,28 +215,26 @@ public:
             to_rows(b.data(), static_cast<double*>(staging.mapped()));
             gpu::Recorder rec(c);
             rec.begin();
-            rec.copy(staging, 0, b_, 0, stored * 8);
-            rec.fill_zero(phi_, 0, stored * 8);
+            rec.copy(staging, 0, res_, 0, stored * 8);
             rec.barrier();
-            record_refine(rec, false);
+            record_refine(rec, Refine::NoCycle);
             rec.submit();
             rec.wait();
             rel = bnorm > 0 ? std::sqrt(partial_sum()) / bnorm : 0.0;
         }
-        // Every cycle's commands are the same but for the first's on host grids (φ = e, not φ +=
-        // e): each kind is recorded once and submitted again, not recorded ~60 dispatches a
-        // cycle while the device waits (on lavapipe 27 ms of a 0.6 s solve at 128³).
+        // Every cycle's commands are the same but for the first's (φ = e, not φ += e): each
+        // kind is recorded once and submitted again, not recorded ~60 dispatches a cycle while
+        // the device waits (on lavapipe 27 ms of a 0.6 s solve at 128³).
         gpu::Recorder first(c), again(c);
         bool again_recorded = false;
         int cycles = 0;
         for (int it = 0; it < max_cycles && rel > tol; ++it, ++cycles) {
-            const bool phi_zero = it == 0 && host_grids_;
-            gpu::Recorder& rec = phi_zero ? first : again;
-            if (phi_zero || !again_recorded) {
-                rec.begin(phi_zero ? gpu::Recorder::Reuse::Once : gpu::Recorder::Reuse::Again);
+            gpu::Recorder& rec = it == 0 ? first : again;
+            if (it == 0 || !again_recorded) {
+                rec.begin(it == 0 ? gpu::Recorder::Reuse::Once : gpu::Recorder::Reuse::Again);
                 record_cycle(rec, 0, f_cycle);
-                record_refine(rec, true, phi_zero);
-                again_recorded = again_recorded || !phi_zero;
+                record_refine(rec, it == 0 ? Refine::FromZero : Refine::Add);
+                again_recorded = it > 0;
             }
             rec.submit();
             rec.wait();
@@ -241,8 +246,10 @@ public:
             if (progress) progress("solve", std::min(1.0, std::log(std::max(rel, 1e-300)) / std::log(tol)));
         }
         std::vector<double> phi;
-        detail::resize_in_huge_pages(phi, n0);
-        if (host_grids_ && cycles == 0) {  // φ = 0, never stored (host grids are not cleared)
+        if (storage && storage->size() == n0) phi.swap(*storage);  // b's, read by now
+        else detail::resize_in_huge_pages(phi, n0);
+        if (cycles == 0) {  // φ = 0, never stored (φ is not cleared)
+            std::fill(phi.begin(), phi.end(), 0.0);
             return phi;
         } else if (host_grids_) {  // in place, in rows
             from_rows(static_cast<const double*>(phi_.mapped()), phi.data());
@@ -253,8 +260,13 @@ public:
             gpu::download(c, phi_, rows.data(), stored * 8);
             from_rows(rows.data(), phi.data());
         }
-        const double mean = std::accumulate(phi.begin(), phi.end(), 0.0) / double(n0);
-        for (double& v : phi) v -= mean;
+        double sum = 0;
+        const auto count = std::ptrdiff_t(n0);
+#pragma omp parallel for reduction(+ : sum) schedule(static)
+        for (std::ptrdiff_t i = 0; i < count; ++i) sum += phi[std::size_t(i)];
+        const double mean = sum / double(n0);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < count; ++i) phi[std::size_t(i)] -= mean;
         return phi;
     }
 
@@ -366,6 +378,12 @@ private:
         rec.barrier();
     }
 
+    // Lanes along a row of level l for a kernel that takes one color's cells: a block of 8 cells
+    // a lane on a software device, else a pair of cells.
+    std::uint32_t color_lanes(std::size_t l) const {
+        return software_ ? stride_[l] / kBlock : (std::uint32_t(H_.levels[l].axis[2].n) + 1) / 2;
+    }
+
     // One half-sweep of `color`; `first`: the level's first of a cycle, which takes e as 0.
     void smooth(gpu::Recorder& rec, std::size_t l, std::uint32_t color, bool first = false) {
         MgPush p = push_for(l, l);
@@ -374,18 +392,21 @@ private:
         // e read (the other color) and written (this one). The lanes take the row's cells of one
         // color: on a software device a block's quad of them a lane.
         if (software_)
-            run_rows(rec, gpu::kernel_table::mg_smooth, {{&r_[l]}, {&e_[l]}, {&e_[l]}}, p, stride_[l] / kBlock);
+            run_rows(rec, gpu::kernel_table::mg_smooth, {{&r_[l]}, {&e_[l]}, {&e_[l]}}, p, color_lanes(l));
         else
-            run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, (p.dims[2] + 1) / 2);
+            run_rows(rec, gpu::kernel_table::mg_smooth, {{&axes_}, {&r_[l]}, {&e_[l]}, {&e_[l]}}, p, color_lanes(l));
     }
 
-    // t = r − A e on level l into `t` (which may be r itself: each cell reads its own r only).
-    void residual(gpu::Recorder& rec, std::size_t l, const gpu::Buffer& t) {
-        const MgPush p = push_for(l, l);
+    // t = r − A e on level l into `t` (which may be r itself: each cell reads its own r only),
+    // after a half-sweep of the smoother of color `last_swept`: its cells' t is 0 but for
+    // rounding, and stored as 0 (the CPU reference computes it; the cycles converge alike).
+    void residual(gpu::Recorder& rec, std::size_t l, const gpu::Buffer& t, std::uint32_t last_swept) {
+        MgPush p = push_for(l, l);
+        p.color = 1 - last_swept;  // the cells computed
         if (software_)
-            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&t}}, p, row_lanes(l));
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&r_[l]}, {&e_[l]}, {&t}}, p, color_lanes(l));
         else
-            run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t}}, p, row_lanes(l));
+            run_rows(rec, gpu::kernel_table::mg_residual, {{&axes_}, {&r_[l]}, {&e_[l]}, {&t}}, p, color_lanes(l));
     }
 
     void record_cycle(gpu::Recorder& rec, std::size_t l, bool f_cycle) {
@@ -399,9 +420,10 @@ private:
             return;
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 0, s == 0); smooth(rec, l, 1); }
-        residual(rec, l, t_[l]);
+        residual(rec, l, t_[l], 1);
         {
-            const MgPush p = push_for(l + 1, l);
+            MgPush p = push_for(l + 1, l);
+            p.color = 1;  // t's cells of color 1 hold 0 (the software build reads only the others)
             // The software build: a coarse quad a lane.
             run_rows(rec, gpu::kernel_table::mg_restrict, {{&axes_}, {&t_[l]}, {&r_[l + 1]}}, p,
                      software_ ? row_lanes(l + 1) : p.dims[2]);
@@ -412,7 +434,7 @@ private:
             // replaces r there (r is not read again this cycle); its correction goes into
             // save, then e += save.
             const std::size_t c = l + 1;
-            residual(rec, c, r_[c]);
+            residual(rec, c, r_[c], 0);  // the post-smoothing ends with color 0
             std::swap(e_[c], save_[c]);
             record_cycle(rec, c, false);
             std::swap(e_[c], save_[c]);
@@ -423,23 +445,28 @@ private:
             rec.barrier();
         }
         {
-            const MgPush p = push_for(l, l + 1);
-            // e of level l twice: read and written (each cell its own).
-            run_rows(rec, gpu::kernel_table::mg_prolong, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, row_lanes(l));
+            // The post-smoothing starts with color 1, which reads only color 0's e and overwrites
+            // its own: only color 0 is prolonged. e of level l twice: read and written (each
+            // cell its own).
+            MgPush p = push_for(l, l + 1);
+            p.color = 0;
+            run_rows(rec, gpu::kernel_table::mg_prolong, {{&axes_}, {&e_[l + 1]}, {&e_[l]}, {&e_[l]}}, p, color_lanes(l));
         }
         for (int s = 0; s < 2; ++s) { smooth(rec, l, 1); smooth(rec, l, 0); }
     }
 
-    // φ += e when `with_correction` (after a cycle; φ = e when `phi_zero`, φ not cleared), then
-    // the residual b − Lφ in float64 and its partial norms, read back.
-    void record_refine(gpu::Recorder& rec, bool with_correction, bool phi_zero = false) {
+    // What the refinement does before the residual's norm (its pc.first_sweep, shaders/mg_refine.comp).
+    enum class Refine : std::uint32_t { Add = 0, FromZero = 1, NoCycle = 2 };
+
+    // After a cycle, φ += e (Add) or φ = e (FromZero: φ not cleared) and r −= A e in float64,
+    // r copied as float32 for the next cycle (NoCycle: only that copy); then the residual's
+    // partial norms, read back.
+    void record_refine(gpu::Recorder& rec, Refine what) {
         MgPush p = push_for(0, 0);
-        if (with_correction) {
-            p.first_sweep = phi_zero ? 1 : 0;
-            run_rows(rec, gpu::kernel_table::mg_update, {{&phi_}, {&e_[0]}, {&phi_}}, p, row_lanes(0));  // φ read and written
-            p.first_sweep = 0;
-        }
-        run_rows(rec, gpu::kernel_table::mg_refine, {{&phi_}, {&b_}, {&r_[0]}, {&partial_}}, p, row_lanes(0));
+        p.first_sweep = std::uint32_t(what);
+        // The float64 residual and φ twice: read and written (each cell its own).
+        run_rows(rec, gpu::kernel_table::mg_refine,
+                 {{&e_[0]}, {&res_}, {&phi_}, {&res_}, {&phi_}, {&r_[0]}, {&partial_}}, p, row_lanes(0));
         rec.copy(partial_, 0, partial_down_, 0, std::size_t(groups0_) * 8);
         rec.barrier();
     }
@@ -457,7 +484,8 @@ private:
     std::vector<std::uint32_t> stride_;  // cells stored per row of each level
     bool software_;  // the kernels shaped for software devices (gpu::software_shaped)
     bool host_grids_;  // φ, b and the finest r in host memory (a software device)
-    gpu::Buffer axes_, pinv_, phi_, b_, partial_, partial_down_;
+    gpu::Buffer axes_, pinv_, phi_, partial_, partial_down_;
+    gpu::Buffer res_;  // the finest level's residual in float64: b, then b − Aφ after every cycle
     std::vector<gpu::Buffer> r_, e_, t_, save_;
     std::uint32_t groups0_ = 0;  // mg_refine's workgroups (its partial sums)
 };

@@ -18,8 +18,12 @@ namespace gsd::shm {
 class GpuMultigrid {
 public:
     virtual ~GpuMultigrid() = default;
+    /// `storage`, if given, is a vector of b's size whose memory φ is returned in, written in
+    /// parallel (it may be b itself: b is read before φ is written). A fresh vector is zeroed on
+    /// one thread, a page fault per 4 KiB page where huge pages are not granted.
     virtual std::vector<double> solve(const std::vector<double>& b, double tol, int max_cycles,
-                                      std::vector<double>* history, bool f_cycle, const ProgressFn& progress) = 0;
+                                      std::vector<double>* history, bool f_cycle, const ProgressFn& progress,
+                                      std::vector<double>* storage) = 0;
 };
 
 /// Null (and a reason) when the device cannot run it (no float64 in shaders, memory, limits).

@@ -267,9 +267,9 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
 
     t0 = std::chrono::steady_clock::now();
     const GridPoissonSolver poisson(m.grid, m.opt.solver, m.opt.device);
-    const std::vector<double> b = poisson.divergence(std::span<const float>(Y.data(), Y.size()));
+    std::vector<double> b = poisson.divergence(std::span<const float>(Y.data(), Y.size()));
     std::vector<double> phi =
-        poisson.solve(b, {m.opt.tolerance, std::max(0, m.opt.max_iterations), m.opt.f_cycle}, &out.residual_history, progress);
+        poisson.solve(std::move(b), {m.opt.tolerance, std::max(0, m.opt.max_iterations), m.opt.f_cycle}, &out.residual_history, progress);
     const double shift = m.mean_on_source(phi);
     const auto nodes = std::ptrdiff_t(phi.size());
 #pragma omp parallel for schedule(static)

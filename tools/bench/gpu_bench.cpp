@@ -2,11 +2,12 @@
 // side by side in one run — PAT evaluation, fast winding numbers, a sphere-traced picture of a
 // PAT field, the volumetric Signed Heat Method (step 1 and step 3) and the TorusNet fit.
 // Each device figure excludes a first, small run of the same stage (pipeline compile, driver
-// start); where a CPU-path run at full size would take minutes, the CPU runs a stated share of
+// start), and each figure is the median of --rounds runs (default 3 at the small sizes, 1 at
+// the full ones: a shared machine's noise moves single runs by a third); where a CPU-path run at full size would take minutes, the CPU runs a stated share of
 // the work and its rate (items per second) is what the ratio compares. `scripts/bench.sh gpu`
 // runs it; docs/gpu.md says how to run it on a machine without gsd's build dependencies.
 //
-//   gsd-gpu-bench [--full] [--device D] [--stages pat,winding,sdf,render,shm,net]
+//   gsd-gpu-bench [--full] [--device D] [--rounds N] [--stages pat,winding,sdf,render,shm,net]
 //
 // Sizes: small ones by default (a software device such as lavapipe), the full ones with
 // --full (a real GPU: PAT of 10⁵ and 10⁶ points, winding numbers of 10⁶ queries on 10⁵ faces, a
@@ -24,6 +25,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <functional>
@@ -37,10 +39,22 @@ namespace {
 
 double now() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 
+int g_rounds = 3;  // --rounds
+
+double median(std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+}
+
+// The median wall time of g_rounds runs of f (the last run's results are what f leaves).
 double seconds(const std::function<void()>& f) {
-    const double t0 = now();
-    f();
-    return now() - t0;
+    std::vector<double> t;
+    for (int i = 0; i < g_rounds; ++i) {
+        const double t0 = now();
+        f();
+        t.push_back(now() - t0);
+    }
+    return median(t);
 }
 
 struct Row {
@@ -196,7 +210,9 @@ Row bench_render(const shapes::Shape& torus, std::size_t points, int width, int 
     return r;
 }
 
-// Step 1 and step 3 as two rows (their own times, from ShmResult), in nodes per second.
+// Step 1 and step 3 as two rows (their own times, from ShmResult), in nodes per second. The
+// rounds take the CPU path and the device in turn (the other stages run a device's rounds one
+// after the other), as step 3 on lavapipe is within the noise of the CPU path's rate.
 void bench_shm(const shapes::Shape& torus, std::size_t points, int n, const std::string& device) {
     const ShmSource src = shm_source(torus.sample(points, 1));
     const GridSpec grid = GridSpec::cube(n, Box{{-1, -1, -1}, {1, 1, 1}});
@@ -204,24 +220,29 @@ void bench_shm(const shapes::Shape& torus, std::size_t points, int n, const std:
     Row s3{"SHM step 3 (solve)", count(double(points)) + " pts, " + std::to_string(n) + "^3", "nodes/s"};
     const double nodes = double(grid.node_count());
     std::vector<float> ref;
-    for (const std::string& d : {std::string("cpu"), device}) {
+    {  // setup: step 1's kernels, and one cycle of step 3's at this grid's sizes (a software
+       // device compiles a pipeline per workgroup shape on first use)
         ShmOptions o;
-        o.device = d;
-        if (d != "cpu") {  // setup: step 1's kernels, and one cycle of step 3's at this grid's sizes (a
-                           // software device compiles a pipeline per workgroup shape on first use)
-            SignedHeatGrid(src, GridSpec::cube(17, grid.box), o).solve();
-            std::vector<double> b(grid.node_count());
-            for (std::size_t i = 0; i < b.size(); ++i) b[i] = double(i % 2) - 0.5;  // sums to 0 on even counts
-            if (b.size() % 2) b.back() = 0.0;
-            GridPoissonSolver(grid, o.solver, o.device).solve(b, {1e-30, 1});
-        }
-        const ShmResult res = SignedHeatGrid(src, grid, o).solve();
-        if (d == "cpu") ref = res.phi;
-        else s3.difference = max_difference(ref, res.phi) / grid.box.diagonal();  // φ, relative to the diagonal
-        (d == "cpu" ? s1.cpu_rate : s1.device_rate) = nodes / res.seconds_diffuse;
-        (d == "cpu" ? s3.cpu_rate : s3.device_rate) = nodes / res.seconds_solve;
-        if (d != "cpu") s1.device_seconds = res.seconds_diffuse, s3.device_seconds = res.seconds_solve;
+        o.device = device;
+        SignedHeatGrid(src, GridSpec::cube(17, grid.box), o).solve();
+        std::vector<double> b(grid.node_count());
+        for (std::size_t i = 0; i < b.size(); ++i) b[i] = double(i % 2) - 0.5;  // sums to 0 on even counts
+        if (b.size() % 2) b.back() = 0.0;
+        GridPoissonSolver(grid, o.solver, o.device).solve(b, {1e-30, 1});
     }
+    std::vector<double> t1[2], t3[2];  // [0] the CPU path, [1] the device
+    for (int round = 0; round < g_rounds; ++round)
+        for (int which = 0; which < 2; ++which) {
+            ShmOptions o;
+            o.device = which == 0 ? std::string("cpu") : device;
+            const ShmResult res = SignedHeatGrid(src, grid, o).solve();
+            if (which == 0 && ref.empty()) ref = res.phi;
+            if (which == 1 && s3.difference < 0) s3.difference = max_difference(ref, res.phi) / grid.box.diagonal();  // φ, relative to the diagonal
+            t1[which].push_back(res.seconds_diffuse);
+            t3[which].push_back(res.seconds_solve);
+        }
+    s1.cpu_rate = nodes / median(t1[0]), s1.device_rate = nodes / median(t1[1]), s1.device_seconds = median(t1[1]);
+    s3.cpu_rate = nodes / median(t3[0]), s3.device_rate = nodes / median(t3[1]), s3.device_seconds = median(t3[1]);
     print_row(s1);
     print_row(s3);
 }
@@ -255,16 +276,19 @@ int main(int argc, char** argv) {
     CLI::App app{"Every GPU stage beside the CPU path, in one table (scripts/bench.sh gpu; docs/gpu.md)"};
     app.add_flag("--full", full, "the large sizes (for a GPU)");
     app.add_option("--device", device, "the device to time against the CPU path");
+    int rounds = 0;
+    app.add_option("--rounds", rounds, "runs of each timing, the median reported (default: 3, with --full 1)")->check(CLI::Range(1, 100));
     app.add_option("--stages", stages, "stages to run")->delimiter(',')->check(CLI::IsMember({"pat", "winding", "sdf", "render", "shm", "net"}));
     CLI11_PARSE(app, argc, argv);
+    g_rounds = rounds > 0 ? rounds : full ? 1 : 3;
     set_log_sink([](std::string_view m) { std::fprintf(stderr, "note: %.*s\n", int(m.size()), m.data()); });
     const gpu::Selection sel = gpu::select(device);
     if (!sel.context) {
         std::fprintf(stderr, "gsd-gpu-bench: no device for '%s' (%s)\n", device.c_str(), sel.note.c_str());
         return 1;
     }
-    std::printf("gsd-gpu-bench (%s sizes): device = %s; CPU path = %d threads\n", full ? "full" : "small", sel.device_name.c_str(),
-                omp_get_max_threads());
+    std::printf("gsd-gpu-bench (%s sizes): device = %s; CPU path = %d threads; medians of %d rounds\n", full ? "full" : "small",
+                sel.device_name.c_str(), omp_get_max_threads(), g_rounds);
     std::printf("%-24s %-34s %11s %11s %9s %11s %9s\n", "stage", "size", "CPU path", "device", "ratio", "device time", "max |Δ|");
     const auto torus = shapes::by_name("torus");
     try {
