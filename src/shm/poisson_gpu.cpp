@@ -3,7 +3,7 @@
 // the CPU reference (grid_poisson.cpp), in float32; the finest level's solution and residual
 // are float64, so each cycle is one step of mixed-precision iterative refinement and the
 // solver reaches relative residuals far below float32's. One submission per cycle; the only
-// read-back per cycle is one partial sum per workgroup for the residual norm. On software
+// read-back per cycle is the residual norm's partial sums (per workgroup, or per subgroup). On software
 // devices every kernel but the coarsest solve takes four cells a lane (shaders/mg_common.glsl):
 // every level stores each row in blocks of 8 cells, even ones then odd ones (`stored_cell`),
 // padded to whole blocks, the padding holding zeros; nothing is cleared and nothing copied
@@ -89,7 +89,7 @@ AxisCell fixed_z_taps(const AxisLevel& ax, int i) {
 
 using MgPush = kernels::MultigridPush;  // `Push` in shaders/mg_common.glsl
 
-// φ, b and the finest r in host memory: on a software device, whose memory is the host's, unless
+// φ, the float64 residual and the finest r in host memory: on a software device, whose memory is the host's, unless
 // $GSD_GPU_HOST_GRIDS=0 (tests: the GPUs' way, device memory with staging copies).
 bool host_grids(const gpu::Context& ctx) {
     const char* v = std::getenv("GSD_GPU_HOST_GRIDS");
@@ -164,7 +164,8 @@ public:
         const gpu::Memory grid_memory = host_grids_ ? gpu::Memory::Download : gpu::Memory::Device;
         phi_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
         res_ = gpu::Buffer(c, cells(0) * 8, grid_memory);
-        // mg_refine's workgroups (run_rows), one partial sum each.
+        // mg_refine's partial sums of r²: one per workgroup (run_rows), on a software device one
+        // per subgroup.
         const MgPush fine = push_for(0, 0);
         const RowGroups g = row_groups(fine, row_lanes(0));
         groups0_ = g.x * g.y * g.z;
@@ -177,7 +178,7 @@ public:
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
         // Every kernel stores every quad of a row, the padding's as zeros, and every value is
         // stored before it is read (e by a level's first half-sweep, which does not read it; φ
-        // by the first update, on a software device), so nothing is cleared: on a software
+        // by the first cycle's refinement, which does not read it), so nothing is cleared: on a software
         // device a clear is one thread's memset.
         gpu::Recorder rec(c);
         rec.begin();
@@ -260,11 +261,10 @@ public:
             gpu::download(c, phi_, rows.data(), stored * 8);
             from_rows(rows.data(), phi.data());
         }
-        double sum = 0;
+        // The sum in one order (an OpenMP reduction adds the threads' parts in the order they
+        // finish: φ would differ in its last bits between two equal solves); the rest on every core.
+        const double mean = std::accumulate(phi.begin(), phi.end(), 0.0) / double(n0);
         const auto count = std::ptrdiff_t(n0);
-#pragma omp parallel for reduction(+ : sum) schedule(static)
-        for (std::ptrdiff_t i = 0; i < count; ++i) sum += phi[std::size_t(i)];
-        const double mean = sum / double(n0);
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < count; ++i) phi[std::size_t(i)] -= mean;
         return phi;
@@ -348,7 +348,8 @@ private:
         std::uint32_t x = simd;
         while (x < cells && x < widest) x *= 2;
         x = std::min(x, widest);
-        // mg_refine keeps one partial sum per subgroup in shared memory, 256 of them. The rows
+        // (The GPUs' mg_refine keeps one partial sum per subgroup in shared memory, 256 of them:
+        // the same bound serves both builds.) The rows
         // per workgroup do not follow the level's (lanes past its rows idle): llvmpipe compiles
         // a pipeline for every shape on first use, which a short solve pays for.
         const std::uint32_t most = std::min(kSoftwareInvocations, 256 * simd);
@@ -483,11 +484,11 @@ private:
     std::vector<std::array<std::uint32_t, 3>> axes_off_;
     std::vector<std::uint32_t> stride_;  // cells stored per row of each level
     bool software_;  // the kernels shaped for software devices (gpu::software_shaped)
-    bool host_grids_;  // φ, b and the finest r in host memory (a software device)
+    bool host_grids_;  // φ, the float64 residual and the finest r in host memory (a software device)
     gpu::Buffer axes_, pinv_, phi_, partial_, partial_down_;
     gpu::Buffer res_;  // the finest level's residual in float64: b, then b − Aφ after every cycle
     std::vector<gpu::Buffer> r_, e_, t_, save_;
-    std::uint32_t groups0_ = 0;  // mg_refine's workgroups (its partial sums)
+    std::uint32_t groups0_ = 0;  // mg_refine's partial sums (per workgroup; per subgroup on a software device)
 };
 
 }  // namespace

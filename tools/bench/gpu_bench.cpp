@@ -43,7 +43,8 @@ int g_rounds = 3;  // --rounds
 
 double median(std::vector<double> v) {
     std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
+    const std::size_t m = v.size() / 2;
+    return v.size() % 2 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
 // The median wall time of g_rounds runs of f (the last run's results are what f leaves).
