@@ -422,6 +422,15 @@ std::vector<double> GridPoissonSolver::solve_using(const std::vector<double>& b,
     return {};
 }
 
+void GridPoissonSolver::prepare(bool f_cycle) const {
+    if (impl_->kind != PoissonSolver::Multigrid) return;
+    try {
+        if (shm::GpuMultigrid* g = impl_->gpu_multigrid()) g->prepare(f_cycle);
+    } catch (const std::exception&) {
+        // solve() meets the same and says so.
+    }
+}
+
 std::vector<double> GridPoissonSolver::apply(const std::vector<double>& x) const {
     std::vector<double> y(x.size());
     apply_level(impl_->H, 0, x.data(), y.data());

@@ -186,6 +186,7 @@ public:
         // allocation held, so that a kernel reading a value before one is stored shows in the
         // result.
         if (const char* v = std::getenv("GSD_GPU_POISON"); v && v[0] == '1') {
+            poisoned_ = true;
             for (std::size_t l = 0; l < H_.levels.size(); ++l)
                 for (const gpu::Buffer* b : {&r_[l], &e_[l], &t_[l], &save_[l]})
                     if (b->handle()) rec.fill(*b, 0, cells(l) * 4, 0x7fc00000u);  // float32 quiet NaN
@@ -268,6 +269,17 @@ public:
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < count; ++i) phi[std::size_t(i)] -= mean;
         return phi;
+    }
+
+    void prepare(bool f_cycle) override {
+        // A cycle recorded and dropped: recording makes the pipelines (and nothing runs).
+        gpu::Recorder rec(*ctx_);
+        rec.begin();
+        record_cycle(rec, 0, f_cycle);
+        record_refine(rec, Refine::FromZero);
+        record_refine(rec, Refine::NoCycle);
+        if (host_grids_ && !poisoned_)  // (poisoned: their NaN kept, for the tests)
+            for (const gpu::Buffer* b : {&phi_, &res_, &r_[0]}) std::memset(b->mapped(), 0, std::size_t(b->size()));
     }
 
 private:
@@ -485,6 +497,7 @@ private:
     std::vector<std::uint32_t> stride_;  // cells stored per row of each level
     bool software_;  // the kernels shaped for software devices (gpu::software_shaped)
     bool host_grids_;  // φ, the float64 residual and the finest r in host memory (a software device)
+    bool poisoned_ = false;  // $GSD_GPU_POISON: the scratch buffers start as NaN
     gpu::Buffer axes_, pinv_, phi_, partial_, partial_down_;
     gpu::Buffer res_;  // the finest level's residual in float64: b, then b − Aφ after every cycle
     std::vector<gpu::Buffer> r_, e_, t_, save_;

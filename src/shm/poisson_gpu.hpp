@@ -24,6 +24,10 @@ public:
     virtual std::vector<double> solve(const std::vector<double>& b, double tol, int max_cycles,
                                       std::vector<double>* history, bool f_cycle, const ProgressFn& progress,
                                       std::vector<double>* storage) = 0;
+    /// What solve() would otherwise do first: every pipeline of a cycle made (llvmpipe builds
+    /// each from NIR, tens of ms in all), and the grids held in host memory touched (their page
+    /// faults). Safe beside other work on the same context (another thread's dispatches).
+    virtual void prepare(bool f_cycle) = 0;
 };
 
 /// Null (and a reason) when the device cannot run it (no float64 in shaders, memory, limits).
