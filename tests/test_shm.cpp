@@ -229,6 +229,7 @@ TEST_CASE("GPU multigrid on grids of any shape, both kernel builds: φ matches t
             setenv("GSD_GPU_POISON", "1", 1);
             setenv("GSD_GPU_HOST_GRIDS", shaped, 1);
             const GridPoissonSolver gpu_solver(g, PoissonSolver::Multigrid, "gpu");
+            gpu_solver.prepare(f_cycle);  // SignedHeatGrid's way: made ready first
             std::vector<double> history;
             const std::vector<double> phi = gpu_solver.solve(b, {1e-8, 40, f_cycle}, &history);
             // Solving with b moved in (φ may come back in b's memory) gives the same φ.

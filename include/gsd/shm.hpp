@@ -220,8 +220,9 @@ public:
                               std::vector<double>* residual_history = nullptr, const ProgressFn& progress = {}) const;
     /// Makes ready what a multigrid solve on a device would make first (the device's solver, its
     /// pipelines, its host-memory grids touched): call it on another thread while other work
-    /// runs (SignedHeatGrid does, during step 1), then solve(). Nothing on the CPU path. Errors
-    /// are left for solve() to meet and report.
+    /// runs (SignedHeatGrid does, during step 1), then solve() once it has returned (not at the
+    /// same time as solve() or device() on this solver). Nothing on the CPU path. Errors are
+    /// left for solve() to meet and report.
     void prepare(bool f_cycle = false) const;
     /// y = L x (for tests and residuals).
     std::vector<double> apply(const std::vector<double>& x) const;

@@ -245,15 +245,17 @@ struct GridPoissonSolver::Impl {
 
     Impl(GridSpec g, PoissonSolver k, Device d) : grid(g), kind(k), device_choice(std::move(d)), H(g) {}
 
-    // The GPU multigrid if the device choice gives one (once), else null.
+    // The GPU multigrid if the device choice gives one (once), else null. An attempt that throws
+    // is not latched: the next call (solve() after a prepare() that met it) tries again and
+    // throws to its caller.
     shm::GpuMultigrid* gpu_multigrid() const {
         if (!gpu_tried) {
-            gpu_tried = true;
             const gpu::DeviceRun run = gpu::on_device(device_choice, [&](const auto& ctx, std::string& why_not) {
                 gpu = shm::make_gpu_multigrid(ctx, H, why_not);
                 return gpu != nullptr;
             });
             if (run) device_name = run.device;
+            gpu_tried = true;
         }
         return gpu.get();
     }

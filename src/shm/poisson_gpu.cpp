@@ -178,8 +178,9 @@ public:
         partial_down_ = gpu::Buffer(c, std::size_t(groups0_) * 8, gpu::Memory::Download);
         // Every kernel stores every quad of a row, the padding's as zeros, and every value is
         // stored before it is read (e by a level's first half-sweep, which does not read it; φ
-        // by the first cycle's refinement, which does not read it), so nothing is cleared: on a software
-        // device a clear is one thread's memset.
+        // by the first cycle's refinement, which does not read it), so nothing is cleared: on a
+        // software device a clear is one thread's memset, in the solve's path. (prepare()
+        // touches the host grids' pages, on a thread of its own, while other work runs.)
         gpu::Recorder rec(c);
         rec.begin();
         // $GSD_GPU_POISON=1 (tests): the scratch buffers start as NaN instead of whatever the
@@ -278,7 +279,9 @@ public:
         record_cycle(rec, 0, f_cycle);
         record_refine(rec, Refine::FromZero);
         record_refine(rec, Refine::NoCycle);
-        if (host_grids_ && !poisoned_)  // (poisoned: their NaN kept, for the tests)
+        // One thread's memset, while step 1 runs for many times as long (its page faults are
+        // what is worth moving out of the solve). Poisoned: their NaN kept, for the tests.
+        if (host_grids_ && !poisoned_)
             for (const gpu::Buffer* b : {&phi_, &res_, &r_[0]}) std::memset(b->mapped(), 0, std::size_t(b->size()));
     }
 
