@@ -262,6 +262,8 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
     // grids' page faults: ~45 ms of a 0.55 s solve at 128³ on lavapipe), on a thread of its own:
     // on a GPU the host is idle then, and on a software device step 1's own thread waits on it.
     const GridPoissonSolver poisson(m.grid, m.opt.solver, m.opt.device);
+    // Declared after `poisson`: a std::async future waits for its thread when destroyed, so the
+    // thread ends before `poisson` does, whatever step 1 throws.
     std::future<void> prepared;
     if (m.opt.solver == PoissonSolver::Multigrid && m.opt.device.describe() != "cpu") {
         try {
@@ -269,12 +271,6 @@ ShmResult SignedHeatGrid::solve(const ProgressFn& progress) const {
         } catch (const std::exception&) {  // no thread: solve() makes it all
         }
     }
-    struct Join {  // the thread ends before `poisson` does, whatever step 1 throws
-        std::future<void>& f;
-        ~Join() {
-            if (f.valid()) f.wait();
-        }
-    } join{prepared};
     shm::DiffuseStats stats;
     std::string diffuse_device;
     const detail::UninitializedVector<float> Y = m.directions(stats, diffuse_device, progress, &out.seconds_setup);
