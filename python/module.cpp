@@ -469,7 +469,7 @@ PYBIND11_MODULE(_gsd, m) {
                                      std::optional<DoubleArray> vertices, py::object faces,
                                      std::optional<std::array<double, 6>> bounds, double band, double grading, double t_coef,
                                      double fit_zero_set, double veto_winding, bool redistance, bool drop_outliers,
-                                     const std::string& device) {
+                                     const std::string& device, double fit_scale) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -487,6 +487,7 @@ PYBIND11_MODULE(_gsd, m) {
         o.grading = grading;
         o.t_coef = t_coef;
         o.fit_zero_set = fit_zero_set;
+        o.fit_scale = fit_scale;
         o.veto_winding = veto_winding;
         o.redistance = redistance;
         o.device = device;
@@ -501,10 +502,12 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("grading") = AdaptiveShmOptions{}.grading, py::arg("t_coef") = AdaptiveShmOptions{}.t_coef,
        py::arg("fit_zero_set") = AdaptiveShmOptions{}.fit_zero_set, py::arg("veto_winding") = AdaptiveShmOptions{}.veto_winding,
        py::arg("redistance") = false, py::arg("drop_outliers") = true, py::arg("device") = "",
+       py::arg("fit_scale") = AdaptiveShmOptions{}.fit_scale,
        "The Signed Heat Method on an adaptive octree (gsd shm adaptive): an OctreeField, a Field to evaluate anywhere. "
        "drop_outliers: a cloud's points that PAT's outlier scores reject are left out first (the CLI's default). "
        "depth: finest cell = the cube's side / 2^depth; bounds: the cube's low corner and, by the longest side, its size "
-       "(default: the source's cube + 10%); redistance: |φ| made the exact distance to SHM's zero set.");
+       "(default: the source's cube + 10%); redistance: |φ| made the exact distance to SHM's zero set; "
+       "fit_scale: the zero-set fit corrects φ on cells at least this many source spacings wide (0: the finest).");
 
     // ---- winding numbers ----
     m.def("winding_numbers", [](const DoubleArray& queries, std::optional<DoubleArray> vertices, py::object faces,

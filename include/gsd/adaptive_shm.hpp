@@ -54,6 +54,12 @@ struct AdaptiveShmOptions : Execution {
     /// As ShmOptions::fit_zero_set: w > 0 fits φ = 0 on the source softly, (w/h) Σ_j A_j φ(y_j)²
     /// (h: the finest cell) in the same solve; 0: φ is shifted by its mean on the source.
     double fit_zero_set = 1.0;
+    /// The fit is a correction of φ made on the octree cut at the finest level whose cells are
+    /// at least fit_scale·h_source wide (h_source: the source's mean spacing or edge length;
+    /// never coarser than the multigrid's coarsest level): as smooth as the sampling, so that φ
+    /// does not bend toward each noisy sample between the others (docs/shm-adaptive.md: the
+    /// error near the surface). 0: on the finest level.
+    double fit_scale = 4.0;
     /// As ShmOptions: the outside veto (0: off).
     double veto_winding = 0.2;
     double veto_slope = 3.0;
@@ -109,10 +115,12 @@ struct AdaptiveShmResult {
     std::vector<std::size_t> leaves_per_level;  ///< leaves of each level, 0 … D
     std::vector<std::size_t> multigrid_nodes;   ///< nodes of each multigrid level, finest first
     std::vector<double> residual_history;       ///< relative residual after each CG iteration
+    std::vector<double> fit_history;            ///< the same for the zero-set fit (empty without one)
+    int fit_level = -1;                         ///< the octree level the fit was made on (-1: none)
     std::size_t kernel_terms = 0;               ///< step 1's source terms summed
     std::size_t vetoed_nodes = 0;
     std::size_t zero_set_triangles = 0;         ///< with redistance: the zero set's pieces
-    double seconds_octree = 0, seconds_diffuse = 0, seconds_setup = 0, seconds_solve = 0, seconds_veto = 0,
+    double seconds_octree = 0, seconds_diffuse = 0, seconds_setup = 0, seconds_solve = 0, seconds_fit = 0, seconds_veto = 0,
            seconds_redistance = 0;
     double estimated_bytes = 0;  ///< the memory estimate checked before building
     std::string device;          ///< step 1's device ("cpu" or the Vulkan device)

@@ -96,7 +96,8 @@ SpMat sample_matrix(const Octree& tree, const NodeGraph& g, const std::vector<Ze
 
 }  // namespace
 
-std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level) {
+std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level,
+                                      std::vector<std::uint32_t>* merged_into) {
     const int shift = tree.depth() - level;
     const double top = double(std::uint64_t(1) << tree.depth()) - 1;
     std::vector<std::pair<std::uint64_t, std::uint32_t>> order(samples.size());
@@ -108,6 +109,7 @@ std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<Zero
     }
     std::sort(order.begin(), order.end());
     std::vector<ZeroSample> out;
+    if (merged_into) merged_into->resize(samples.size());
     for (std::size_t i = 0; i < order.size();) {
         Eigen::Vector3d moment = Eigen::Vector3d::Zero();
         double area = 0;
@@ -116,6 +118,7 @@ std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<Zero
             const ZeroSample& s = samples[order[j].second];
             moment += s.area * s.position;
             area += s.area;
+            if (merged_into) (*merged_into)[order[j].second] = std::uint32_t(out.size());
         }
         out.push_back({area > 0 ? Eigen::Vector3d(moment / area) : samples[order[i].second].position, area});
         i = j;
@@ -214,6 +217,7 @@ struct OctreePoisson::Impl {
         Vec area;                                       // μ·A_j per sample
         std::vector<float> inverse_diagonal;            // the smoother's
         Prolongation P;  // from the next (coarser) level; empty on the coarsest
+        std::vector<std::uint32_t> merged_from;  // the finer level's samples: their merged one here
     };
     const Octree& tree;
     double mu = 0;
@@ -245,9 +249,19 @@ struct OctreePoisson::Impl {
         lv.area.resize(Eigen::Index(samples.size()));
         for (std::size_t j = 0; j < samples.size(); ++j) lv.area[Eigen::Index(j)] = mu * samples[j].area;
         lv.inverse_diagonal.resize(n);
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) lv.inverse_diagonal[std::size_t(i)] = float(1 / diagonal(lv, std::size_t(i)));
+        set_inverse_diagonal(lv);
         return lv;
+    }
+
+    void set_inverse_diagonal(Level& lv) const {
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(lv.graph.size()); ++i)
+            lv.inverse_diagonal[std::size_t(i)] = float(1 / diagonal(lv, std::size_t(i)));
+    }
+
+    void factor_coarsest() {
+        coarsest.compute(assemble(levels.back()));
+        if (coarsest.info() != Eigen::Success) throw Error("the adaptive grid's coarsest Poisson matrix could not be factored");
     }
 
     // A_ii: the segments' weights and the penalty's.
@@ -320,6 +334,38 @@ struct OctreePoisson::Impl {
         }
     }
 
+    // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
+    // coarsest: factored, exact). r is the residual throughout; x starts at 0.
+    void conjugate_gradients(std::size_t k, Vec& r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
+                             std::vector<double>& history, const ProgressFn& progress) const {
+        const Level& lv = levels[k];
+        const double bn = r.norm();
+        Vec z;
+        if (k + 1 == levels.size()) {  // small enough to factor: exact
+            x = coarsest.solve(r);
+            apply(lv, x, z);
+            history.push_back(bn > 0 ? (r - z).norm() / bn : 0.0);
+            return;
+        }
+        vcycle(k, r, z);
+        Vec p = z;
+        double rz = r.dot(z);
+        for (int it = 0; it < max_iterations && bn > 0; ++it) {
+            apply(lv, p, z);
+            const double alpha = rz / p.dot(z);
+            x += alpha * p;
+            r -= alpha * z;
+            const double rel = r.norm() / bn;
+            history.push_back(rel);
+            if (progress) progress("solve", std::clamp(std::log(std::max(rel, 1e-300)) / std::log(tolerance), 0.0, 1.0));
+            if (rel <= tolerance) break;
+            vcycle(k, r, z);
+            const double rz_new = r.dot(z);
+            p = z + (rz_new / rz) * p;
+            rz = rz_new;
+        }
+    }
+
     void vcycle(std::size_t k, const Vec& b, Vec& x) const {
         const Level& lv = levels[k];
         if (k + 1 == levels.size()) {
@@ -350,15 +396,64 @@ OctreePoisson::OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples
     // have no noexcept move), copying the finest level's arrays.
     m.levels.reserve(std::size_t(tree.depth()) + 1);
     for (int level = tree.depth();; --level) {
-        if (level < tree.depth()) samples = merge_by_cell(tree, samples, level);
+        std::vector<std::uint32_t> merged_from;
+        if (level < tree.depth()) samples = merge_by_cell(tree, samples, level, &merged_from);
         Impl::Level lv = m.make_level(level, samples);
+        lv.merged_from = std::move(merged_from);
         if (!m.levels.empty()) m.levels.back().P = Prolongation(tree, m.levels.back().graph, lv.graph);
         const bool last = lv.graph.size() <= kDirectNodes || level == 0;
         m.levels.push_back(std::move(lv));
         if (last) break;
     }
-    m.coarsest.compute(m.assemble(m.levels.back()));
-    if (m.coarsest.info() != Eigen::Success) throw Error("the adaptive grid's coarsest Poisson matrix could not be factored");
+    m.factor_coarsest();
+}
+
+void OctreePoisson::set_penalty(double penalty) {
+    Impl& m = *impl_;
+    if (!(penalty > 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be > 0");
+    const double scale = penalty / m.mu;
+    m.mu = penalty;
+    for (Impl::Level& lv : m.levels) {
+        lv.area *= scale;
+        m.set_inverse_diagonal(lv);
+    }
+    m.factor_coarsest();
+}
+
+int OctreePoisson::coarsest_level() const { return impl_->levels.back().graph.level; }
+
+void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
+                                 std::vector<double>& history) const {
+    const Impl& m = *impl_;
+    const Impl::Level& top = m.levels.front();
+    if (phi.size() != top.graph.size()) throw Error("fit_on_level: φ needs a value per node");
+    const auto k = std::size_t(std::clamp(top.graph.level - level, 0, int(m.levels.size()) - 1));
+    // φ at the finest samples, then averaged (by area) over the ones merged into each sample of
+    // level k: the penalty of a merged sample stands for theirs.
+    Vec v = top.S * Eigen::Map<const Vec>(phi.data(), Eigen::Index(phi.size()));
+    Vec a = top.area;
+    for (std::size_t l = 1; l <= k; ++l) {
+        const Impl::Level& lv = m.levels[l];
+        Vec sum = Vec::Zero(lv.area.size()), weight = Vec::Zero(lv.area.size());
+        for (std::size_t j = 0; j < lv.merged_from.size(); ++j) {
+            sum[lv.merged_from[j]] += a[Eigen::Index(j)] * v[Eigen::Index(j)];
+            weight[lv.merged_from[j]] += a[Eigen::Index(j)];
+        }
+        v = (weight.array() > 0).select(sum.cwiseQuotient(weight), 0.0);
+        a = std::move(weight);
+    }
+    // The normal equations of min E_k(ψ) + μ Σ A (v + Sψ)²: A_k ψ = −S_kᵀ(μA ∘ v).
+    const Impl::Level& lk = m.levels[k];
+    Vec r = -(lk.St * lk.area.cwiseProduct(v));
+    Vec psi = Vec::Zero(Eigen::Index(lk.graph.size()));
+    m.conjugate_gradients(k, r, psi, tolerance, max_iterations, history, {});
+    // ψ prolonged level by level to the finest and added.
+    for (std::size_t l = k; l-- > 0;) {
+        Vec fine = Vec::Zero(Eigen::Index(m.levels[l].graph.size()));
+        m.levels[l].P.add_to({psi.data(), std::size_t(psi.size())}, {fine.data(), std::size_t(fine.size())});
+        psi = std::move(fine);
+    }
+    for (std::size_t i = 0; i < phi.size(); ++i) phi[i] += psi[Eigen::Index(i)];
 }
 
 OctreePoisson::~OctreePoisson() = default;
@@ -411,38 +506,13 @@ std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolera
     for (const auto& lv : m.levels) stats.level_nodes.push_back(lv.graph.size());
     const auto t0 = std::chrono::steady_clock::now();
     const auto n = Eigen::Index(b_in.size());
-    const Impl::Level& top = m.levels.front();
     std::vector<double> phi(b_in.size(), 0.0);
     Eigen::Map<Vec> x(phi.data(), n);
     // Four vectors of the nodes' size through the iterations (b is let go once copied into r;
     // z holds A p, then the preconditioned residual).
     Vec r = Eigen::Map<const Vec>(b_in.data(), n);
     std::vector<double>().swap(b_in);
-    const double bn = r.norm();
-    Vec z;
-    if (m.levels.size() == 1) {  // small enough to factor: exact
-        x = m.coarsest.solve(r);
-        m.apply(top, x, z);
-        stats.residual_history.push_back(bn > 0 ? (r - z).norm() / bn : 0.0);
-    } else {
-        m.vcycle(0, r, z);
-        Vec p = z;
-        double rz = r.dot(z);
-        for (int it = 0; it < max_iterations && bn > 0; ++it) {
-            m.apply(top, p, z);
-            const double alpha = rz / p.dot(z);
-            x += alpha * p;
-            r -= alpha * z;
-            const double rel = r.norm() / bn;
-            stats.residual_history.push_back(rel);
-            if (progress) progress("solve", std::clamp(std::log(std::max(rel, 1e-300)) / std::log(tolerance), 0.0, 1.0));
-            if (rel <= tolerance) break;
-            m.vcycle(0, r, z);
-            const double rz_new = r.dot(z);
-            p = z + (rz_new / rz) * p;
-            rz = rz_new;
-        }
-    }
+    m.conjugate_gradients(0, r, x, tolerance, max_iterations, stats.residual_history, progress);
     stats.seconds_solve = seconds_since(t0);
     return phi;
 }

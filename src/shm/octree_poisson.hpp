@@ -24,8 +24,9 @@ struct ZeroSample {
 
 /// The samples merged per cell of `level`: a cell's samples become one at their area-weighted
 /// centroid with their total area (samples of no area keep the first one's position). Order:
-/// by the cells' Morton codes.
-std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level);
+/// by the cells' Morton codes. `merged_into`, if given, receives each sample's merged index.
+std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level,
+                                      std::vector<std::uint32_t>* merged_into = nullptr);
 
 /// Prolongation P from the tree cut at level l − 1 (coarse) to the tree cut at l (fine): a node
 /// both share keeps its value; a new one is a corner of a cell of level l, so it lies at an edge
@@ -70,6 +71,18 @@ public:
     /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory is let go).
     std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
                               const ProgressFn& progress = {}) const;
+    /// Changes μ (the constructor's `penalty`): every level's penalty rows, smoother and the
+    /// coarsest factor.
+    void set_penalty(double penalty);
+    /// The zero set fitted as a smooth correction (as SignedHeatGrid's fit): ψ on the tree cut
+    /// at `level` (clamped to the multigrid's levels) minimizing that level's energy plus
+    /// μ Σ_j A_j (φ(y_j) + ψ(y_j))² over its merged samples (φ(y_j): φ's area-weighted mean over
+    /// the finest samples merged into sample j), prolonged to the finest level and added to φ.
+    /// `history`: the relative residual after each CG iteration.
+    void fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
+                      std::vector<double>& history) const;
+    /// The octree level of the multigrid's coarsest (factored) level.
+    int coarsest_level() const;
     /// y = A x on the finest level (tests).
     std::vector<double> apply(const std::vector<double>& x) const;
     /// Area-weighted mean of φ over the samples.

@@ -22,6 +22,14 @@ namespace gsd {
 
 namespace {
 
+// The level of the zero-set fit's correction: the finest whose cells are at least `scale`
+// source spacings wide (AdaptiveShmOptions::fit_scale), never finer than the finest level.
+int fit_level(const shm::Octree& tree, double spacing, double scale) {
+    if (!(scale > 0)) return tree.depth();
+    const double levels = std::log2(tree.box().extent().maxCoeff() / (scale * spacing));
+    return levels >= tree.depth() ? tree.depth() : std::max(0, int(std::floor(levels)));
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -357,6 +365,8 @@ SignedHeatOctree::SignedHeatOctree(ShmSource source, AdaptiveShmOptions options)
     if (options.max_iterations < 1) throw Error("AdaptiveShmOptions::max_iterations", "must be ≥ 1");
     if (!(options.fit_zero_set >= 0) || !std::isfinite(options.fit_zero_set))
         throw Error("AdaptiveShmOptions::fit_zero_set", "the zero-set weight must be finite and ≥ 0");
+    if (!(options.fit_scale >= 0) || !std::isfinite(options.fit_scale))
+        throw Error("AdaptiveShmOptions::fit_scale", "the fit's scale must be finite and ≥ 0");
     if (!(options.veto_winding >= 0) || !(options.veto_winding < 1))
         throw Error("AdaptiveShmOptions::veto_winding", "the outside veto's winding number must be in [0, 1) (0: no veto)");
     if (!(options.veto_slope >= 0) || !std::isfinite(options.veto_slope))
@@ -418,9 +428,11 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     shm::for_each_sample(m.source, h, tree.box(), [&](const Eigen::Vector3d& p, double area) { samples.push_back({p, area}); });
     samples = shm::merge_by_cell(tree, samples, tree.depth());
     // With no fit asked for, a vanishing penalty only pins the constant; φ is shifted after.
-    const double penalty = (m.opt.fit_zero_set > 0 ? m.opt.fit_zero_set : 1e-8) / h;
+    // Step 3 is two solves, as on the uniform grid: φ₀ (its constant pinned by a vanishing
+    // penalty) shifted by its mean on the source, then the fit's correction (fit_on_level).
+    const double penalty = 1e-8 / h;
     if (progress) progress("operators", 0.0);
-    const shm::OctreePoisson poisson(tree, std::move(samples), penalty);
+    shm::OctreePoisson poisson(tree, std::move(samples), penalty);
     const shm::NodeGraph& nodes = poisson.nodes();
     out.nodes = nodes.size();
     out.seconds_setup = seconds_since(t0);
@@ -466,11 +478,17 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     std::vector<double> phi = poisson.solve(std::move(b), m.opt.tolerance, m.opt.max_iterations, stats, progress);
     out.multigrid_nodes = stats.level_nodes;
     out.residual_history = stats.residual_history;
-    if (!(m.opt.fit_zero_set > 0)) {
-        const double shift = poisson.mean_on_samples(phi);
-        for (double& v : phi) v -= shift;
-    }
+    const double shift = poisson.mean_on_samples(phi);
+    for (double& v : phi) v -= shift;
     out.seconds_solve = seconds_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    if (m.opt.fit_zero_set > 0) {
+        poisson.set_penalty(m.opt.fit_zero_set / h);
+        out.fit_level = fit_level(tree, m.source.spacing, m.opt.fit_scale);
+        poisson.fit_on_level(phi, out.fit_level, m.opt.tolerance, m.opt.max_iterations, out.fit_history);
+        out.fit_level = std::max(out.fit_level, poisson.coarsest_level());
+    }
+    out.seconds_fit = seconds_since(t0);
 
     t0 = std::chrono::steady_clock::now();
     if (m.opt.veto_winding > 0)

@@ -88,6 +88,9 @@ void add_shm_adaptive(CLI::App& shm) {
     a->add_option("--tolerance", opt->tolerance, "Relative residual to stop at")->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     a->add_option("--fit-zero-set", opt->fit_zero_set, "Fit φ = 0 on the source softly with this weight (0: shift by the mean)")
         ->check(finite_number())->check(CLI::NonNegativeNumber)->capture_default_str();
+    a->add_option("--fit-scale", opt->fit_scale,
+                  "The fit corrects φ on octree cells at least this many source spacings wide, as smooth as the sampling (0: the finest)")
+        ->check(finite_number())->check(CLI::NonNegativeNumber)->capture_default_str();
     a->add_option("--veto-winding", opt->veto_winding, "Outside veto's winding number (0: no veto); as in `gsd shm grid`")
         ->check(CLI::Range(0.0, 0.999))->capture_default_str();
     a->add_flag("--keep-outliers", *keep_outliers,
@@ -127,6 +130,9 @@ void add_shm_adaptive(CLI::App& shm) {
             note("step 1 (diffuse): " + fmt("%.2f s", r.seconds_diffuse) + ", " + std::to_string(r.kernel_terms) + " kernel terms");
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
                  " CG iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()));
+            if (r.fit_level >= 0)
+                note("zero-set fit: " + fmt("%.2f s", r.seconds_fit) + " on level " + std::to_string(r.fit_level) + ", " +
+                     std::to_string(r.fit_history.size()) + " CG iterations");
             if (opt->veto_winding > 0)
                 note("outside veto: " + fmt("%.2f s", r.seconds_veto) + ", " + std::to_string(r.vetoed_nodes) + " nodes turned outside");
             if (opt->redistance)
