@@ -10,9 +10,9 @@
 // of finest cells around every source element and graded outward (a cell is never larger than
 // about its distance to the source). The three steps are the uniform grid's (gsd/shm.hpp):
 // step 1's screened sums at the octree's nodes; step 3 the least-squares fit of ∇φ to Y over
-// the octree's edges, each weighted by the volume it stands for, with the zero set fitted
-// softly in the same solve, by conjugate gradients preconditioned with a multigrid V-cycle over
-// the octree's levels; then the outside veto. docs/shm.md ("The adaptive grid") has the details.
+// the octree's edges, each weighted by the volume it stands for, by conjugate gradients
+// preconditioned with a multigrid V-cycle over the octree's levels, then the zero set fitted
+// softly as a correction on a coarser level (fit_scale); then the outside veto. docs/shm.md ("The adaptive grid") has the details.
 #pragma once
 
 #include <gsd/export.hpp>
@@ -52,7 +52,8 @@ struct AdaptiveShmOptions : Execution {
     double tolerance = 1e-6;
     int max_iterations = 200;
     /// As ShmOptions::fit_zero_set: w > 0 fits φ = 0 on the source softly, (w/h) Σ_j A_j φ(y_j)²
-    /// (h: the finest cell) in the same solve; 0: φ is shifted by its mean on the source.
+    /// (h: the finest cell), after the solve and the shift of φ by its mean on the source, as a
+    /// correction on a coarser level (fit_scale); 0: the shift alone.
     double fit_zero_set = 1.0;
     /// The fit is a correction of φ made on the octree cut at the finest level whose cells are
     /// at least fit_scale·h_source wide (h_source: the source's mean spacing or edge length;

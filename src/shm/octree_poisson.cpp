@@ -259,8 +259,12 @@ struct OctreePoisson::Impl {
             lv.inverse_diagonal[std::size_t(i)] = float(1 / diagonal(lv, std::size_t(i)));
     }
 
-    void factor_coarsest() {
-        coarsest.compute(assemble(levels.back()));
+    // `refactor`: the same pattern as before (a new μ), only the numbers change.
+    void factor_coarsest(bool refactor = false) {
+        if (refactor)
+            coarsest.factorize(assemble(levels.back()));
+        else
+            coarsest.compute(assemble(levels.back()));
         if (coarsest.info() != Eigen::Success) throw Error("the adaptive grid's coarsest Poisson matrix could not be factored");
     }
 
@@ -410,20 +414,20 @@ OctreePoisson::OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples
 
 void OctreePoisson::set_penalty(double penalty) {
     Impl& m = *impl_;
-    if (!(penalty > 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be > 0");
+    if (!(penalty > 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and > 0");
     const double scale = penalty / m.mu;
     m.mu = penalty;
     for (Impl::Level& lv : m.levels) {
         lv.area *= scale;
         m.set_inverse_diagonal(lv);
     }
-    m.factor_coarsest();
+    m.factor_coarsest(true);
 }
 
 int OctreePoisson::coarsest_level() const { return impl_->levels.back().graph.level; }
 
 void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
-                                 std::vector<double>& history) const {
+                                 std::vector<double>& history, const ProgressFn& progress) const {
     const Impl& m = *impl_;
     const Impl::Level& top = m.levels.front();
     if (phi.size() != top.graph.size()) throw Error("fit_on_level: φ needs a value per node");
@@ -446,7 +450,7 @@ void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tol
     const Impl::Level& lk = m.levels[k];
     Vec r = -(lk.St * lk.area.cwiseProduct(v));
     Vec psi = Vec::Zero(Eigen::Index(lk.graph.size()));
-    m.conjugate_gradients(k, r, psi, tolerance, max_iterations, history, {});
+    m.conjugate_gradients(k, r, psi, tolerance, max_iterations, history, progress);
     // ψ prolonged level by level to the finest and added.
     for (std::size_t l = k; l-- > 0;) {
         Vec fine = Vec::Zero(Eigen::Index(m.levels[l].graph.size()));

@@ -72,7 +72,7 @@ public:
     std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
                               const ProgressFn& progress = {}) const;
     /// Changes μ (the constructor's `penalty`): every level's penalty rows, smoother and the
-    /// coarsest factor.
+    /// coarsest factor (refactored numerically: the pattern is the same).
     void set_penalty(double penalty);
     /// The zero set fitted as a smooth correction (as SignedHeatGrid's fit): ψ on the tree cut
     /// at `level` (clamped to the multigrid's levels) minimizing that level's energy plus
@@ -80,7 +80,7 @@ public:
     /// the finest samples merged into sample j), prolonged to the finest level and added to φ.
     /// `history`: the relative residual after each CG iteration.
     void fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
-                      std::vector<double>& history) const;
+                      std::vector<double>& history, const ProgressFn& progress = {}) const;
     /// The octree level of the multigrid's coarsest (factored) level.
     int coarsest_level() const;
     /// y = A x on the finest level (tests).

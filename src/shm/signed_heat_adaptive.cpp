@@ -27,7 +27,8 @@ namespace {
 int fit_level(const shm::Octree& tree, double spacing, double scale) {
     if (!(scale > 0)) return tree.depth();
     const double levels = std::log2(tree.box().extent().maxCoeff() / (scale * spacing));
-    return levels >= tree.depth() ? tree.depth() : std::max(0, int(std::floor(levels)));
+    if (!(levels > 0)) return 0;  // also a scale so large that scale·spacing overflows
+    return levels >= tree.depth() ? tree.depth() : int(std::floor(levels));
 }
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
@@ -36,7 +37,8 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 /// Bytes a node costs at the peak (step 3's solve), with its share of the coarser levels and
 /// of the octree: on the finest level its key, segments and their float weights, the smoother's
-/// diagonal, the prolongation's sources; the CG's four vectors. Measured (peak resident memory
+/// diagonal, the prolongation's sources; the CG's four vectors (the zero-set fit on the finest
+/// level, `fit_scale` 0, holds φ besides them: 8 B more). Measured (peak resident memory
 /// less what the source held before, over nodes): 128–140 B on torus clouds of 1.1·10⁵ points
 /// at depths 9–10 (docs/shm-adaptive.md), rounded up.
 constexpr double kBytesPerNode = 150;
@@ -427,7 +429,6 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     std::vector<shm::ZeroSample> samples;
     shm::for_each_sample(m.source, h, tree.box(), [&](const Eigen::Vector3d& p, double area) { samples.push_back({p, area}); });
     samples = shm::merge_by_cell(tree, samples, tree.depth());
-    // With no fit asked for, a vanishing penalty only pins the constant; φ is shifted after.
     // Step 3 is two solves, as on the uniform grid: φ₀ (its constant pinned by a vanishing
     // penalty) shifted by its mean on the source, then the fit's correction (fit_on_level).
     const double penalty = 1e-8 / h;
@@ -485,7 +486,8 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     if (m.opt.fit_zero_set > 0) {
         poisson.set_penalty(m.opt.fit_zero_set / h);
         out.fit_level = fit_level(tree, m.source.spacing, m.opt.fit_scale);
-        poisson.fit_on_level(phi, out.fit_level, m.opt.tolerance, m.opt.max_iterations, out.fit_history);
+        poisson.fit_on_level(phi, out.fit_level, m.opt.tolerance, m.opt.max_iterations, out.fit_history,
+                             progress ? ProgressFn([&](std::string_view, double f) { progress("fit", f); }) : ProgressFn());
         out.fit_level = std::max(out.fit_level, poisson.coarsest_level());
     }
     out.seconds_fit = seconds_since(t0);

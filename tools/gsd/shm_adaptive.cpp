@@ -130,9 +130,13 @@ void add_shm_adaptive(CLI::App& shm) {
             note("step 1 (diffuse): " + fmt("%.2f s", r.seconds_diffuse) + ", " + std::to_string(r.kernel_terms) + " kernel terms");
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
                  " CG iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()));
-            if (r.fit_level >= 0)
+            if (r.fit_level >= 0) {
+                // The multigrid's coarsest level is factored: a fit there is one direct solve.
+                const bool direct = std::size_t(r.fit_level) + r.multigrid_nodes.size() == r.leaves_per_level.size();
                 note("zero-set fit: " + fmt("%.2f s", r.seconds_fit) + " on level " + std::to_string(r.fit_level) + ", " +
-                     std::to_string(r.fit_history.size()) + " CG iterations");
+                     (direct ? std::string("solved directly") : std::to_string(r.fit_history.size()) + " CG iterations") +
+                     ", relative residual " + fmt("%.2e", r.fit_history.empty() ? 0.0 : r.fit_history.back()));
+            }
             if (opt->veto_winding > 0)
                 note("outside veto: " + fmt("%.2f s", r.seconds_veto) + ", " + std::to_string(r.vetoed_nodes) + " nodes turned outside");
             if (opt->redistance)
@@ -142,6 +146,9 @@ void add_shm_adaptive(CLI::App& shm) {
         }
         if (!r.residual_history.empty() && r.residual_history.back() > opt->tolerance)
             note("warning: the solver stopped at relative residual " + fmt("%.2e", r.residual_history.back()) + " (tolerance " +
+                 fmt("%.1e", opt->tolerance) + ")");
+        if (!r.fit_history.empty() && r.fit_history.back() > opt->tolerance)
+            note("warning: the zero-set fit stopped at relative residual " + fmt("%.2e", r.fit_history.back()) + " (tolerance " +
                  fmt("%.1e", opt->tolerance) + ")");
         // Everything is computed before anything is written: no partial outputs.
         std::vector<std::pair<std::string, std::function<void()>>> writers;
