@@ -11,6 +11,7 @@
 #include <gsd/pat.hpp>
 #include <gsd/render.hpp>
 #include <gsd/shm.hpp>
+#include <gsd/spatial.hpp>
 #include <gsd/sums.hpp>
 #include <gsd/sdf.hpp>
 #include <gsd/surface.hpp>
@@ -469,7 +470,7 @@ PYBIND11_MODULE(_gsd, m) {
                                      std::optional<DoubleArray> vertices, py::object faces,
                                      std::optional<std::array<double, 6>> bounds, double band, double grading, double t_coef,
                                      double fit_zero_set, double veto_winding, bool redistance, bool drop_outliers,
-                                     const std::string& device, double fit_scale) {
+                                     const std::string& device, double fit_scale, bool reorient_normals) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -480,6 +481,10 @@ PYBIND11_MODULE(_gsd, m) {
         if (cloud && drop_outliers) {
             py::gil_scoped_release nogil;
             cloud = without_outliers(*cloud);
+        }
+        if (cloud && reorient_normals) {
+            py::gil_scoped_release nogil;
+            gsd::reorient_normals(*cloud);
         }
         AdaptiveShmOptions o;  // checked by the solver, whose errors name the option
         o.depth = depth;
@@ -502,9 +507,10 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("grading") = AdaptiveShmOptions{}.grading, py::arg("t_coef") = AdaptiveShmOptions{}.t_coef,
        py::arg("fit_zero_set") = AdaptiveShmOptions{}.fit_zero_set, py::arg("veto_winding") = AdaptiveShmOptions{}.veto_winding,
        py::arg("redistance") = false, py::arg("drop_outliers") = true, py::arg("device") = "",
-       py::arg("fit_scale") = AdaptiveShmOptions{}.fit_scale,
+       py::arg("fit_scale") = AdaptiveShmOptions{}.fit_scale, py::arg("reorient_normals") = true,
        "The Signed Heat Method on an adaptive octree (gsd shm adaptive): an OctreeField, a Field to evaluate anywhere. "
-       "drop_outliers: a cloud's points that PAT's outlier scores reject are left out first (the CLI's default). "
+       "drop_outliers: a cloud's points that PAT's outlier scores reject are left out first (the CLI's default); "
+       "reorient_normals: then normals that their neighbours contradict are turned back (the CLI's default). "
        "depth: finest cell = the cube's side / 2^depth; bounds: the cube's low corner and, by the longest side, its size "
        "(default: the source's cube + 10%); redistance: |φ| made the exact distance to SHM's zero set; "
        "fit_scale: the zero-set fit corrects φ on cells at least this many source spacings wide (0: the finest).");

@@ -65,17 +65,21 @@ struct AdaptiveShmOptions : Execution {
     double veto_winding = 0.2;
     double veto_slope = 3.0;
     double veto_margin = 0.1;
-    /// Keep SHM's sign and zero set and replace |φ| at every node by the exact distance to that
-    /// zero set (its pieces in the leaves it crosses, contoured leaf by leaf): a true signed
-    /// distance function of the broken input, where SHM's own φ is a generalized distance that
-    /// strays from the Euclidean one away from the surface.
+    /// Keep SHM's sign and zero set and replace |φ| at every node, and in the field's answers
+    /// anywhere (OctreeField), by the exact distance to that zero set (its pieces in the leaves
+    /// it crosses, contoured leaf by leaf, kept in a tree for the queries): a true signed distance
+    /// function of the broken input, where SHM's own φ is a generalized distance that strays from
+    /// the Euclidean one away from the surface. Each query then pays a nearest-piece search.
     bool redistance = false;
 };
 
 /// φ on an adaptive grid: values at the nodes of a balanced octree, trilinear inside each
 /// leaf from its eight corners (so continuous within the finest band; across a change of level
 /// the finer side's hanging nodes make a small step). Outside the cube, φ of the nearest point
-/// of the cube plus the distance to it.
+/// of the cube plus the distance to it. Redistanced (AdaptiveShmOptions::redistance), evaluate()
+/// answers |φ| as the exact distance to the zero set's pieces, the sign (and the gradient) the
+/// interpolated φ's; narrow_band() keeps the interpolated values (within a few finest cells of
+/// the zero set, where the two differ least).
 class GSD_EXPORT OctreeField : public Field {
 public:
     OctreeField();

@@ -20,6 +20,10 @@ constexpr std::size_t kDirectNodes = 30000;
 /// Gauss–Seidel sweeps before (forward) and after (backward) the coarse correction: the
 /// V-cycle is then a symmetric operator, as CG's preconditioner must be.
 constexpr int kSweeps = 2;
+/// With no penalty (μ = 0) the Laplacian alone would leave the constant free: each diagonal is
+/// raised by this fraction instead, which pins it (the caller shifts φ after) and perturbs the
+/// rest by about as little, while the operator stays as sparse as the Laplacian.
+constexpr double kPin = 1e-9;
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -214,7 +218,7 @@ struct OctreePoisson::Impl {
         std::vector<std::array<float, 3>> weight;       // V/ℓ² of the segment (i, next[i][a]) (float: it
                                                         // defines the operator, rounded or not)
         SpMat S, St;                                    // samples × nodes and its transpose
-        Vec area;                                       // μ·A_j per sample
+        Vec area;                                       // A_j per sample (μ: Impl::mu)
         std::vector<float> inverse_diagonal;            // the smoother's
         Prolongation P;  // from the next (coarser) level; empty on the coarsest
         std::vector<std::uint32_t> merged_from;  // the finer level's samples: their merged one here
@@ -247,7 +251,7 @@ struct OctreePoisson::Impl {
         lv.S = sample_matrix(tree, g, samples);
         lv.St = lv.S.transpose();
         lv.area.resize(Eigen::Index(samples.size()));
-        for (std::size_t j = 0; j < samples.size(); ++j) lv.area[Eigen::Index(j)] = mu * samples[j].area;
+        for (std::size_t j = 0; j < samples.size(); ++j) lv.area[Eigen::Index(j)] = samples[j].area;
         lv.inverse_diagonal.resize(n);
         set_inverse_diagonal(lv);
         return lv;
@@ -268,18 +272,20 @@ struct OctreePoisson::Impl {
         if (coarsest.info() != Eigen::Success) throw Error("the adaptive grid's coarsest Poisson matrix could not be factored");
     }
 
-    // A_ii: the segments' weights and the penalty's.
+    // A_ii: the segments' weights and the penalty's (μ = 0: the pin's).
     double diagonal(const Level& lv, std::size_t i) const {
         double d = 0;
         for (int a = 0; a < 3; ++a) {
             d += lv.weight[i][std::size_t(a)];
             if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) d += lv.weight[std::size_t(j)][std::size_t(a)];
         }
-        for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) d += lv.area[s.col()] * s.value() * s.value();
+        if (mu == 0) return d * (1 + kPin);
+        for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) d += mu * lv.area[s.col()] * s.value() * s.value();
         return d;
     }
 
-    // The level's operator assembled (the coarsest, for CHOLMOD): L + SᵀAS.
+    // The level's operator assembled (the coarsest, for CHOLMOD): L + μSᵀAS (μ = 0: L pinned,
+    // as sparse as L: no sample products).
     Eigen::SparseMatrix<double> assemble(const Level& lv) const {
         const std::size_t n = lv.graph.size();
         return Eigen::SparseMatrix<double>(rows_to_matrix(n, n, [&](std::size_t i, Entries& e) {
@@ -287,8 +293,8 @@ struct OctreePoisson::Impl {
                 if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.weight[i][std::size_t(a)]);
                 if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.weight[std::size_t(j)][std::size_t(a)]);
             }
-            for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) {
-                const double f = lv.area[s.col()] * s.value();
+            for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); mu > 0 && s; ++s) {
+                const double f = mu * lv.area[s.col()] * s.value();
                 for (SpMat::InnerIterator k(lv.S, s.col()); k; ++k)
                     if (k.col() != Eigen::Index(i)) e.emplace_back(std::int32_t(k.col()), f * k.value());
             }
@@ -296,21 +302,31 @@ struct OctreePoisson::Impl {
         }));
     }
 
-    // (A x)_i, given at = μA ∘ S x (the samples' weighted values).
+    // (A x)_i, given at = μA ∘ S x (the samples' weighted values; empty when μ = 0).
     double row(const Level& lv, const Vec& x, const Vec& at, std::size_t i) const {
         const double xi = x[Eigen::Index(i)];
-        double v = 0;
+        double v = 0, d = 0;
         for (int a = 0; a < 3; ++a) {
-            if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) v += lv.weight[i][std::size_t(a)] * (xi - x[j]);
-            if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) v += lv.weight[std::size_t(j)][std::size_t(a)] * (xi - x[j]);
+            if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) {
+                v += lv.weight[i][std::size_t(a)] * (xi - x[j]);
+                d += lv.weight[i][std::size_t(a)];
+            }
+            if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) {
+                v += lv.weight[std::size_t(j)][std::size_t(a)] * (xi - x[j]);
+                d += lv.weight[std::size_t(j)][std::size_t(a)];
+            }
         }
+        if (mu == 0) return v + kPin * d * xi;
         for (SpMat::InnerIterator k(lv.St, Eigen::Index(i)); k; ++k) v += k.value() * at[k.col()];
         return v;
     }
 
+    // μA ∘ S x (empty when μ = 0).
+    Vec penalty_values(const Level& lv, const Vec& Sx) const { return mu > 0 ? Vec(mu * lv.area.cwiseProduct(Sx)) : Vec(); }
+
     void apply(const Level& lv, const Vec& x, Vec& y) const {
         const auto n = std::ptrdiff_t(lv.graph.size());
-        const Vec at = lv.area.cwiseProduct(lv.S * x);
+        const Vec at = mu > 0 ? penalty_values(lv, lv.S * x) : Vec();
         y.resize(n);
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < n; ++i) y[i] = row(lv, x, at, std::size_t(i));
@@ -330,11 +346,13 @@ struct OctreePoisson::Impl {
                 if (const std::int32_t j = lv.prev[std::size_t(i)][std::size_t(a)]; j >= 0)
                     sum += lv.weight[std::size_t(j)][std::size_t(a)] * x[j];
             }
-            for (SpMat::InnerIterator k(lv.St, i); k; ++k) sum -= lv.area[k.col()] * k.value() * (t[k.col()] - k.value() * xi);
+            if (mu > 0)
+                for (SpMat::InnerIterator k(lv.St, i); k; ++k) sum -= mu * lv.area[k.col()] * k.value() * (t[k.col()] - k.value() * xi);
             const double updated = sum * double(lv.inverse_diagonal[std::size_t(i)]);
             const double delta = updated - xi;
             x[i] = updated;
-            for (SpMat::InnerIterator k(lv.St, i); k; ++k) t[k.col()] += k.value() * delta;
+            if (mu > 0)
+                for (SpMat::InnerIterator k(lv.St, i); k; ++k) t[k.col()] += k.value() * delta;
         }
     }
 
@@ -377,16 +395,16 @@ struct OctreePoisson::Impl {
             return;
         }
         x.setZero(b.size());
-        Vec t = Vec::Zero(lv.S.rows());
+        Vec t = mu > 0 ? Vec(Vec::Zero(lv.S.rows())) : Vec();  // S x (no use without a penalty)
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, true);
         // The coarse residual Pᵀ(b − A x), each fine residual made where it is restricted.
         Vec rc(levels[k + 1].graph.size());
-        const Vec at = lv.area.cwiseProduct(t);
+        const Vec at = penalty_values(lv, t);
         lv.P.restrict_from([&](std::size_t i) { return b[Eigen::Index(i)] - row(lv, x, at, i); }, {rc.data(), std::size_t(rc.size())});
         Vec ec;
         vcycle(k + 1, rc, ec);
         lv.P.add_to({ec.data(), std::size_t(ec.size())}, {x.data(), std::size_t(x.size())});
-        t = lv.S * x;
+        if (mu > 0) t = lv.S * x;
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, false);
     }
 };
@@ -395,7 +413,7 @@ OctreePoisson::OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples
     : impl_(new Impl{tree, penalty, {}, {}}) {
     Impl& m = *impl_;
     if (samples.empty()) throw Error("the source lies outside the adaptive grid's bounds");
-    if (!(penalty > 0)) throw Error("OctreePoisson: the penalty must be > 0");
+    if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
     // Reserved: a Level's copy constructor is what growth would use (Eigen's sparse matrices
     // have no noexcept move), copying the finest level's arrays.
     m.levels.reserve(std::size_t(tree.depth()) + 1);
@@ -414,14 +432,11 @@ OctreePoisson::OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples
 
 void OctreePoisson::set_penalty(double penalty) {
     Impl& m = *impl_;
-    if (!(penalty > 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and > 0");
-    const double scale = penalty / m.mu;
+    if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
+    const bool same_pattern = (m.mu > 0) == (penalty > 0);  // the samples' products in it or not
     m.mu = penalty;
-    for (Impl::Level& lv : m.levels) {
-        lv.area *= scale;
-        m.set_inverse_diagonal(lv);
-    }
-    m.factor_coarsest(true);
+    for (Impl::Level& lv : m.levels) m.set_inverse_diagonal(lv);
+    m.factor_coarsest(same_pattern);
 }
 
 int OctreePoisson::coarsest_level() const { return impl_->levels.back().graph.level; }
@@ -431,6 +446,7 @@ void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tol
     const Impl& m = *impl_;
     const Impl::Level& top = m.levels.front();
     if (phi.size() != top.graph.size()) throw Error("fit_on_level: φ needs a value per node");
+    if (!(m.mu > 0)) throw Error("fit_on_level: the penalty must be > 0 (set_penalty)");
     const auto k = std::size_t(std::clamp(top.graph.level - level, 0, int(m.levels.size()) - 1));
     // φ at the finest samples, then averaged (by area) over the ones merged into each sample of
     // level k: the penalty of a merged sample stands for theirs.
@@ -448,7 +464,7 @@ void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tol
     }
     // The normal equations of min E_k(ψ) + μ Σ A (v + Sψ)²: A_k ψ = −S_kᵀ(μA ∘ v).
     const Impl::Level& lk = m.levels[k];
-    Vec r = -(lk.St * lk.area.cwiseProduct(v));
+    Vec r = -m.mu * (lk.St * lk.area.cwiseProduct(v));
     Vec psi = Vec::Zero(Eigen::Index(lk.graph.size()));
     m.conjugate_gradients(k, r, psi, tolerance, max_iterations, history, progress);
     // ψ prolonged level by level to the finest and added.

@@ -61,7 +61,9 @@ struct OctreePoissonStats {
 class OctreePoisson {
 public:
     /// `penalty`: μ, the weight of Σ_j A_j φ(y_j)² against the volume-weighted energy (> 0: it
-    /// also pins the constant, which the Laplacian alone leaves free).
+    /// also pins the constant, which the Laplacian alone leaves free; 0: no penalty, the
+    /// constant pinned by raising the diagonal by 1e-9 of itself, the operator as sparse as the
+    /// Laplacian: the solve of φ₀ before fit_on_level).
     OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples, double penalty);
     ~OctreePoisson();
 
@@ -72,7 +74,8 @@ public:
     std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
                               const ProgressFn& progress = {}) const;
     /// Changes μ (the constructor's `penalty`): every level's penalty rows, smoother and the
-    /// coarsest factor (refactored numerically: the pattern is the same).
+    /// coarsest factor (refactored numerically when the pattern is the same: μ stays > 0 or
+    /// stays 0; analysed and factored again when μ goes between 0 and > 0).
     void set_penalty(double penalty);
     /// The zero set fitted as a smooth correction (as SignedHeatGrid's fit): ψ on the tree cut
     /// at `level` (clamped to the multigrid's levels) minimizing that level's energy plus

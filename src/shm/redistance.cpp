@@ -7,15 +7,17 @@
 
 namespace gsd::shm {
 
-std::size_t redistance(const PolygonMesh& zero_set, std::vector<double>& phi,
-                       const std::function<Eigen::Vector3d(std::size_t)>& position) {
+std::shared_ptr<const sums::SumTree> zero_set_tree(const PolygonMesh& zero_set) {
     OrientedElements pieces;
     try {
         pieces = OrientedElements::from_mesh(zero_set);
     } catch (const Error&) {
-        return 0;  // no zero crossing (or only degenerate pieces): nothing to measure from
+        return nullptr;  // no zero crossing (or only degenerate pieces): nothing to measure from
     }
-    const sums::SumTree tree(pieces);
+    return std::make_shared<const sums::SumTree>(pieces);
+}
+
+void redistance(const sums::SumTree& tree, std::vector<double>& phi, const std::function<Eigen::Vector3d(std::size_t)>& position) {
 #pragma omp parallel
     {
         std::uint32_t hint = std::uint32_t(-1);  // the last node's nearest triangle
@@ -27,7 +29,14 @@ std::size_t redistance(const PolygonMesh& zero_set, std::vector<double>& phi,
             v = v < 0 ? -d : d;
         }
     }
-    return pieces.size();
+}
+
+std::size_t redistance(const PolygonMesh& zero_set, std::vector<double>& phi,
+                       const std::function<Eigen::Vector3d(std::size_t)>& position) {
+    const auto tree = zero_set_tree(zero_set);
+    if (!tree) return 0;
+    redistance(*tree, phi, position);
+    return tree->size();
 }
 
 }  // namespace gsd::shm

@@ -93,6 +93,10 @@ struct OctreeField::Impl {
     shm::Octree tree;
     shm::NodeGraph nodes;  // the finest level's (keys alone are kept)
     std::vector<float> phi;
+    // Redistanced: the zero set's pieces. |φ| anywhere is the exact distance to them (the nodes'
+    // values are; between nodes, interpolating a distance would err by ~s²/(8d) in a leaf of side
+    // s at distance d, 1 % of d in the coarse leaves far out), the sign the interpolation's.
+    std::shared_ptr<const sums::SumTree> zero_set;
 
     // φ and its lattice gradient at a point inside the cube (lattice coordinates).
     double value(const Eigen::Vector3d& u, Eigen::Vector3d* gradient) const {
@@ -137,23 +141,29 @@ FieldValues OctreeField::evaluate(PointsView q, bool with_gradient, const Progre
     out.device = "cpu";
     const Box& box = m.tree.box();
     const double step = m.tree.lattice_step();
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < n; ++i) {
-        const Eigen::Vector3d x = q.row(i).transpose();
-        const Eigen::Vector3d c = x.cwiseMax(box.lo).cwiseMin(box.hi);
-        Eigen::Vector3d g;
-        double v = m.value(m.tree.to_lattice(c), with_gradient ? &g : nullptr);
-        const Eigen::Vector3d out_of_box = x - c;
-        const double d = out_of_box.norm();
-        out.phi[std::size_t(i)] = float(v + d);
-        if (!with_gradient) continue;
-        g /= step;
-        if (d > 0) {
-            for (int a = 0; a < 3; ++a)
-                if (out_of_box[a] != 0) g[a] = 0;
-            g += out_of_box / d;
+#pragma omp parallel
+    {
+        std::uint32_t hint = std::uint32_t(-1);  // the last query's nearest piece of the zero set
+#pragma omp for schedule(static)
+        for (std::ptrdiff_t i = 0; i < n; ++i) {
+            const Eigen::Vector3d x = q.row(i).transpose();
+            const Eigen::Vector3d c = x.cwiseMax(box.lo).cwiseMin(box.hi);
+            Eigen::Vector3d g;
+            double v = m.value(m.tree.to_lattice(c), with_gradient ? &g : nullptr);
+            const Eigen::Vector3d out_of_box = x - c;
+            const double d = out_of_box.norm();
+            v += d;
+            if (m.zero_set && v != 0) v = std::copysign(m.zero_set->nearest_distance(x, INFINITY, &hint), v);
+            out.phi[std::size_t(i)] = float(v);
+            if (!with_gradient) continue;
+            g /= step;
+            if (d > 0) {
+                for (int a = 0; a < 3; ++a)
+                    if (out_of_box[a] != 0) g[a] = 0;
+                g += out_of_box / d;
+            }
+            for (int a = 0; a < 3; ++a) out.gradient[3 * std::size_t(i) + std::size_t(a)] = float(g[a]);
         }
-        for (int a = 0; a < 3; ++a) out.gradient[3 * std::size_t(i) + std::size_t(a)] = float(g[a]);
     }
     return out;
 }
@@ -429,9 +439,10 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     std::vector<shm::ZeroSample> samples;
     shm::for_each_sample(m.source, h, tree.box(), [&](const Eigen::Vector3d& p, double area) { samples.push_back({p, area}); });
     samples = shm::merge_by_cell(tree, samples, tree.depth());
-    // Step 3 is two solves, as on the uniform grid: φ₀ (its constant pinned by a vanishing
-    // penalty) shifted by its mean on the source, then the fit's correction (fit_on_level).
-    const double penalty = 1e-8 / h;
+    // Step 3 is two solves, as on the uniform grid: φ₀ (no penalty: its constant pinned, the
+    // coarsest factor as sparse as the Laplacian) shifted by its mean on the source, then the
+    // fit's correction (fit_on_level).
+    const double penalty = 0;
     if (progress) progress("operators", 0.0);
     shm::OctreePoisson poisson(tree, std::move(samples), penalty);
     const shm::NodeGraph& nodes = poisson.nodes();
@@ -500,7 +511,9 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     if (m.opt.redistance) {
         t0 = std::chrono::steady_clock::now();
         if (progress) progress("redistance", 0.0);
-        out.zero_set_triangles = shm::redistance(zero_set_soup(tree, nodes, phi), phi, position);
+        field->zero_set = shm::zero_set_tree(zero_set_soup(tree, nodes, phi));
+        if (field->zero_set) shm::redistance(*field->zero_set, phi, position);
+        out.zero_set_triangles = field->zero_set ? field->zero_set->size() : 0;
         out.seconds_redistance = seconds_since(t0);
     }
 

@@ -182,13 +182,14 @@ std::vector<double> splat_radii(const Points& points);
 /// The SHM's source from input files (meshes by their faces, clouds by their points and
 /// normals; several combined), and the inputs' bounding box. `read(box)`, if given, runs once
 /// the files are read and before the sources are built (a memory check that needs the extent).
-/// `drop_outliers`: clouds lose the points PAT's outlier scores reject (gsd::without_outliers).
+/// `drop_outliers`: clouds lose the points PAT's outlier scores reject (gsd::without_outliers);
+/// `reorient`: then their flipped normals are turned back (gsd::reorient_normals).
 struct LoadedShmSource {
     ShmSource source;
     Box box;
 };
 LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const std::function<void(const Box&)>& read = {},
-                                bool drop_outliers = false);
+                                bool drop_outliers = false, bool reorient = false);
 /// `gsd shm adaptive` (tools/gsd/shm_adaptive.cpp), added under the `shm` command.
 void add_shm_adaptive(CLI::App& shm);
 /// `gsd shm surface` (tools/gsd/surface.cpp), added under the `shm` command.

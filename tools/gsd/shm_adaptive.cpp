@@ -5,11 +5,12 @@
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/shm.hpp>
+#include <gsd/spatial.hpp>
 
 namespace gsd::cli {
 
 LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const std::function<void(const Box&)>& read,
-                                bool drop_outliers) {
+                                bool drop_outliers, bool reorient) {
     LoadedShmSource out;
     std::vector<std::pair<std::string, PolygonMesh>> meshes;
     std::vector<PointCloud> clouds;
@@ -42,16 +43,20 @@ LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const st
             throw Error(in, e.what());  // name the file: sources don't know where their mesh came from
         }
     }
-    for (std::size_t k = 0; k < clouds.size(); ++k) {
-        if (!drop_outliers) {
-            add(shm_source(clouds[k]));
-            continue;
+    for (PointCloud& cloud : clouds) {
+        const std::size_t n = std::size_t(cloud.size());
+        if (drop_outliers) {
+            std::size_t dropped = 0;
+            cloud = without_outliers(cloud, {}, &dropped);
+            if (dropped > 0)
+                note(std::to_string(dropped) + " of " + std::to_string(n) + " points left out as outliers (PAT's scores; --keep-outliers keeps them)");
         }
-        std::size_t dropped = 0;
-        add(shm_source(without_outliers(clouds[k], {}, &dropped)));
-        if (dropped > 0)
-            note(std::to_string(dropped) + " of " + std::to_string(clouds[k].size()) +
-                 " points left out as outliers (PAT's scores; --keep-outliers keeps them)");
+        // After the outliers: their random normals would vote.
+        if (reorient)
+            if (const std::size_t flipped = reorient_normals(cloud); flipped > 0)
+                note(std::to_string(flipped) + " of " + std::to_string(cloud.size()) +
+                     " normals turned back, against their neighbours' (--keep-normals keeps them)");
+        add(shm_source(cloud));
     }
     return out;
 }
@@ -67,6 +72,7 @@ void add_shm_adaptive(CLI::App& shm) {
     auto bounds = std::make_shared<std::vector<double>>();
     auto opt = std::make_shared<AdaptiveShmOptions>();
     auto keep_outliers = std::make_shared<bool>(false);
+    auto keep_normals = std::make_shared<bool>(false);
     a->add_option("INPUT", *inputs, "Mesh(es) and/or point cloud(s) with normals; several are combined into one source")->required();
     a->add_option("--depth", opt->depth, "Finest level D: finest cell = the cube's side / 2^D (D = 10: 1024³ near the input)")
         ->check(CLI::Range(1, 20))->capture_default_str();
@@ -93,6 +99,8 @@ void add_shm_adaptive(CLI::App& shm) {
         ->check(finite_number())->check(CLI::NonNegativeNumber)->capture_default_str();
     a->add_option("--veto-winding", opt->veto_winding, "Outside veto's winding number (0: no veto); as in `gsd shm grid`")
         ->check(CLI::Range(0.0, 0.999))->capture_default_str();
+    a->add_flag("--keep-normals", *keep_normals,
+                "Keep a cloud's normals as they are (by default normals that their neighbours contradict are turned back first)");
     a->add_flag("--keep-outliers", *keep_outliers,
                 "Keep every point of a cloud (by default points that PAT's outlier scores reject are left out before step 1)");
     a->add_flag("--redistance", opt->redistance,
@@ -108,7 +116,7 @@ void add_shm_adaptive(CLI::App& shm) {
         if (!queries->empty()) query_points = io::read_queries(*queries);  // before the work
         if (!bounds->empty()) opt->bounds = bounds_from(*bounds, "--bounds");
         const DevicePrefetch prefetch(opt->device);
-        const LoadedShmSource loaded = load_shm_source(*inputs, {}, !*keep_outliers);
+        const LoadedShmSource loaded = load_shm_source(*inputs, {}, !*keep_outliers, !*keep_normals);
         const SignedHeatOctree solver(loaded.source, *opt);
         const Box cube = solver.cube();
         if (!opt->bounds) note("octree cube: " + bounds_text(cube));
