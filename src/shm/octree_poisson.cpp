@@ -441,8 +441,8 @@ void OctreePoisson::set_penalty(double penalty) {
 
 int OctreePoisson::coarsest_level() const { return impl_->levels.back().graph.level; }
 
-void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
-                                 std::vector<double>& history, const ProgressFn& progress) const {
+int OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
+                                std::vector<double>& history, const ProgressFn& progress) const {
     const Impl& m = *impl_;
     const Impl::Level& top = m.levels.front();
     if (phi.size() != top.graph.size()) throw Error("fit_on_level: φ needs a value per node");
@@ -474,6 +474,7 @@ void OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tol
         psi = std::move(fine);
     }
     for (std::size_t i = 0; i < phi.size(); ++i) phi[i] += psi[Eigen::Index(i)];
+    return lk.graph.level;
 }
 
 OctreePoisson::~OctreePoisson() = default;

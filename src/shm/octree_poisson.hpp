@@ -81,9 +81,9 @@ public:
     /// at `level` (clamped to the multigrid's levels) minimizing that level's energy plus
     /// μ Σ_j A_j (φ(y_j) + ψ(y_j))² over its merged samples (φ(y_j): φ's area-weighted mean over
     /// the finest samples merged into sample j), prolonged to the finest level and added to φ.
-    /// `history`: the relative residual after each CG iteration.
-    void fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
-                      std::vector<double>& history, const ProgressFn& progress = {}) const;
+    /// `history`: the relative residual after each CG iteration. Returns the level it fitted on.
+    int fit_on_level(std::vector<double>& phi, int level, double tolerance, int max_iterations,
+                     std::vector<double>& history, const ProgressFn& progress = {}) const;
     /// The octree level of the multigrid's coarsest (factored) level.
     int coarsest_level() const;
     /// y = A x on the finest level (tests).

@@ -496,10 +496,9 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     t0 = std::chrono::steady_clock::now();
     if (m.opt.fit_zero_set > 0) {
         poisson.set_penalty(m.opt.fit_zero_set / h);
-        out.fit_level = fit_level(tree, m.source.spacing, m.opt.fit_scale);
-        poisson.fit_on_level(phi, out.fit_level, m.opt.tolerance, m.opt.max_iterations, out.fit_history,
-                             progress ? ProgressFn([&](std::string_view, double f) { progress("fit", f); }) : ProgressFn());
-        out.fit_level = std::max(out.fit_level, poisson.coarsest_level());
+        out.fit_level = poisson.fit_on_level(phi, fit_level(tree, m.source.spacing, m.opt.fit_scale), m.opt.tolerance,
+                                             m.opt.max_iterations, out.fit_history,
+                                             progress ? ProgressFn([&](std::string_view, double f) { progress("fit", f); }) : ProgressFn());
     }
     out.seconds_fit = seconds_since(t0);
 
