@@ -246,6 +246,21 @@ PYBIND11_MODULE(_gsd, m) {
         .def_readwrite("min_score", &OutlierOptions::min_score)
         .def_readwrite("mad_factor", &OutlierOptions::mad_factor)
         .def_readwrite("sparsity_factor", &OutlierOptions::sparsity_factor);
+    m.def("reorient_normals", [](const DoubleArray& points, const DoubleArray& normals, int neighbors, int passes) {
+        PointCloud c = cloud_from(points, normals);
+        ReorientOptions o;
+        o.neighbors = neighbors;
+        o.passes = passes;
+        std::size_t turned = 0;
+        {
+            py::gil_scoped_release nogil;
+            turned = reorient_normals(c, o);
+        }
+        return py::make_tuple(to_numpy(c.normals), turned);
+    }, py::arg("points"), py::arg("normals"), py::arg("neighbors") = ReorientOptions{}.neighbors,
+       py::arg("passes") = ReorientOptions{}.passes,
+       "(normals (N,3), how many turned): the normals that their neighbours contradict turned back, as gsd shm "
+       "does by default (--keep-normals keeps them).");
     m.def("point_confidence", [](const FittedTori& tori, std::optional<OutlierOptions> options) {
         const OutlierOptions o = options.value_or(OutlierOptions{});
         PointConfidence c;
@@ -416,7 +431,8 @@ PYBIND11_MODULE(_gsd, m) {
     m.def("signed_heat_grid", [](int n, std::optional<DoubleArray> points, std::optional<DoubleArray> normals,
                                  std::optional<DoubleArray> vertices, py::object faces,
                                  std::optional<std::array<double, 6>> bounds, double t_coef, double fit_zero_set,
-                                 double veto_winding, double veto_margin, bool redistance, const std::string& device) {
+                                 double veto_winding, double veto_margin, bool redistance, const std::string& device,
+                                 bool reorient_normals) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -424,6 +440,10 @@ PYBIND11_MODULE(_gsd, m) {
         std::optional<PolygonMesh> mesh;
         if (points) cloud = cloud_from(*points, *normals);
         if (vertices) mesh = mesh_from(*vertices, faces);
+        if (cloud && reorient_normals) {
+            py::gil_scoped_release nogil;
+            gsd::reorient_normals(*cloud);
+        }
         ShmOptions o;  // checked by the solver, whose errors name the option
         o.t_coef = t_coef;
         o.fit_zero_set = fit_zero_set;
@@ -444,8 +464,10 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("t_coef") = ShmOptions{}.t_coef,
        py::arg("fit_zero_set") = ShmOptions{}.fit_zero_set, py::arg("veto_winding") = ShmOptions{}.veto_winding,
        py::arg("veto_margin") = ShmOptions{}.veto_margin, py::arg("redistance") = false, py::arg("device") = "",
+       py::arg("reorient_normals") = true,
        "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both. redistance: |φ| made the exact "
-       "distance to SHM's zero set (--redistance). fit_zero_set: weight of the "
+       "distance to SHM's zero set (--redistance). reorient_normals: a cloud's normals that their neighbours "
+       "contradict are turned back first (the CLI's default). fit_zero_set: weight of the "
        "soft fit of φ = 0 on the source (0: the mean shift alone); veto_winding, veto_margin: the outside veto "
        "(veto_winding 0: none), as the CLI's --fit-zero-set, --veto-winding, --veto-margin.");
 

@@ -56,14 +56,15 @@ struct ReorientOptions {
     int neighbors = 64;          ///< the k nearest points that vote
     double width = 3.0;          ///< Gaussian width of a vote's weight in distance
     double tangent_width = 0.5;  ///< … and in the offset from the point's tangent plane
-    int passes = 3;              ///< at most this many passes (each votes with the last's normals)
+    int passes = 8;              ///< at most this many passes (each votes with the last's normals)
 };
 
 /// Turns back the normals that their neighbours contradict (scattered flips, as a scanner's or a
 /// normal estimator's orientation errors make): a point's normal is reversed when the weighted sum
 /// of its neighbours' normals points against it, the weights falling off with the distance and
 /// with the offset from the point's tangent plane (so the far side of a thin part has no say).
-/// Repeated while anything changes, up to `passes`. A patch of flips wider than the neighbourhood
+/// Repeated while anything changes, up to `passes` (the neighbours and their weights are found once:
+/// 8 bytes a neighbour while it runs). A patch of flips wider than the neighbourhood
 /// votes for itself and stays. Returns how many normals ended reversed (their length kept).
 /// Throws gsd::Error on a cloud that validate() rejects or options out of range.
 GSD_EXPORT std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options = {});

@@ -53,6 +53,7 @@ from ._gsd import (  # noqa: F401
     read_point_cloud,
     sample_sdf,
     render_grid,
+    reorient_normals,
     signed_heat_adaptive,
     signed_heat_grid,
     signed_heat_surface,

@@ -244,6 +244,29 @@ def test_signed_heat_grid_options_match_cli(tmp_path):
         gsd.signed_heat_grid(20, vertices=v, faces=f, fit_zero_set=-1)
 
 
+def test_reorient_normals_and_the_grid_default_match_cli(tmp_path):
+    cloud = tmp_path / "t.ply"
+    cli("sample", "torus", "-n", 1024, "--flip", 0.1, "--seed", 3, "-o", cloud)
+    p, n = gsd.read_point_cloud(str(cloud))
+    turned_normals, turned = gsd.reorient_normals(p, n)
+    flips = (turned_normals * n).sum(1) < 0
+    assert turned == flips.sum() and 80 < turned < 130  # about the 10 % flipped
+    assert np.allclose(np.abs((turned_normals * n).sum(1)), (n * n).sum(1))  # turned, not tilted
+    again, none = gsd.reorient_normals(p, turned_normals)
+    assert none == 0 and np.allclose(again, turned_normals, atol=1e-12)
+    # shm grid turns them by default (as signed_heat_grid), --keep-normals keeps them.
+    for flag, reorient in (([], True), (["--keep-normals"], False)):
+        out = tmp_path / f"g{len(flag)}.npy"
+        cli("shm", "grid", cloud, "--grid", 16, *bounds_args(), "--device", "cpu", *flag, "-o", out)
+        phi, _ = gsd.signed_heat_grid(16, points=p, normals=n, bounds=BOUNDS, device="cpu", reorient_normals=reorient)
+        np.testing.assert_allclose(phi, np.load(out), atol=1e-6)
+    turned_phi, _ = gsd.signed_heat_grid(16, points=p, normals=turned_normals, bounds=BOUNDS, device="cpu",
+                                         reorient_normals=False)
+    np.testing.assert_allclose(turned_phi, np.load(tmp_path / "g0.npy"), atol=1e-6)
+    with pytest.raises(gsd.Error, match="neighbors"):
+        gsd.reorient_normals(p, n, neighbors=1)
+
+
 def test_signed_heat_adaptive_matches_cli(tmp_path):
     mesh = tmp_path / "b.obj"
     cli("mesh", "sphere", "-r", 16, "--holes", 2, "--hole-area", 0.1, "-o", mesh)

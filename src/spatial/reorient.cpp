@@ -1,29 +1,58 @@
 // reorient_normals (gsd/spatial.hpp): a cloud's flipped normals turned back by their neighbours'.
 #include <gsd/spatial.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 
 namespace gsd {
 
 namespace {
 
-// The neighbours' vote on point i's normal (the sum of their normals, weighted): positive when
-// they agree with it. Weights fall off with the distance (Gaussian of width `width`) and with
-// the offset from i's tangent plane (Gaussian of width `tangent_width`), so that the other side
-// of a thin part, whose normals face the other way, has no say, while a flip (the same line,
-// reversed) does not move a neighbour out of the plane.
-double vote(const PointCloud& cloud, const Points& normals, Eigen::Index i, const std::vector<Neighbor>& near,
-            double width, double tangent_width) {
-    const Eigen::Vector3d p = cloud.points.row(i).transpose(), n = normals.row(i).transpose();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const Neighbor& q : near) {
-        if (Eigen::Index(q.index) == i) continue;
-        const Eigen::Vector3d d = cloud.points.row(Eigen::Index(q.index)).transpose() - p;
-        const double r = q.distance / width, z = d.dot(n) / tangent_width;
-        sum += std::exp(-(r * r + z * z)) * normals.row(Eigen::Index(q.index)).transpose();
+// Each point's neighbours that vote on its normal, with their weights. A weight falls off with
+// the distance (Gaussian of width `width`) and with the offset from the point's tangent plane
+// (Gaussian of width `tangent_width`), so that the other side of a thin part, whose normals face
+// the other way, has no say, while a flip (the same line, reversed) does not move a neighbour out
+// of the plane. Turning normals changes no weight, so they are found once, for every pass.
+struct Votes {
+    std::size_t k = 0;                   // voters per point (the k nearest, the point left out)
+    std::vector<std::uint32_t> voter;    // point i's: voter[i·k …]
+    std::vector<float> weight;
+
+    Votes(const PointCloud& cloud, const Points& normals, const KdTree& tree, std::size_t neighbors, double width,
+          double tangent_width)
+        : k(neighbors) {
+        const Eigen::Index n = cloud.size();
+        voter.assign(std::size_t(n) * k, 0);
+        weight.assign(std::size_t(n) * k, 0.0f);
+#pragma omp parallel
+        {
+            std::vector<Neighbor> near;
+#pragma omp for schedule(dynamic, 1024)
+            for (Eigen::Index i = 0; i < n; ++i) {
+                const Eigen::Vector3d p = cloud.points.row(i).transpose(), m = normals.row(i).transpose();
+                tree.knn(p, k + 1, near);
+                std::size_t at = std::size_t(i) * k, end = at + k;
+                for (const Neighbor& q : near) {
+                    if (Eigen::Index(q.index) == i || at == end) continue;
+                    const Eigen::Vector3d d = cloud.points.row(Eigen::Index(q.index)).transpose() - p;
+                    const double r = q.distance / width, z = d.dot(m) / tangent_width;
+                    voter[at] = std::uint32_t(q.index);
+                    weight[at++] = float(std::exp(-(r * r + z * z)));
+                }
+            }
+        }
     }
-    return sum.dot(n);
-}
+
+    // The voters' verdict on point i's normal: positive when their weighted normals agree with it.
+    double on(const Points& normals, Eigen::Index i) const {
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (std::size_t v = std::size_t(i) * k, end = v + k; v < end; ++v)
+            sum += double(weight[v]) * normals.row(Eigen::Index(voter[v])).transpose();
+        return sum.dot(normals.row(i).transpose());
+    }
+};
 
 }  // namespace
 
@@ -36,30 +65,33 @@ std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options) 
     validate(cloud, "reorient_normals");  // a normal per point, all finite
     const Eigen::Index n = cloud.size();
     if (n <= 2 || options.passes == 0) return 0;
+    if (std::uint64_t(n) > std::numeric_limits<std::uint32_t>::max())
+        throw Error("reorient_normals", "more than 2^32 points");
+    const std::size_t k = std::min(std::size_t(options.neighbors), std::size_t(n) - 1);
+    check_memory(double(n) * double(k) * 8, "reorient_normals", "the votes of " + std::to_string(n) + " points");
     const KdTree tree(cloud.points);
     const double h = mean_spacing(tree);
     if (!(h > 0)) return 0;  // most points duplicated (the spacing is 0): no scale to vote at
+    // Unit normals vote (a longer one would weigh more, and tilt its tangent plane's offset).
+    Points normals = cloud.normals.rowwise().normalized();
+    const Votes votes(cloud, normals, tree, k, options.width * h, options.tangent_width * h);
     // Each pass votes with the normals of the one before (all points at once: the result does not
     // depend on the order or the threads), until nothing changes.
-    std::vector<char> flipped(std::size_t(n), 0);
+    std::vector<char> turn(std::size_t(n), 0), flipped(std::size_t(n), 0);
     for (int pass = 0; pass < options.passes; ++pass) {
-        // Unit normals vote (a longer one would weigh more, and tilt its tangent plane's offset).
-        const Points normals = cloud.normals.rowwise().normalized();
         std::size_t changed = 0;
-#pragma omp parallel reduction(+ : changed)
-        {
-            std::vector<Neighbor> near;
-#pragma omp for schedule(dynamic, 1024)
-            for (Eigen::Index i = 0; i < n; ++i) {
-                tree.knn(cloud.points.row(i).transpose(), std::size_t(options.neighbors) + 1, near);
-                if (vote(cloud, normals, i, near, options.width * h, options.tangent_width * h) < 0) {
-                    cloud.normals.row(i) *= -1;  // row i is this iteration's alone
-                    flipped[std::size_t(i)] ^= 1;
-                    ++changed;
-                }
-            }
+#pragma omp parallel for schedule(static) reduction(+ : changed)
+        for (Eigen::Index i = 0; i < n; ++i) {
+            turn[std::size_t(i)] = votes.on(normals, i) < 0;
+            changed += std::size_t(turn[std::size_t(i)]);
         }
         if (changed == 0) break;
+        for (Eigen::Index i = 0; i < n; ++i)
+            if (turn[std::size_t(i)]) {
+                normals.row(i) *= -1;
+                cloud.normals.row(i) *= -1;
+                flipped[std::size_t(i)] ^= 1;
+            }
     }
     std::size_t total = 0;
     for (char f : flipped) total += std::size_t(f);

@@ -376,6 +376,9 @@ void add_shm(CLI::App& app) {
         ->check(finite_number())->check(CLI::PositiveNumber)->capture_default_str();
     grid->add_flag("--redistance", opt->redistance,
                    "Keep SHM's sign and zero set, and make |φ| the exact distance to that zero set (a true SDF)");
+    auto keep_normals = std::make_shared<bool>(false);
+    grid->add_flag("--keep-normals", *keep_normals,
+                   "Keep a cloud's normals as they are (by default normals that their neighbours contradict are turned back first)");
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     auto sharpen = std::make_shared<bool>(false);
@@ -393,7 +396,7 @@ void add_shm(CLI::App& app) {
             g.validate();
             check_grid_memory(g, kShmGridBytesPerNode);
             if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
-        });
+        }, false, !*keep_normals);
         const ShmSource& src = loaded.source;
         opt->solver = poisson_solver_from_name(*solver);
         Progress progress("shm grid");
