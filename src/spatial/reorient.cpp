@@ -1,6 +1,8 @@
 // reorient_normals (gsd/spatial.hpp): a cloud's flipped normals turned back by their neighbours'.
 #include <gsd/spatial.hpp>
 
+#include "spatial/morton.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -26,11 +28,15 @@ struct Votes {
         const Eigen::Index n = cloud.size();
         voter.assign(std::size_t(n) * k, 0);
         weight.assign(std::size_t(n) * k, 0.0f);
+        // In Morton order: consecutive searches walk the same tree nodes (the input's order may
+        // be any, a sampler's is random).
+        const std::vector<std::uint32_t> order = spatial::morton_order(cloud.points);
 #pragma omp parallel
         {
             std::vector<Neighbor> near;
 #pragma omp for schedule(dynamic, 1024)
-            for (Eigen::Index i = 0; i < n; ++i) {
+            for (Eigen::Index o = 0; o < n; ++o) {
+                const auto i = Eigen::Index(order[std::size_t(o)]);
                 const Eigen::Vector3d p = cloud.points.row(i).transpose(), m = normals.row(i).transpose();
                 tree.knn(p, k + 1, near);
                 std::size_t at = std::size_t(i) * k, end = at + k;
