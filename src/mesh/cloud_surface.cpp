@@ -9,6 +9,8 @@
 #include <gsd/spatial.hpp>
 #include <gsd/surface.hpp>
 
+#include "spatial/morton.hpp"
+
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
@@ -35,11 +37,15 @@ Neighborhoods find_neighbors(const KdTree& tree, int k) {
     Neighborhoods n;
     n.k = k;
     n.index.assign(std::size_t(p.rows()) * std::size_t(k), UINT32_MAX);
+    // In Morton order: consecutive searches walk the same tree nodes (the cloud's own order may
+    // be random).
+    const std::vector<std::uint32_t> order = spatial::morton_order(p);
 #pragma omp parallel
     {
         std::vector<Neighbor> found;
 #pragma omp for schedule(static)
-        for (Eigen::Index i = 0; i < p.rows(); ++i) {
+        for (Eigen::Index o = 0; o < p.rows(); ++o) {
+            const auto i = Eigen::Index(order[std::size_t(o)]);
             // A few extra in case copies of the point take the first places.
             tree.knn(p.row(i).transpose(), std::size_t(k) + 4, found);
             const double reach = found.empty() ? 0 : found.back().distance;

@@ -3,6 +3,8 @@
 #include <gsd/pat.hpp>
 #include <gsd/spatial.hpp>
 
+#include "spatial/morton.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
 
@@ -93,7 +95,10 @@ FittedTori JetFitter::fit(const PointCloud& cloud, const ProgressFn& progress) c
     out.fitter = "jet";
     const std::size_t k = std::min<std::size_t>(std::size_t(options_.k), std::size_t(n));
 
-    // Blocks keep progress reports on the calling thread.
+    // In Morton order: consecutive searches walk the same tree nodes and read the same points
+    // (a cloud's own order may be random, as a sampler's is). Blocks keep progress reports on
+    // the calling thread.
+    const std::vector<std::uint32_t> order = spatial::morton_order(cloud.points);
     const Eigen::Index block = 16384;
     for (Eigen::Index first = 0; first < n; first += block) {
         const Eigen::Index last = std::min(n, first + block);
@@ -101,7 +106,8 @@ FittedTori JetFitter::fit(const PointCloud& cloud, const ProgressFn& progress) c
         {
             std::vector<Neighbor> nb;
 #pragma omp for schedule(dynamic, 256)
-            for (Eigen::Index i = first; i < last; ++i) {
+            for (Eigen::Index o = first; o < last; ++o) {
+                const auto i = Eigen::Index(order[std::size_t(o)]);
                 const Eigen::Vector3d ni = cloud.normals.row(i).transpose();
                 const Eigen::Vector3d s = tangent_of(ni);
                 out.tangents.row(i) = s.transpose();

@@ -9,6 +9,7 @@
 // keeps the score meaningful at sharp edges (an edge point lies on both faces' tori), under
 // flipped normals (|g| ignores the orientation) and next to holes.
 #include "pat/outliers.hpp"
+#include "spatial/morton.hpp"
 
 #include <gsd/spatial.hpp>
 
@@ -64,11 +65,15 @@ PointConfidence pat::score_points(const FittedTori& tori, const std::vector<Toru
     // local length that adapts to density.
     std::vector<double> ell(static_cast<std::size_t>(n));
     std::vector<std::uint32_t> nbrs(static_cast<std::size_t>(n) * k);
+    // Both passes go in Morton order: consecutive points search the same tree nodes and read the
+    // same neighbours' tori (a cloud's own order may be random, as a sampler's is).
+    const std::vector<std::uint32_t> order = spatial::morton_order(tori.points);
 #pragma omp parallel
     {
         std::vector<Neighbor> nb;
 #pragma omp for schedule(dynamic, 256)
-        for (Eigen::Index i = 0; i < n; ++i) {
+        for (Eigen::Index o = 0; o < n; ++o) {
+            const auto i = Eigen::Index(order[std::size_t(o)]);
             tree.knn(tori.points.row(i).transpose(), k + 1, nb);
             std::uint32_t* ids = &nbrs[std::size_t(i) * k];
             std::size_t m = 0;
@@ -84,7 +89,8 @@ PointConfidence pat::score_points(const FittedTori& tori, const std::vector<Toru
     {
         std::vector<double> dist, len;
 #pragma omp for schedule(dynamic, 256)
-        for (Eigen::Index i = 0; i < n; ++i) {
+        for (Eigen::Index o = 0; o < n; ++o) {
+            const auto i = Eigen::Index(order[std::size_t(o)]);
             const Eigen::Vector3d p = tori.points.row(i).transpose();
             dist.clear();
             len.clear();

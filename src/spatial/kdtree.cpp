@@ -1,5 +1,7 @@
 #include <gsd/spatial.hpp>
 
+#include "spatial/morton.hpp"
+
 #include <nanoflann.hpp>
 
 #include <algorithm>
@@ -69,11 +71,13 @@ double mean_spacing(const KdTree& tree) {
     const Points& p = tree.points();
     if (p.rows() < 2) throw Error("mean spacing needs at least two points");
     std::vector<double> gap(std::size_t(p.rows()));
+    const std::vector<std::uint32_t> order = spatial::morton_order(p);  // searches near each other in turn
 #pragma omp parallel
     {
         std::vector<Neighbor> nb;
 #pragma omp for schedule(static)
-        for (Eigen::Index i = 0; i < p.rows(); ++i) {
+        for (Eigen::Index o = 0; o < p.rows(); ++o) {
+            const auto i = Eigen::Index(order[std::size_t(o)]);
             tree.knn(p.row(i).transpose(), 2, nb);
             // nb[0] is the point itself (or a duplicate at distance 0).
             gap[std::size_t(i)] = nb.size() > 1 ? nb[1].distance : 0.0;
@@ -95,11 +99,13 @@ std::vector<double> point_areas(const KdTree& tree, int k) {
         const double h = mean_spacing(tree);
         return M_PI * h * h;
     }();
+    const std::vector<std::uint32_t> order = spatial::morton_order(p);  // searches near each other in turn
 #pragma omp parallel
     {
         std::vector<Neighbor> nb;
 #pragma omp for schedule(static)
-        for (Eigen::Index i = 0; i < p.rows(); ++i) {
+        for (Eigen::Index o = 0; o < p.rows(); ++o) {
+            const auto i = Eigen::Index(order[std::size_t(o)]);
             tree.knn(p.row(i).transpose(), std::size_t(kk) + 1, nb);
             const double dk = nb.back().distance;
             area[std::size_t(i)] = dk > 0 ? M_PI * dk * dk / kk : fallback;
