@@ -227,16 +227,19 @@ PYBIND11_MODULE(_gsd, m) {
         return load_tori(path);
     }, py::arg("path"));
     m.def("fit_tori", [](const DoubleArray& points, const DoubleArray& normals, const std::string& fitter,
-                         const std::string& device) {
+                         const std::string& device, bool reorient) {
         PointCloud cloud = cloud_from(points, normals);
         if (fitter != "net" && fitter != "jet") throw Error("fitter", "must be \"net\" or \"jet\", not \"" + fitter + "\"");
         py::gil_scoped_release nogil;
+        if (reorient) reorient_normals(cloud);
         if (fitter == "jet") return JetFitter().fit(cloud);
         TorusNetOptions o;
         o.device = device;
         return TorusNet(o).fit(cloud);
     }, py::arg("points"), py::arg("normals"), py::arg("fitter") = "net", py::arg("device") = "",
-       "Fits a torus at every point: fitter \"net\" (TorusNet, the default) or \"jet\".");
+       py::arg("reorient_normals") = true,
+       "Fits a torus at every point: fitter \"net\" (TorusNet, the default) or \"jet\". reorient_normals: normals "
+       "that their neighbours contradict are turned back first (the CLI's default; False: --keep-normals).");
 
     py::class_<OutlierOptions>(m, "OutlierOptions", "PAT's outlier defence (docs/pat.md, Outliers); defaults as in C++.")
         .def(py::init<>())

@@ -358,7 +358,7 @@ TEST_CASE("-o GRID.vdb: OpenVDB output for grids; queries and gradients are usag
     CHECK_FALSE(test::file_exists(dir.file("p.npy")));
 }
 
-TEST_CASE("shm grid and shm adaptive turn back flipped normals; --keep-normals keeps them") {
+TEST_CASE("shm grid, shm adaptive and PAT turn back flipped normals; --keep-normals keeps them") {
     ScratchDir dir("cli-reorient");
     const std::string cloud = dir.file("t.ply");
     REQUIRE(run_cli("sample torus -n 2048 --flip 0.1 --seed 3 -o " + cloud).exit_code == 0);
@@ -379,7 +379,8 @@ TEST_CASE("shm grid and shm adaptive turn back flipped normals; --keep-normals k
         REQUIRE(count > 100);
         return sum / count;
     };
-    for (const std::string& cmd : {"shm grid " + cloud + " --grid 32 ", "shm adaptive " + cloud + " --depth 5 --grid 32 "}) {
+    for (const std::string& cmd : {"shm grid " + cloud + " --grid 32 ", "shm adaptive " + cloud + " --depth 5 --grid 32 ",
+                                   "pat eval " + cloud + " --fitter jet --grid 32 "}) {
         CAPTURE(cmd);
         const auto turned = run_cli(cmd + kBounds + " --device cpu -o " + dir.file("a.npy"));
         REQUIRE(turned.exit_code == 0);

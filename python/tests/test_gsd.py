@@ -265,6 +265,15 @@ def test_reorient_normals_and_the_grid_default_match_cli(tmp_path):
     np.testing.assert_allclose(turned_phi, np.load(tmp_path / "g0.npy"), atol=1e-6)
     with pytest.raises(gsd.Error, match="neighbors"):
         gsd.reorient_normals(p, n, neighbors=1)
+    # PAT too: fit_tori turns them back by default (pat fit), reorient_normals=False keeps them.
+    q = np.array([[0.5, 0.0, 0.0], [0.7, 0.0, 0.1], [0.0, 0.0, 0.0], [0.9, 0.9, 0.9]])
+    turned_field = gsd.TorusField(gsd.fit_tori(p, n, fitter="jet"), device="cpu")
+    np.testing.assert_allclose(
+        turned_field.evaluate(q),
+        gsd.TorusField(gsd.fit_tori(p, turned_normals, fitter="jet", reorient_normals=False), device="cpu").evaluate(q),
+        atol=1e-6)
+    kept_field = gsd.TorusField(gsd.fit_tori(p, n, fitter="jet", reorient_normals=False), device="cpu")
+    assert np.abs(kept_field.evaluate(q) - turned_field.evaluate(q)).max() > 1e-3
 
 
 def test_signed_heat_adaptive_matches_cli(tmp_path):

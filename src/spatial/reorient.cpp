@@ -74,7 +74,7 @@ std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options) 
     if (std::uint64_t(n) > std::numeric_limits<std::uint32_t>::max())
         throw Error("reorient_normals", "more than 2^32 points");
     const std::size_t k = std::min(std::size_t(options.neighbors), std::size_t(n) - 1);
-    check_memory(double(n) * double(k) * 8, "reorient_normals", "the votes of " + std::to_string(n) + " points");
+    check_memory(double(n) * double(k) * 8, "reorient_normals", "voting on the normals of " + std::to_string(n) + " points");
     const KdTree tree(cloud.points);
     const double h = mean_spacing(tree);
     if (!(h > 0)) return 0;  // most points duplicated (the spacing is 0): no scale to vote at

@@ -16,6 +16,7 @@
 #include <gsd/field_algebra.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
+#include <gsd/spatial.hpp>
 #include <gsd/sdf.hpp>
 
 #include <cctype>
@@ -88,7 +89,11 @@ Parsed load_leaf(const std::string& path, const LeafOptions& o) {
         naming_file(path, "mesh", [&] { f = std::make_shared<MeshSdfField>(std::move(mesh), m); });
         return {f, box};
     }
-    const PointCloud cloud = io::read_point_cloud(path);
+    PointCloud cloud = io::read_point_cloud(path);
+    // As `pat fit` does by default: a flipped normal's torus has the wrong sign.
+    if (const std::size_t turned = reorient_normals(cloud); turned > 0)
+        note(path + ": " + std::to_string(turned) + " of " + std::to_string(cloud.size()) +
+             " normals turned back, against their neighbours' (fit a .tori with `pat fit --keep-normals` to keep them)");
     Progress progress("fit " + std::filesystem::path(path).filename().string());
     FittedTori t = JetFitter().fit(cloud, progress.fn());
     progress.finish();

@@ -16,6 +16,7 @@
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
 #include <gsd/sdf.hpp>
+#include <gsd/spatial.hpp>
 #include <gsd/sums.hpp>
 #include <gsd/viz.hpp>
 
@@ -42,6 +43,7 @@ struct FitArgs {
     int k = JetFitterOptions{}.k;
     std::string model;
     std::string device;  // TorusNet's device: `pat fit --device`, or eval's shared --device
+    bool keep_normals = false;
     CLI::Option* k_option = nullptr;
     CLI::Option* model_option = nullptr;
 
@@ -51,6 +53,9 @@ struct FitArgs {
         k_option = app.add_option("--k", k, "Neighbors per jet fit, the point itself included (net: fixed by the model)")
                        ->check(CLI::Range(6, 1024))->capture_default_str();
         model_option = app.add_option("--model", model, "TorusNet weights (.safetensors) for --fitter net (default: the shipped model)");
+        app.add_flag("--keep-normals", keep_normals,
+                     "Fit to the normals as given (by default normals that their neighbours contradict are turned back first: "
+                     "a flipped normal's torus has the wrong sign)");
         if (with_device)
             app.add_option("--device", device,
                            "TorusNet's device: auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE or auto)");
@@ -62,7 +67,13 @@ struct FitArgs {
         if (fitter == "net" && k_option->count() > 0)
             throw CLI::ValidationError("--k", "TorusNet's k is fixed by its model");
     }
-    FittedTori fit(const PointCloud& cloud, const std::string& path) const {
+    FittedTori fit(PointCloud cloud, const std::string& path) const {
+        if (!keep_normals) {
+            validate(cloud, path);  // before the neighbours vote: a bad cloud is named here
+            if (const std::size_t turned = reorient_normals(cloud); turned > 0)
+                note(std::to_string(turned) + " of " + std::to_string(cloud.size()) +
+                     " normals turned back, against their neighbours' (--keep-normals keeps them)");
+        }
         Progress progress("fit " + std::filesystem::path(path).filename().string());
         const auto t0 = std::chrono::steady_clock::now();
         FittedTori t;
