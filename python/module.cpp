@@ -435,7 +435,7 @@ PYBIND11_MODULE(_gsd, m) {
                                  std::optional<DoubleArray> vertices, py::object faces,
                                  std::optional<std::array<double, 6>> bounds, double t_coef, double fit_zero_set,
                                  double veto_winding, double veto_margin, bool redistance, const std::string& device,
-                                 bool reorient_normals) {
+                                 bool reorient_normals, bool drop_outliers) {
         if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
         if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
         if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
@@ -443,6 +443,10 @@ PYBIND11_MODULE(_gsd, m) {
         std::optional<PolygonMesh> mesh;
         if (points) cloud = cloud_from(*points, *normals);
         if (vertices) mesh = mesh_from(*vertices, faces);
+        if (cloud && drop_outliers) {
+            py::gil_scoped_release nogil;
+            cloud = without_outliers(*cloud);
+        }
         if (cloud && reorient_normals) {
             py::gil_scoped_release nogil;
             gsd::reorient_normals(*cloud);
@@ -467,10 +471,11 @@ PYBIND11_MODULE(_gsd, m) {
        py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("t_coef") = ShmOptions{}.t_coef,
        py::arg("fit_zero_set") = ShmOptions{}.fit_zero_set, py::arg("veto_winding") = ShmOptions{}.veto_winding,
        py::arg("veto_margin") = ShmOptions{}.veto_margin, py::arg("redistance") = false, py::arg("device") = "",
-       py::arg("reorient_normals") = true,
+       py::arg("reorient_normals") = true, py::arg("drop_outliers") = true,
        "(φ (n,n,n), bounds): the Signed Heat Method from a cloud, a mesh, or both. redistance: |φ| made the exact "
-       "distance to SHM's zero set (--redistance). reorient_normals: a cloud's normals that their neighbours "
-       "contradict are turned back first (the CLI's default). fit_zero_set: weight of the "
+       "distance to SHM's zero set (--redistance). drop_outliers: a cloud's points that PAT's outlier scores reject "
+       "are left out first; reorient_normals: then normals that their neighbours contradict are turned back (both "
+       "the CLI's defaults). fit_zero_set: weight of the "
        "soft fit of φ = 0 on the source (0: the mean shift alone); veto_winding, veto_margin: the outside veto "
        "(veto_winding 0: none), as the CLI's --fit-zero-set, --veto-winding, --veto-margin.");
 

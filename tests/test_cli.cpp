@@ -358,40 +358,54 @@ TEST_CASE("-o GRID.vdb: OpenVDB output for grids; queries and gradients are usag
     CHECK_FALSE(test::file_exists(dir.file("p.npy")));
 }
 
-TEST_CASE("shm grid, shm adaptive and PAT turn back flipped normals; --keep-normals keeps them") {
-    ScratchDir dir("cli-reorient");
-    const std::string cloud = dir.file("t.ply");
-    REQUIRE(run_cli("sample torus -n 2048 --flip 0.1 --seed 3 -o " + cloud).exit_code == 0);
-    const auto torus = shapes::by_name("torus");
-    // The mean error over the 32³ nodes within 0.1 of the surface, where flipped points pull φ.
-    auto near_error = [&](const std::string& npy) {
-        const io::NpyArray a = io::read_npy(npy);
-        const Points nodes = GridSpec::cube(32, Box{{-1, -1, -1}, {1, 1, 1}}).nodes();
-        REQUIRE(a.data.size() == std::size_t(nodes.rows()));
-        double sum = 0;
-        int count = 0;
-        for (Eigen::Index i = 0; i < nodes.rows(); ++i) {
-            const double t = torus->sdf(nodes.row(i).transpose());
-            if (std::abs(t) >= 0.1) continue;
-            sum += std::abs(a.data[std::size_t(i)] - t);
-            ++count;
-        }
-        REQUIRE(count > 100);
-        return sum / count;
-    };
-    for (const std::string& cmd : {"shm grid " + cloud + " --grid 32 ", "shm adaptive " + cloud + " --depth 5 --grid 32 ",
-                                   "pat eval " + cloud + " --fitter jet --grid 32 "}) {
-        CAPTURE(cmd);
-        const auto turned = run_cli(cmd + kBounds + " --device cpu -o " + dir.file("a.npy"));
-        REQUIRE(turned.exit_code == 0);
-        CHECK(turned.output.find("normals turned back") != std::string::npos);
-        const auto kept = run_cli(cmd + kBounds + " --device cpu --keep-normals -o " + dir.file("b.npy"));
-        REQUIRE(kept.exit_code == 0);
-        CHECK(kept.output.find("normals turned back") == std::string::npos);
-        const double e_turned = near_error(dir.file("a.npy")), e_kept = near_error(dir.file("b.npy"));
-        MESSAGE(cmd << ": near-surface error " << e_kept << " with the normals kept, " << e_turned << " turned back");
-        CHECK(e_turned < 0.8 * e_kept);
+// The mean error of a 32³ grid over [−1, 1]³ at its nodes within 0.1 of `shape`'s surface.
+double near_surface_error(const std::string& npy, const shapes::Shape& shape) {
+    const io::NpyArray a = io::read_npy(npy);
+    const Points nodes = GridSpec::cube(32, Box{{-1, -1, -1}, {1, 1, 1}}).nodes();
+    REQUIRE(a.data.size() == std::size_t(nodes.rows()));
+    double sum = 0;
+    int count = 0;
+    for (Eigen::Index i = 0; i < nodes.rows(); ++i) {
+        const double t = shape.sdf(nodes.row(i).transpose());
+        if (std::abs(t) >= 0.1) continue;
+        sum += std::abs(a.data[std::size_t(i)] - t);
+        ++count;
     }
+    REQUIRE(count > 100);
+    return sum / count;
+}
+
+// A cloud's corruption that a default step of CMDS undoes, against the same step skipped by
+// `keep` (--keep-normals, --keep-outliers): the default says what it did and errs less.
+void check_default_step(const std::string& sample_args, const std::vector<std::string>& cmds, const std::string& keep,
+                        const std::string& said, double at_most) {
+    ScratchDir dir("cli-default-step");
+    const std::string cloud = dir.file("t.ply");
+    REQUIRE(run_cli("sample torus -n 2048 --seed 3 " + sample_args + " -o " + cloud).exit_code == 0);
+    const auto torus = shapes::by_name("torus");
+    for (const std::string& cmd : cmds) {
+        CAPTURE(cmd);
+        const std::string common = " " + cloud + " " + kBounds + " --device cpu ";
+        const auto fixed = run_cli(cmd + common + "-o " + dir.file("a.npy"));
+        REQUIRE(fixed.exit_code == 0);
+        CHECK(fixed.output.find(said) != std::string::npos);
+        const auto kept = run_cli(cmd + common + keep + " -o " + dir.file("b.npy"));
+        REQUIRE(kept.exit_code == 0);
+        CHECK(kept.output.find(said) == std::string::npos);
+        const double e_fixed = near_surface_error(dir.file("a.npy"), *torus), e_kept = near_surface_error(dir.file("b.npy"), *torus);
+        MESSAGE(cmd << ": near-surface error " << e_kept << " with " << keep << ", " << e_fixed << " by default");
+        CHECK(e_fixed < at_most * e_kept);
+    }
+}
+
+TEST_CASE("shm grid, shm adaptive and PAT turn back flipped normals; --keep-normals keeps them") {
+    check_default_step("--flip 0.1", {"shm grid --grid 32", "shm adaptive --depth 5 --grid 32", "pat eval --fitter jet --grid 32"},
+                       "--keep-normals", "normals turned back", 0.8);
+}
+
+TEST_CASE("shm grid and shm adaptive leave a cloud's outliers out; --keep-outliers keeps them") {
+    check_default_step("--outliers 0.02", {"shm grid --grid 32", "shm adaptive --depth 5 --grid 32"}, "--keep-outliers",
+                       "left out as outliers", 0.5);
 }
 
 TEST_CASE("PAT's outlier defence on the CLI: --confidence per point, --keep-outliers for comparison") {

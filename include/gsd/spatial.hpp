@@ -56,15 +56,17 @@ struct ReorientOptions {
     int neighbors = 64;          ///< the k nearest points that vote
     double width = 3.0;          ///< Gaussian width of a vote's weight in distance
     double tangent_width = 0.5;  ///< … and in the offset from the point's tangent plane
+    double behind_width = 0.1;   ///< … for a neighbour behind the point whose normal opposes it
     int passes = 8;              ///< at most this many passes (each votes with the last's normals)
 };
 
 /// Turns back the normals that their neighbours contradict (scattered flips, as a scanner's or a
 /// normal estimator's orientation errors make): a point's normal is reversed when the weighted sum
 /// of its neighbours' normals points against it, the weights falling off with the distance and
-/// with the offset from the point's tangent plane (so the far side of a thin part has no say).
+/// with the offset from the point's tangent plane (so the far side of a thin part has no say;
+/// behind the point, where a thin solid's far side lies, the offset counts 5× as much).
 /// Repeated while anything changes, up to `passes` (the neighbours and their weights are found once:
-/// 8 bytes a neighbour while it runs). A patch of flips wider than the neighbourhood
+/// 12 bytes a neighbour while it runs). A patch of flips wider than the neighbourhood
 /// votes for itself and stays. Returns how many normals ended reversed (their length kept).
 /// Throws gsd::Error on a cloud that validate() rejects or options out of range.
 GSD_EXPORT std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options = {});

@@ -265,6 +265,16 @@ def test_reorient_normals_and_the_grid_default_match_cli(tmp_path):
     np.testing.assert_allclose(turned_phi, np.load(tmp_path / "g0.npy"), atol=1e-6)
     with pytest.raises(gsd.Error, match="neighbors"):
         gsd.reorient_normals(p, n, neighbors=1)
+    # A cloud's outliers: left out by default, kept by drop_outliers=False (--keep-outliers).
+    stray = tmp_path / "o.ply"
+    cli("sample", "torus", "-n", 1024, "--outliers", 0.03, "--seed", 3, "-o", stray)
+    sp, sn = gsd.read_point_cloud(str(stray))
+    for flag, drop in (([], True), (["--keep-outliers"], False)):
+        out = tmp_path / f"o{len(flag)}.npy"
+        cli("shm", "grid", stray, "--grid", 16, *bounds_args(), "--device", "cpu", *flag, "-o", out)
+        phi, _ = gsd.signed_heat_grid(16, points=sp, normals=sn, bounds=BOUNDS, device="cpu", drop_outliers=drop)
+        np.testing.assert_allclose(phi, np.load(out), atol=1e-6)
+    assert np.abs(np.load(tmp_path / "o0.npy") - np.load(tmp_path / "o1.npy")).max() > 1e-3
     # PAT too: fit_tori turns them back by default (pat fit), reorient_normals=False keeps them.
     q = np.array([[0.5, 0.0, 0.0], [0.7, 0.0, 0.1], [0.0, 0.0, 0.0], [0.9, 0.9, 0.9]])
     turned_field = gsd.TorusField(gsd.fit_tori(p, n, fitter="jet"), device="cpu")

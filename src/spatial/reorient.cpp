@@ -4,6 +4,7 @@
 #include "spatial/morton.hpp"
 
 #include <algorithm>
+#include <cfloat>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -13,21 +14,27 @@ namespace gsd {
 namespace {
 
 // Each point's neighbours that vote on its normal, with their weights. A weight falls off with
-// the distance (Gaussian of width `width`) and with the offset from the point's tangent plane
+// the distance (Gaussian of width `width`) and with the offset z from the point's tangent plane
 // (Gaussian of width `tangent_width`), so that the other side of a thin part, whose normals face
-// the other way, has no say, while a flip (the same line, reversed) does not move a neighbour out
-// of the plane. Turning normals changes no weight, so they are found once, for every pass.
+// the other way, has little say, while a flip (the same line, reversed) does not move a neighbour
+// out of the plane. A neighbour behind the point (z < 0 along its normal) whose normal opposes it
+// is what the far side of a thin solid looks like from a rightly oriented point: its offset is
+// weighed by the narrower `behind_width`, so that a solid thinner than a spacing (a CAD part's
+// panel, sampled on both faces) does not outvote the point's own side. Turning a normal changes
+// neither the distance nor |z|, so both are found once, for every pass.
 struct Votes {
-    std::size_t k = 0;                   // voters per point (the k nearest, the point left out)
-    std::vector<std::uint32_t> voter;    // point i's: voter[i·k …]
-    std::vector<float> weight;
+    std::size_t k = 0;                 // voters per point (the k nearest, the point left out)
+    std::vector<std::uint32_t> voter;  // point i's: voter[i·k …]
+    std::vector<float> weight;         // the Gaussians of distance and offset (tangent_width)
+    std::vector<float> behind;         // … of offset behind_width, signed as z along the normal as given
 
     Votes(const PointCloud& cloud, const Points& normals, const KdTree& tree, std::size_t neighbors, double width,
-          double tangent_width)
+          double tangent_width, double behind_width)
         : k(neighbors) {
         const Eigen::Index n = cloud.size();
         voter.assign(std::size_t(n) * k, 0);
         weight.assign(std::size_t(n) * k, 0.0f);
+        behind.assign(std::size_t(n) * k, 0.0f);
         // In Morton order: consecutive searches walk the same tree nodes (the input's order may
         // be any, a sampler's is random).
         const std::vector<std::uint32_t> order = spatial::morton_order(cloud.points);
@@ -43,20 +50,26 @@ struct Votes {
                 for (const Neighbor& q : near) {
                     if (Eigen::Index(q.index) == i || at == end) continue;
                     const Eigen::Vector3d d = cloud.points.row(Eigen::Index(q.index)).transpose() - p;
-                    const double r = q.distance / width, z = d.dot(m) / tangent_width;
+                    const double r = q.distance / width, z = d.dot(m), a = z / tangent_width, b = z / behind_width;
                     voter[at] = std::uint32_t(q.index);
-                    weight[at++] = float(std::exp(-(r * r + z * z)));
+                    // Its sign is z's, kept where the Gaussian underflows (then it weighs FLT_MIN).
+                    behind[at] = std::copysign(std::max(float(std::exp(-(r * r + b * b))), FLT_MIN), float(z));
+                    weight[at++] = float(std::exp(-(r * r + a * a)));
                 }
             }
         }
     }
 
     // The voters' verdict on point i's normal: positive when their weighted normals agree with it.
-    double on(const Points& normals, Eigen::Index i) const {
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        for (std::size_t v = std::size_t(i) * k, end = v + k; v < end; ++v)
-            sum += double(weight[v]) * normals.row(Eigen::Index(voter[v])).transpose();
-        return sum.dot(normals.row(i).transpose());
+    // `sign`: −1 when i's normal is turned from the one the offsets were taken along.
+    double on(const Points& normals, Eigen::Index i, double sign) const {
+        const Eigen::Vector3d ni = normals.row(i).transpose();
+        double sum = 0;
+        for (std::size_t v = std::size_t(i) * k, end = v + k; v < end; ++v) {
+            const double agree = normals.row(Eigen::Index(voter[v])).dot(ni), b = sign * double(behind[v]);
+            sum += (b < 0 && agree < 0 ? -b : double(weight[v])) * agree;  // b < 0: behind
+        }
+        return sum;
     }
 };
 
@@ -67,6 +80,8 @@ std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options) 
     if (!(options.width > 0) || !std::isfinite(options.width)) throw Error("ReorientOptions::width", "must be finite and > 0");
     if (!(options.tangent_width > 0) || !std::isfinite(options.tangent_width))
         throw Error("ReorientOptions::tangent_width", "must be finite and > 0");
+    if (!(options.behind_width > 0) || !(options.behind_width <= options.tangent_width))
+        throw Error("ReorientOptions::behind_width", "must be > 0 and ≤ tangent_width");
     if (options.passes < 0) throw Error("ReorientOptions::passes", "must be ≥ 0");
     validate(cloud, "reorient_normals");  // a normal per point, all finite
     const Eigen::Index n = cloud.size();
@@ -74,13 +89,13 @@ std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options) 
     if (std::uint64_t(n) > std::numeric_limits<std::uint32_t>::max())
         throw Error("reorient_normals", "more than 2^32 points");
     const std::size_t k = std::min(std::size_t(options.neighbors), std::size_t(n) - 1);
-    check_memory(double(n) * double(k) * 8, "reorient_normals", "voting on the normals of " + std::to_string(n) + " points");
+    check_memory(double(n) * double(k) * 12, "reorient_normals", "voting on the normals of " + std::to_string(n) + " points");
     const KdTree tree(cloud.points);
     const double h = mean_spacing(tree);
     if (!(h > 0)) return 0;  // most points duplicated (the spacing is 0): no scale to vote at
     // Unit normals vote (a longer one would weigh more, and tilt its tangent plane's offset).
     Points normals = cloud.normals.rowwise().normalized();
-    const Votes votes(cloud, normals, tree, k, options.width * h, options.tangent_width * h);
+    const Votes votes(cloud, normals, tree, k, options.width * h, options.tangent_width * h, options.behind_width * h);
     // Each pass votes with the normals of the one before (all points at once: the result does not
     // depend on the order or the threads), until nothing changes.
     std::vector<char> turn(std::size_t(n), 0), flipped(std::size_t(n), 0);
@@ -88,7 +103,7 @@ std::size_t reorient_normals(PointCloud& cloud, const ReorientOptions& options) 
         std::size_t changed = 0;
 #pragma omp parallel for schedule(static) reduction(+ : changed)
         for (Eigen::Index i = 0; i < n; ++i) {
-            turn[std::size_t(i)] = votes.on(normals, i) < 0;
+            turn[std::size_t(i)] = votes.on(normals, i, flipped[std::size_t(i)] ? -1.0 : 1.0) < 0;
             changed += std::size_t(turn[std::size_t(i)]);
         }
         if (changed == 0) break;

@@ -390,6 +390,9 @@ void add_shm(CLI::App& app) {
     auto keep_normals = std::make_shared<bool>(false);
     grid->add_flag("--keep-normals", *keep_normals,
                    "Keep a cloud's normals as they are (by default normals that their neighbours contradict are turned back first)");
+    auto keep_outliers = std::make_shared<bool>(false);
+    grid->add_flag("--keep-outliers", *keep_outliers,
+                   "Keep every point of a cloud (by default points that PAT's outlier scores reject are left out before step 1)");
     grid->add_option("--device", opt->device, "auto | gpu | cpu | device index | name substring");
     grid->add_option("--contour", *contour_out, "Also write the zero level set as a mesh (.obj .ply .off .stl)")->check(output_file({".obj", ".ply", ".off", ".stl"}));
     auto sharpen = std::make_shared<bool>(false);
@@ -407,7 +410,7 @@ void add_shm(CLI::App& app) {
             g.validate();
             check_grid_memory(g, kShmGridBytesPerNode);
             if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
-        }, false, !*keep_normals);
+        }, !*keep_outliers, !*keep_normals);
         const ShmSource& src = loaded.source;
         opt->solver = poisson_solver_from_name(*solver);
         Progress progress("shm grid");
