@@ -164,6 +164,27 @@ void set_sdf_options(MeshSdfOptions& o, const std::string& sign, double inside, 
     o.device = device;
 }
 
+// The Signed Heat Method's source from a cloud, a mesh or both, as `gsd shm` loads them: a
+// cloud's outliers left out, then its flipped normals turned back (each unless asked not to).
+ShmSource shm_source_from(const std::optional<DoubleArray>& points, const std::optional<DoubleArray>& normals,
+                          const std::optional<DoubleArray>& vertices, const py::object& faces, bool drop_outliers,
+                          bool reorient) {
+    if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
+    if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
+    if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
+    std::optional<PointCloud> cloud;
+    std::optional<PolygonMesh> mesh;
+    if (points) cloud = cloud_from(*points, *normals);
+    if (vertices) mesh = mesh_from(*vertices, faces);
+    py::gil_scoped_release nogil;
+    if (cloud && drop_outliers) cloud = without_outliers(*cloud);
+    if (cloud && reorient) reorient_normals(*cloud);
+    ShmSource src;
+    if (mesh) src = shm_source(*mesh);
+    if (cloud) src = mesh ? combine(src, shm_source(*cloud)) : shm_source(*cloud);
+    return src;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_gsd, m) {
@@ -436,21 +457,7 @@ PYBIND11_MODULE(_gsd, m) {
                                  std::optional<std::array<double, 6>> bounds, double t_coef, double fit_zero_set,
                                  double veto_winding, double veto_margin, bool redistance, const std::string& device,
                                  bool reorient_normals, bool drop_outliers) {
-        if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
-        if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
-        if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
-        std::optional<PointCloud> cloud;
-        std::optional<PolygonMesh> mesh;
-        if (points) cloud = cloud_from(*points, *normals);
-        if (vertices) mesh = mesh_from(*vertices, faces);
-        if (cloud && drop_outliers) {
-            py::gil_scoped_release nogil;
-            cloud = without_outliers(*cloud);
-        }
-        if (cloud && reorient_normals) {
-            py::gil_scoped_release nogil;
-            gsd::reorient_normals(*cloud);
-        }
+        ShmSource src = shm_source_from(points, normals, vertices, faces, drop_outliers, reorient_normals);
         ShmOptions o;  // checked by the solver, whose errors name the option
         o.t_coef = t_coef;
         o.fit_zero_set = fit_zero_set;
@@ -459,9 +466,6 @@ PYBIND11_MODULE(_gsd, m) {
         o.redistance = redistance;
         o.device = device;
         py::gil_scoped_release nogil;
-        ShmSource src;
-        if (mesh) src = shm_source(*mesh);
-        if (cloud) src = mesh ? combine(src, shm_source(*cloud)) : shm_source(*cloud);
         const GridSpec g = bounds ? grid_from(n, bounds, {}) : GridSpec::cube(n, shm_default_bounds(src));
         g.validate();
         ShmResult r = SignedHeatGrid(std::move(src), g, o).solve();
@@ -501,21 +505,7 @@ PYBIND11_MODULE(_gsd, m) {
                                      std::optional<std::array<double, 6>> bounds, double band, double grading, double t_coef,
                                      double fit_zero_set, double veto_winding, bool redistance, bool drop_outliers,
                                      const std::string& device, double fit_scale, bool reorient_normals) {
-        if (points.has_value() != normals.has_value()) throw Error("normals", "points and normals go together");
-        if (vertices.has_value() == faces.is_none()) throw Error("faces", "vertices and faces go together");
-        if (!points && !vertices) throw Error("points", "give a cloud (points, normals), a mesh (vertices, faces), or both");
-        std::optional<PointCloud> cloud;
-        std::optional<PolygonMesh> mesh;
-        if (points) cloud = cloud_from(*points, *normals);
-        if (vertices) mesh = mesh_from(*vertices, faces);
-        if (cloud && drop_outliers) {
-            py::gil_scoped_release nogil;
-            cloud = without_outliers(*cloud);
-        }
-        if (cloud && reorient_normals) {
-            py::gil_scoped_release nogil;
-            gsd::reorient_normals(*cloud);
-        }
+        ShmSource src = shm_source_from(points, normals, vertices, faces, drop_outliers, reorient_normals);
         AdaptiveShmOptions o;  // checked by the solver, whose errors name the option
         o.depth = depth;
         o.band = band;
@@ -528,9 +518,6 @@ PYBIND11_MODULE(_gsd, m) {
         o.device = device;
         if (bounds) o.bounds = Box{{(*bounds)[0], (*bounds)[1], (*bounds)[2]}, {(*bounds)[3], (*bounds)[4], (*bounds)[5]}};
         py::gil_scoped_release nogil;
-        ShmSource src;
-        if (mesh) src = shm_source(*mesh);
-        if (cloud) src = mesh ? combine(src, shm_source(*cloud)) : shm_source(*cloud);
         return std::make_shared<OctreeField>(SignedHeatOctree(std::move(src), o).solve().field);
     }, py::arg("depth"), py::arg("points") = py::none(), py::arg("normals") = py::none(), py::arg("vertices") = py::none(),
        py::arg("faces") = py::none(), py::arg("bounds") = py::none(), py::arg("band") = AdaptiveShmOptions{}.band,
