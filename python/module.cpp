@@ -284,7 +284,7 @@ PYBIND11_MODULE(_gsd, m) {
     }, py::arg("points"), py::arg("normals"), py::arg("neighbors") = ReorientOptions{}.neighbors,
        py::arg("passes") = ReorientOptions{}.passes,
        "(normals (N,3), how many turned): the normals that their neighbours contradict turned back, as gsd shm "
-       "does by default (--keep-normals keeps them).");
+       "and gsd pat do by default (--keep-normals keeps them). The normals come back of unit length.");
     m.def("point_confidence", [](const FittedTori& tori, std::optional<OutlierOptions> options) {
         const OutlierOptions o = options.value_or(OutlierOptions{});
         PointConfidence c;

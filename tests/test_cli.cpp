@@ -401,6 +401,14 @@ void check_default_step(const std::string& sample_args, const std::vector<std::s
 TEST_CASE("shm grid, shm adaptive and PAT turn back flipped normals; --keep-normals keeps them") {
     check_default_step("--flip 0.1", {"shm grid --grid 32", "shm adaptive --depth 5 --grid 32", "pat eval --fitter jet --grid 32"},
                        "--keep-normals", "normals turned back", 0.8);
+    // Where nothing is fitted, --keep-normals is a usage error, not ignored.
+    ScratchDir dir("cli-keep-normals");
+    REQUIRE(run_cli("sample torus -n 512 -o " + dir.file("t.ply")).exit_code == 0);
+    REQUIRE(run_cli("pat fit " + dir.file("t.ply") + " --fitter jet -o " + dir.file("t.tori")).exit_code == 0);
+    CHECK(run_cli("pat eval --tori " + dir.file("t.tori") + " --keep-normals --grid 8 -o " + dir.file("x.npy")).exit_code == 2);
+    CHECK(run_cli("render --tori " + dir.file("t.tori") + " --keep-normals --size 32 24 -o " + dir.file("x.png")).exit_code == 2);
+    CHECK_FALSE(test::file_exists(dir.file("x.npy")));
+    CHECK_FALSE(test::file_exists(dir.file("x.png")));
 }
 
 TEST_CASE("shm grid and shm adaptive leave a cloud's outliers out; --keep-outliers keeps them") {

@@ -225,11 +225,11 @@ TEST_CASE("reorient_normals: scattered flips turned back, a thin part's two side
             const std::size_t turned = reorient_normals(f);
             const long after = wrong_normals(*shape, f);
             MESSAGE(name << " noise " << noise << ": " << before << " normals wrong, " << turned << " turned, " << after << " wrong after");
-            CHECK(after <= 3);  // of 212 (0–1 measured: the rounded box's edges)
+            CHECK(after <= 5);  // of 212 (0–3 measured: the rounded box's edges)
             CHECK(long(turned) >= before - after);
         }
         // One in five flipped: flips touch, a pass can turn a pair of them against each other, and
-        // later passes settle it (measured here: 9, 0, 0 of 382 left wrong).
+        // later passes settle it (measured here: 6, 0, 0 of 382 left wrong).
         k.flip_fraction = 0.2;
         k.position_noise = 0;
         PointCloud f = shapes::corrupt(clean, k, 5);
@@ -272,6 +272,29 @@ TEST_CASE("reorient_normals: scattered flips turned back, a thin part's two side
         bad = {};
         bad.behind_width = 0.6;  // wider than tangent_width
         CHECK_THROWS_AS(reorient_normals(plate, bad), Error);
+        bad.behind_width = NAN;
+        CHECK_THROWS_AS(reorient_normals(plate, bad), Error);
+    }
+    // A stray point hundreds of spacings from the rest, its normal across the direction to them
+    // (the torus's top faces in front of it and agreeing, its bottom faces behind and opposing):
+    // its voters' weights all underflow as they stand, and a rule that kept only the behind ones'
+    // sign turned it back and forth with every pass. Its verdict must settle: the same after 7
+    // passes as after 8.
+    {
+        const auto torus = shapes::by_name("torus");
+        PointCloud c = torus->sample(2048, 3);
+        c.points.conservativeResize(2049, 3);
+        c.normals.conservativeResize(2049, 3);
+        c.points.row(2048) << 30, 0, 0;
+        c.normals.row(2048) << 0, 0, 1;
+        PointCloud seven = c, eight = c;
+        ReorientOptions o;
+        o.passes = 7;
+        reorient_normals(seven, o);
+        o.passes = 8;
+        reorient_normals(eight, o);
+        CHECK(seven.normals == eight.normals);
+        CHECK(eight.normals.topRows(2048) == c.normals.topRows(2048));  // the torus keeps its own
     }
 }
 

@@ -168,7 +168,7 @@ TEST_CASE("memory budget: fitting, blending and the surface commands estimate th
     // 3000 points need ~1.5 MiB for the jet fit, ~6 MiB for TorusNet; the torus mesh (a few
     // thousand vertices) tens of MiB for the surface methods. A 1 MiB budget refuses each, by
     // name, with no output; the default budget runs them.
-    // Fitting turns flipped normals back first, which needs its own ~1.5 MiB (--keep-normals skips it).
+    // Fitting turns flipped normals back first, which needs its own ~2.2 MiB (--keep-normals skips it).
     const std::vector<std::pair<std::string, std::string>> runs = {
         {"pat fit " + d + "c.ply --fitter jet -o " + d + "j.tori", "voting on the normals of 3000 points"},
         {"pat fit " + d + "c.ply --fitter jet --keep-normals -o " + d + "jk.tori", "fitting jets to 3000 points"},

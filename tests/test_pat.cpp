@@ -417,3 +417,31 @@ TEST_CASE("outlier options: disabled scores nothing; tiny clouds are trusted; ba
     CHECK(field_of([](OutlierOptions& o) { o.mad_factor = -1; }) == "OutlierOptions::mad_factor");
     CHECK(field_of([](OutlierOptions& o) { o.sparsity_factor = 1; }) == "OutlierOptions::sparsity_factor");
 }
+
+TEST_CASE("the jet fit and the outlier scores do not depend on the cloud's order") {
+    // Both search each point's neighbours in an order of their own (Morton order, for speed) and
+    // write each result at its point: a reversed cloud gets the reversed results, bit for bit.
+    const auto shape = shapes::by_name("capsule");
+    shapes::Corruption k;
+    k.position_noise = 0.002;
+    k.outlier_fraction = 0.02;
+    const PointCloud cloud = shapes::corrupt(shape->sample(3000, 7), k, 8);
+    const Eigen::Index n = cloud.size();
+    PointCloud reversed;
+    reversed.points = cloud.points.colwise().reverse();
+    reversed.normals = cloud.normals.colwise().reverse();
+    const FittedTori a = JetFitter().fit(cloud), b = JetFitter().fit(reversed);
+    REQUIRE(a.size() == n);
+    REQUIRE(b.size() == n);
+    CHECK(a.spacing == doctest::Approx(b.spacing).epsilon(1e-12));  // a mean: summed in the points' order
+    long same = 0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+        const Jet &x = a.jets[std::size_t(i)], &y = b.jets[std::size_t(n - 1 - i)];
+        same += x.a00 == y.a00 && x.a10 == y.a10 && x.a01 == y.a01 && x.a11 == y.a11 && x.a20 == y.a20 && x.a02 == y.a02;
+    }
+    CHECK(same == n);
+    const PointConfidence ca = point_confidence(a), cb = point_confidence(b);
+    long agree = 0;
+    for (Eigen::Index i = 0; i < n; ++i) agree += ca.confidence[std::size_t(i)] == cb.confidence[std::size_t(n - 1 - i)];
+    CHECK(agree == n);
+}

@@ -63,8 +63,9 @@ struct ReorientOptions {
 /// Turns back the normals that their neighbours contradict (scattered flips, as a scanner's or a
 /// normal estimator's orientation errors make): a point's normal is reversed when the weighted sum
 /// of its neighbours' normals points against it, the weights falling off with the distance and
-/// with the offset from the point's tangent plane (so the far side of a thin part has no say;
-/// behind the point, where a thin solid's far side lies, the offset counts 5× as much).
+/// with the offset from the point's tangent plane (so the far side of a thin part has no say; a
+/// neighbour behind the point whose normal opposes it, as a thin solid's far side lies, is weighed
+/// with the narrower `behind_width`).
 /// Repeated while anything changes, up to `passes` (the neighbours and their weights are found once:
 /// 12 bytes a neighbour while it runs). A patch of flips wider than the neighbourhood
 /// votes for itself and stays. Returns how many normals ended reversed (their length kept).

@@ -275,6 +275,17 @@ def test_reorient_normals_and_the_grid_default_match_cli(tmp_path):
         phi, _ = gsd.signed_heat_grid(16, points=sp, normals=sn, bounds=BOUNDS, device="cpu", drop_outliers=drop)
         np.testing.assert_allclose(phi, np.load(out), atol=1e-6)
     assert np.abs(np.load(tmp_path / "o0.npy") - np.load(tmp_path / "o1.npy")).max() > 1e-3
+    # The default box is the source's once the outliers are left out, in both: a stray far off
+    # does not stretch it.
+    far_p, far_n = np.vstack([sp, [[3.0, 3.0, 3.0]]]), np.vstack([sn, [[0.0, 0.0, 1.0]]])
+    np.save(tmp_path / "far.npy", np.hstack([far_p, far_n]))
+    cli("shm", "grid", tmp_path / "far.npy", "--grid", 16, "--device", "cpu", "-o", tmp_path / "ob.npy")
+    phi, bounds = gsd.signed_heat_grid(16, points=far_p, normals=far_n, device="cpu")
+    np.testing.assert_allclose(phi, np.load(tmp_path / "ob.npy"), atol=1e-6)
+    import json
+    side = json.load(open(tmp_path / "ob.npy.json"))["bounds"]
+    np.testing.assert_allclose([*side["lo"], *side["hi"]], bounds, rtol=1e-6)
+    assert max(bounds[3:]) < 1.5  # not stretched to the stray at (3, 3, 3)
     # PAT too: fit_tori turns them back by default (pat fit), reorient_normals=False keeps them.
     q = np.array([[0.5, 0.0, 0.0], [0.7, 0.0, 0.1], [0.0, 0.0, 0.0], [0.9, 0.9, 0.9]])
     turned_field = gsd.TorusField(gsd.fit_tori(p, n, fitter="jet"), device="cpu")

@@ -61,7 +61,10 @@ std::vector<std::uint32_t> morton_order(PointsView q) {
     for (std::size_t i = 0; i < n; ++i) {
         std::uint64_t k = 0;
         for (int a = 0; a < 3; ++a) {
-            const double u = std::clamp((q(Eigen::Index(i), a) - lo[a]) * scale[a], 0.0, 1023.0);
+            // Clamped so that a non-finite coordinate (NaN compares false) takes cell 0, not an
+            // undefined conversion: it only moves the point in the order.
+            double u = (q(Eigen::Index(i), a) - lo[a]) * scale[a];
+            u = u >= 0 ? (u <= 1023 ? u : 1023.0) : 0.0;
             k |= spread(std::uint64_t(u)) << a;
         }
         item[i] = k << 32 | i;

@@ -4,7 +4,6 @@
 #include "spatial/morton.hpp"
 
 #include <algorithm>
-#include <cfloat>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -25,7 +24,7 @@ namespace {
 struct Votes {
     std::size_t k = 0;                 // voters per point (the k nearest, the point left out)
     std::vector<std::uint32_t> voter;  // point i's: voter[i·k …]
-    std::vector<float> weight;         // the Gaussians of distance and offset (tangent_width)
+    std::vector<float> weight;         // the Gaussians of distance and offset (tangent_width), ÷ the largest
     std::vector<float> behind;         // … of offset behind_width, signed as z along the normal as given
 
     Votes(const PointCloud& cloud, const Points& normals, const KdTree& tree, std::size_t neighbors, double width,
@@ -46,15 +45,28 @@ struct Votes {
                 const auto i = Eigen::Index(order[std::size_t(o)]);
                 const Eigen::Vector3d p = cloud.points.row(i).transpose(), m = normals.row(i).transpose();
                 tree.knn(p, k + 1, near);
+                // The exponents first: the weights are taken relative to the largest (a point's
+                // verdict does not change under a positive factor), so that a stray point far from
+                // every other still weighs its voters as they stand, not all as 0 in float.
+                double least = INFINITY;
+                std::size_t voters = 0;
+                for (const Neighbor& q : near) {
+                    if (Eigen::Index(q.index) == i) continue;
+                    if (voters++ == k) break;  // the k stored below
+                    const Eigen::Vector3d d = cloud.points.row(Eigen::Index(q.index)).transpose() - p;
+                    const double r = q.distance / width, a = d.dot(m) / tangent_width;
+                    least = std::min(least, r * r + a * a);
+                }
+                if (!std::isfinite(least)) least = 0;
                 std::size_t at = std::size_t(i) * k, end = at + k;
                 for (const Neighbor& q : near) {
                     if (Eigen::Index(q.index) == i || at == end) continue;
                     const Eigen::Vector3d d = cloud.points.row(Eigen::Index(q.index)).transpose() - p;
                     const double r = q.distance / width, z = d.dot(m), a = z / tangent_width, b = z / behind_width;
                     voter[at] = std::uint32_t(q.index);
-                    // Its sign is z's, kept where the Gaussian underflows (then it weighs FLT_MIN).
-                    behind[at] = std::copysign(std::max(float(std::exp(-(r * r + b * b))), FLT_MIN), float(z));
-                    weight[at++] = float(std::exp(-(r * r + a * a)));
+                    // Signed as z, which a weight of 0 keeps too (−0.0).
+                    behind[at] = std::copysign(float(std::exp(least - (r * r + b * b))), float(z));
+                    weight[at++] = float(std::exp(least - (r * r + a * a)));
                 }
             }
         }
@@ -66,8 +78,9 @@ struct Votes {
         const Eigen::Vector3d ni = normals.row(i).transpose();
         double sum = 0;
         for (std::size_t v = std::size_t(i) * k, end = v + k; v < end; ++v) {
-            const double agree = normals.row(Eigen::Index(voter[v])).dot(ni), b = sign * double(behind[v]);
-            sum += (b < 0 && agree < 0 ? -b : double(weight[v])) * agree;  // b < 0: behind
+            const double agree = normals.row(Eigen::Index(voter[v])).dot(ni);
+            const bool behind_now = std::signbit(behind[v]) != (sign < 0);
+            sum += (behind_now && agree < 0 ? std::abs(double(behind[v])) : double(weight[v])) * agree;
         }
         return sum;
     }

@@ -60,6 +60,12 @@ struct FitArgs {
             app.add_option("--device", device,
                            "TorusNet's device: auto | gpu | cpu | device index | name substring (default: $GSD_DEVICE or auto)");
     }
+    // --keep-normals where no cloud is fitted (a .tori keeps the normals it was fitted with; a
+    // grid has none; --expr's clouds are fitted with the defaults) is a usage error, not ignored.
+    void check_fits_a_cloud(bool fits) const {
+        if (keep_normals && !fits)
+            throw CLI::ValidationError("--keep-normals", "only a point cloud INPUT is fitted (a .tori keeps the normals it was fitted with)");
+    }
     // Options that belong to the other fitter are usage errors, not silently ignored.
     void check() const {
         if (fitter != "net" && model_option->count() > 0)
@@ -177,8 +183,7 @@ void add_pat(CLI::App& app) {
             // TorusNet runs on a device: find it while the cloud is read (jets fit on the CPU).
             std::optional<DevicePrefetch> prefetch;
             if (args->fitter == "net") prefetch.emplace(args->device);
-            const PointCloud cloud = io::read_point_cloud(*input);
-            const FittedTori t = args->fit(cloud, *input);
+            const FittedTori t = args->fit(io::read_point_cloud(*input), *input);
             // The .tori file keeps every point; TorusField scores them again when it loads them.
             std::optional<PointConfidence> conf;
             if (!outliers->confidence.empty()) {
@@ -220,6 +225,7 @@ void add_pat(CLI::App& app) {
             if (!domain->bounds.empty()) bounds_from(domain->bounds, "--bounds");  // before the costly fit
             const DevicePrefetch prefetch(blend->device);  // while the tori are read or fitted
             std::string source = !tori->empty() ? *tori : *input;
+            fit->check_fits_a_cloud(!is_tori_file(source));
             FittedTori fitted = is_tori_file(source) ? load_tori(source) : fit->fit(io::read_point_cloud(source), source);
             const std::optional<Box> box = bounding_box(fitted.points);
             const Eigen::Index total = fitted.size();
@@ -405,13 +411,19 @@ void add_shm(CLI::App& app) {
         check_grid_output(*output, true);
         const DevicePrefetch prefetch(opt->device);
         GridSpec g;
+        // The grid's size is checked before the source's cost; its default box is the source's
+        // (as Python's and shm adaptive's), once a cloud's outliers are left out.
         const LoadedShmSource loaded = load_shm_source(*inputs, [&](const Box& box0) {
             g = bounds->empty() ? GridSpec::cube(*n, default_bounds(box0)) : GridSpec::cube(*n, bounds_from(*bounds, "--bounds"));
             g.validate();
             check_grid_memory(g, kShmGridBytesPerNode);
-            if (bounds->empty()) note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
         }, !*keep_outliers, !*keep_normals);
         const ShmSource& src = loaded.source;
+        if (bounds->empty()) {
+            g = GridSpec::cube(*n, shm_default_bounds(src));
+            g.validate();
+            note("grid bounds (saved in the grid's .json sidecar, which contour and slice read): " + bounds_text(g.box));
+        }
         opt->solver = poisson_solver_from_name(*solver);
         Progress progress("shm grid");
         const SignedHeatGrid shm(src, g, *opt);
@@ -630,6 +642,7 @@ void add_render(CLI::App& app) {
         std::optional<Progress> progress;  // started once the inputs are read (and fitted)
         auto start = [&] { return progress.emplace("render " + std::filesystem::path(*output).filename().string()).fn(); };
         const std::string source = !tori->empty() ? *tori : *input;
+        fit->check_fits_a_cloud(expr->empty() && io::extension(source) != ".npy" && !is_tori_file(source));
         if (!expr->empty()) {
             const ParsedField p = parse_field_expression(*expr, blend->device, *morphology);
             if (!box) box = default_bounds(p.box);
