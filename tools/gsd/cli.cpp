@@ -11,6 +11,7 @@
 #include <sys/stat.h>
 
 #include <gsd/io.hpp>
+#include <gsd/spatial.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -239,6 +240,12 @@ Box bounds_from(const std::vector<double>& v, const std::string& option) {
 }
 
 Box default_bounds(const Box& b) { return padded_cube(b); }
+
+void turn_back_normals(PointCloud& cloud, const std::string& prefix, const std::string& keep) {
+    if (const std::size_t turned = reorient_normals(cloud); turned > 0)
+        note(prefix + std::to_string(turned) + " of " + std::to_string(cloud.size()) +
+             " normals turned back, against their neighbours' (" + keep + ")");
+}
 
 void check_grid_memory(const GridSpec& g, double bytes_per_node) {
     const double bytes = bytes_per_node * double(g.node_count());

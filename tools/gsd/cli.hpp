@@ -74,6 +74,9 @@ constexpr double kSdfGridBytesPerNode = 80;
 
 /// The input's bounding cube, centered on its box, enlarged by 10%.
 Box default_bounds(const Box& b);
+/// gsd::reorient_normals on a cloud a command is about to use, and a note of how many it turned
+/// (`prefix` before it, e.g. the file; `keep`: how the user keeps them instead).
+void turn_back_normals(PointCloud& cloud, const std::string& prefix = {}, const std::string& keep = "--keep-normals keeps them");
 Box bounds_from(const std::vector<double>& v, const std::string& option);
 /// "--bounds x0 y0 z0 x1 y1 z1" for notes.
 std::string bounds_text(const Box& b);

@@ -16,7 +16,6 @@
 #include <gsd/field_algebra.hpp>
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
-#include <gsd/spatial.hpp>
 #include <gsd/sdf.hpp>
 
 #include <cctype>
@@ -91,9 +90,7 @@ Parsed load_leaf(const std::string& path, const LeafOptions& o) {
     }
     PointCloud cloud = io::read_point_cloud(path);
     // As `pat fit` does by default: a flipped normal's torus has the wrong sign.
-    if (const std::size_t turned = reorient_normals(cloud); turned > 0)
-        note(path + ": " + std::to_string(turned) + " of " + std::to_string(cloud.size()) +
-             " normals turned back, against their neighbours' (fit a .tori with `pat fit --keep-normals` to keep them)");
+    turn_back_normals(cloud, path + ": ", "fit a .tori with `pat fit --keep-normals` to keep them");
     Progress progress("fit " + std::filesystem::path(path).filename().string());
     FittedTori t = JetFitter().fit(cloud, progress.fn());
     progress.finish();

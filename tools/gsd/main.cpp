@@ -16,7 +16,6 @@
 #include <gsd/shapes.hpp>
 #include <gsd/shm.hpp>
 #include <gsd/sdf.hpp>
-#include <gsd/spatial.hpp>
 #include <gsd/sums.hpp>
 #include <gsd/viz.hpp>
 
@@ -74,12 +73,7 @@ struct FitArgs {
             throw CLI::ValidationError("--k", "TorusNet's k is fixed by its model");
     }
     FittedTori fit(PointCloud cloud, const std::string& path) const {
-        if (!keep_normals) {
-            validate(cloud, path);  // before the neighbours vote: a bad cloud is named here
-            if (const std::size_t turned = reorient_normals(cloud); turned > 0)
-                note(std::to_string(turned) + " of " + std::to_string(cloud.size()) +
-                     " normals turned back, against their neighbours' (--keep-normals keeps them)");
-        }
+        if (!keep_normals) turn_back_normals(cloud);
         Progress progress("fit " + std::filesystem::path(path).filename().string());
         const auto t0 = std::chrono::steady_clock::now();
         FittedTori t;

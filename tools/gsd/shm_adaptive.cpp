@@ -5,7 +5,6 @@
 #include <gsd/io.hpp>
 #include <gsd/pat.hpp>
 #include <gsd/shm.hpp>
-#include <gsd/spatial.hpp>
 
 namespace gsd::cli {
 
@@ -52,10 +51,7 @@ LoadedShmSource load_shm_source(const std::vector<std::string>& inputs, const st
                 note(std::to_string(dropped) + " of " + std::to_string(n) + " points left out as outliers (PAT's scores; --keep-outliers keeps them)");
         }
         // After the outliers: their random normals would vote.
-        if (reorient)
-            if (const std::size_t flipped = reorient_normals(cloud); flipped > 0)
-                note(std::to_string(flipped) + " of " + std::to_string(cloud.size()) +
-                     " normals turned back, against their neighbours' (--keep-normals keeps them)");
+        if (reorient) turn_back_normals(cloud);
         add(shm_source(cloud));
     }
     return out;
