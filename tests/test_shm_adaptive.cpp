@@ -121,8 +121,14 @@ TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's v
     const shm::NodeGraph g = shm::build_node_graph(tree, tree.depth());
     for (int a = 0; a < 3; ++a) {
         double v = 0;
-        for (std::size_t i = 0; i < g.size(); ++i) v += g.volume[i][std::size_t(a)];
-        CHECK(v == doctest::Approx(8.0).epsilon(1e-12));
+        for (std::size_t i = 0; i < g.size(); ++i) {  // V = weight·ℓ²
+            const std::int32_t j = g.next[i][std::size_t(a)];
+            if (j < 0) continue;
+            const double len = double(shm::unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - shm::unmorton3(g.keys[i])[std::size_t(a)]) *
+                               tree.lattice_step();
+            v += double(g.weight(i, a)) * len * len;
+        }
+        CHECK(v == doctest::Approx(8.0).epsilon(1e-6));
     }
     // Every segment joins two nodes along its axis, and hanging nodes exist (levels differ).
     std::map<std::uint32_t, int> lengths;
@@ -134,9 +140,13 @@ TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's v
             for (int b = 0; b < 3; ++b)
                 if (b != a) CHECK(p[std::size_t(b)] == q[std::size_t(b)]);
             CHECK(q[std::size_t(a)] > p[std::size_t(a)]);
+            CHECK(g.prev[std::size_t(j)][std::size_t(a)] == std::int32_t(i));
             ++lengths[q[std::size_t(a)] - p[std::size_t(a)]];
         }
     CHECK(lengths.size() >= 4);
+    // The weights' table: 0 first (no segment), then the few distinct ones (NodeGraph::weight_code).
+    CHECK(g.weights.front() == 0.0f);
+    CHECK(g.weights.size() <= std::size_t(7 * (tree.depth() + 6) + 1));
 }
 
 TEST_CASE("octree Poisson: a constant field gives the linear function on any octree; CG converges") {
@@ -260,7 +270,7 @@ TEST_CASE("octree multigrid transfers: prolongation reproduces trilinear fields,
         REQUIRE(P.fine_size() == fine.size());
         std::vector<double> c(coarse.size()), x(fine.size(), 0.0);
         for (std::size_t i = 0; i < coarse.size(); ++i) c[i] = f(tree.to_world(shm::unmorton3(coarse.keys[i])));
-        P.add_to(c, x);
+        P.add_to(fine, c, x);
         double worst = 0;
         for (std::size_t i = 0; i < fine.size(); ++i) worst = std::max(worst, std::abs(x[i] - f(tree.to_world(shm::unmorton3(fine.keys[i])))));
         CHECK(worst < 1e-12);
@@ -268,8 +278,8 @@ TEST_CASE("octree multigrid transfers: prolongation reproduces trilinear fields,
         std::vector<double> r(fine.size()), Ptr(coarse.size()), Pc(fine.size(), 0.0);
         for (double& v : r) v = u(rng);
         for (double& v : c) v = u(rng);
-        P.add_to(c, Pc);
-        P.restrict_to(r, Ptr);
+        P.add_to(fine, c, Pc);
+        P.restrict_to(fine, r, Ptr);
         double lhs = 0, rhs = 0;
         for (std::size_t i = 0; i < fine.size(); ++i) lhs += Pc[i] * r[i];
         for (std::size_t i = 0; i < coarse.size(); ++i) rhs += c[i] * Ptr[i];

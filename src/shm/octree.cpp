@@ -170,6 +170,49 @@ std::ptrdiff_t NodeGraph::find(std::uint64_t key) const {
     return it != keys.end() && *it == key ? it - keys.begin() : -1;
 }
 
+namespace {
+
+// The weights' distinct values (a few dozen: NodeGraph::weight_code) and each one's code.
+void code_weights(const std::vector<std::array<float, 3>>& weight, NodeGraph& g) {
+    std::vector<float> distinct{0.0f};
+#pragma omp parallel
+    {
+        std::vector<float> mine;
+        float last = 0;  // neighbours mostly share their weights: the last one is checked first
+#pragma omp for schedule(static) nowait
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(weight.size()); ++i)
+            for (const float w : weight[std::size_t(i)])
+                if (w != last && w != 0) {
+                    if (std::find(mine.begin(), mine.end(), w) == mine.end()) mine.push_back(w);
+                    last = w;
+                }
+#pragma omp critical
+        distinct.insert(distinct.end(), mine.begin(), mine.end());
+    }
+    std::sort(distinct.begin(), distinct.end());
+    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    if (distinct.size() > 256) throw Error("the adaptive grid's segments have more than 256 distinct weights (is the octree balanced?)");
+    g.weights = std::move(distinct);
+    g.weight_code.resize(weight.size());
+#pragma omp parallel
+    {
+        float last = 0;
+        std::uint8_t last_code = 0;
+#pragma omp for schedule(static)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(weight.size()); ++i)
+            for (int a = 0; a < 3; ++a) {
+                const float w = weight[std::size_t(i)][std::size_t(a)];
+                if (w != last) {
+                    last = w;
+                    last_code = std::uint8_t(std::lower_bound(g.weights.begin(), g.weights.end(), w) - g.weights.begin());
+                }
+                g.weight_code[std::size_t(i)][std::size_t(a)] = last_code;
+            }
+    }
+}
+
+}  // namespace
+
 NodeGraph build_node_graph(const Octree& tree, int level) {
     NodeGraph g;
     g.level = level;
@@ -208,7 +251,8 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
     sort_unique(g.keys);
     g.keys.shrink_to_fit();
     g.next.assign(g.keys.size(), {-1, -1, -1});
-    g.volume.assign(g.keys.size(), {0.0, 0.0, 0.0});
+    // The weights summed as floats first (12 bytes a node, while the graph is built), then coded.
+    std::vector<std::array<float, 3>> weight(g.keys.size(), {0.0f, 0.0f, 0.0f});
     const double h = tree.lattice_step();
     // Each leaf's twelve edges: a quarter of the leaf's volume to each edge of an axis (the four
     // together hold the volume once per axis), split evenly where a hanging node sits at the
@@ -218,7 +262,9 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
         const auto [l, code] = leaves[std::size_t(i)];
         const std::uint32_t s = std::uint32_t(1) << (D - l);
         const auto c = unmorton3(code);
-        const double share = std::pow(double(s) * h, 3) / 4;
+        // A quarter of the leaf's volume over the segment's length squared, s³h³/4 / (s·h)²,
+        // halved across a hanging node (ℓ halves too): a power of two times h.
+        const double share = double(s) * h / 4;
         std::int32_t at[8];
         for (int o = 0; o < 8; ++o) at[o] = std::int32_t(g.find(corner(std::size_t(i), o)));
         for (int a = 0; a < 3; ++a) {
@@ -239,17 +285,24 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
 #pragma omp atomic write
                         g.next[std::size_t(x)][std::size_t(a)] = y;
 #pragma omp atomic
-                        g.volume[std::size_t(x)][std::size_t(a)] += v;
+                        weight[std::size_t(x)][std::size_t(a)] += float(v);
                     };
-                    if (middle >= 0) {
-                        add(from, middle, share / 2);
-                        add(middle, to, share / 2);
+                    if (middle >= 0) {  // V/2 over (ℓ/2)²
+                        add(from, middle, 2 * share);
+                        add(middle, to, 2 * share);
                     } else {
                         add(from, to, share);
                     }
                 }
         }
     }
+    code_weights(weight, g);
+    // Each node is the next of at most one node per axis: the writes never collide.
+    g.prev.assign(g.keys.size(), {-1, -1, -1});
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(g.size()); ++i)
+        for (int a = 0; a < 3; ++a)
+            if (const std::int32_t j = g.next[std::size_t(i)][std::size_t(a)]; j >= 0) g.prev[std::size_t(j)][std::size_t(a)] = std::int32_t(i);
     return g;
 }
 

@@ -73,15 +73,25 @@ private:
 };
 
 /// The nodes of the octree cut at a level, and the least-squares gradient graph on them: each
-/// axis-parallel segment between adjacent nodes along a leaf's edge, with the volume it stands
+/// axis-parallel segment between adjacent nodes along a leaf's edge, with the volume V it stands
 /// for (a quarter of each leaf it borders per edge, halved where a hanging node splits the
-/// edge). Σ_segments V (Δφ/ℓ − Ȳ·e)² is then a quadrature of ∫|∇φ − Y|² over the box.
+/// edge). Σ_segments V (Δφ/ℓ − Ȳ·e)² is then a quadrature of ∫|∇φ − Y|² over the box. Kept
+/// per node: 8 + 12 + 12 + 3 bytes.
 struct NodeGraph {
     int level = 0;
     std::vector<std::uint64_t> keys;               ///< sorted Morton codes of lattice points
     std::vector<std::array<std::int32_t, 3>> next;  ///< the node along +axis (a segment), or -1
-    std::vector<std::array<double, 3>> volume;      ///< the segment's volume (world units)
+    std::vector<std::array<std::int32_t, 3>> prev;  ///< the node along −axis (whose next this is), or -1
+    /// The weights V/ℓ² of the segments, as codes into `weights`. A weight is ℓ·k/4, ℓ a power
+    /// of two times h and k ≤ 13 an integer: each of the segment's up to four leaves gives ℓ/4,
+    /// or ℓ where the segment is half a larger leaf's edge (at most three can be). So a level has
+    /// at most 7·(D + 6) distinct weights and a byte names each; in the table they are floats,
+    /// exact sums of powers of two times h in any order.
+    std::vector<std::array<std::uint8_t, 3>> weight_code;
+    std::vector<float> weights;  ///< the distinct weights; weights[0] = 0 (no segment)
 
+    /// V/ℓ² of the segment (i, next[i][a]) (world units), 0 where there is none.
+    float weight(std::size_t i, int a) const { return weights[weight_code[i][std::size_t(a)]]; }
     std::size_t size() const { return keys.size(); }
     /// Index of a node, or -1.
     std::ptrdiff_t find(std::uint64_t key) const;

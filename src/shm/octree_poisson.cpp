@@ -5,6 +5,7 @@
 #include <Eigen/Sparse>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 
@@ -130,80 +131,121 @@ std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<Zero
     return out;
 }
 
-Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse) {
+namespace {
+/// Fine nodes per block of the prolongation's shared-node count.
+constexpr std::size_t kBlock = 4096;
+}  // namespace
+
+unsigned Prolongation::off_axes(const NodeGraph& fine, std::size_t i) const {
+    const auto p = unmorton3(fine.keys[i]);
+    const std::uint32_t mask = 2 * half_ - 1;  // the coarse lattice's step is 2·half_, a power of two
+    return unsigned((p[0] & mask) != 0) | unsigned((p[1] & mask) != 0) << 1 | unsigned((p[2] & mask) != 0) << 2;
+}
+
+Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse)
+    : half_(std::uint32_t(1) << (tree.depth() - fine.level)), fine_size_(fine.size()) {
     if (coarse.level + 1 != fine.level) throw Error("Prolongation: the levels must be consecutive");
-    const std::uint32_t S = std::uint32_t(1) << (tree.depth() - coarse.level);  // a coarse finest cell, in lattice steps
-    const std::size_t n = fine.size();
-    // Each axis of a new node is on the coarse lattice or halfway between two of its planes: its
-    // sources are the corners of the coarse edge, face or cell it is the middle of.
-    auto sources = [&](std::size_t i, std::int32_t* out) {
-        const std::ptrdiff_t same = coarse.find(fine.keys[i]);
-        if (same >= 0) {
-            out[0] = std::int32_t(same);
-            return 1;
-        }
-        const auto p = unmorton3(fine.keys[i]);
-        std::uint32_t lo[3], hi[3];
-        for (int a = 0; a < 3; ++a) {
-            lo[a] = p[std::size_t(a)] / S * S;
-            hi[a] = p[std::size_t(a)] % S ? lo[a] + S : lo[a];
-        }
-        int count = 0;
-        for (int k = 0; k < 8; ++k) {
-            const int o[3] = {k & 1, k >> 1 & 1, k >> 2 & 1};
-            if ((o[0] && hi[0] == lo[0]) || (o[1] && hi[1] == lo[1]) || (o[2] && hi[2] == lo[2])) continue;
-            const std::ptrdiff_t c = coarse.find(morton3(o[0] ? hi[0] : lo[0], o[1] ? hi[1] : lo[1], o[2] ? hi[2] : lo[2]));
-            if (c < 0) throw Error("Prolongation: a coarse corner is missing (the levels are not nested)");
-            out[count++] = std::int32_t(c);
-        }
-        return count;
-    };
-    // Two passes (count, then fill) look the sources up twice rather than hold 8 per node.
-    offsets_.assign(n + 1, 0);
+    if (fine.next.size() != fine.size() || fine.prev.size() != fine.size()) throw Error("Prolongation: the fine graph has no segments");
+    const std::size_t n = fine.size(), blocks = (n + kBlock - 1) / kBlock;
+    // Shared nodes per block, then their running count; every new node's neighbours along its
+    // off axes must be nodes half a coarse cell away (the levels nest).
+    off_.resize(n);
 #pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
-        std::int32_t scratch[8];
-        offsets_[std::size_t(i) + 1] = std::uint32_t(sources(std::size_t(i), scratch));
-    }
+    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) off_[std::size_t(i)] = std::uint8_t(off_axes(fine, std::size_t(i)));
+    std::vector<std::uint32_t> shared(blocks, 0);
+    bool nested = true;
+#pragma omp parallel for schedule(static) reduction(&& : nested)
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b)
+        for (std::size_t i = std::size_t(b) * kBlock; i < std::min(n, std::size_t(b + 1) * kBlock); ++i) {
+            const unsigned off = off_[i];
+            shared[std::size_t(b)] += off == 0;
+            const auto p = unmorton3(fine.keys[i]);
+            for (int a = 0; a < 3; ++a) {
+                if (!(off >> a & 1)) continue;
+                const std::int32_t up = fine.next[i][std::size_t(a)], down = fine.prev[i][std::size_t(a)];
+                nested = nested && up >= 0 && down >= 0 && unmorton3(fine.keys[std::size_t(up)])[std::size_t(a)] == p[std::size_t(a)] + half_ &&
+                         unmorton3(fine.keys[std::size_t(down)])[std::size_t(a)] + half_ == p[std::size_t(a)];
+            }
+        }
+    block_first_.resize(blocks);
     std::size_t total = 0;
-    for (std::size_t i = 1; i <= n; ++i) {
-        total += offsets_[i];
-        if (total > 0xffffffffu) throw Error("Prolongation: more than 2^32 sources (too many nodes)");
-        offsets_[i] = std::uint32_t(total);
+    for (std::size_t b = 0; b < blocks; ++b) {
+        block_first_[b] = std::uint32_t(total);
+        total += shared[b];
     }
-    sources_.resize(total);
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) sources(std::size_t(i), sources_.data() + offsets_[std::size_t(i)]);
-}
-
-void Prolongation::add_to(std::span<const double> coarse, std::span<double> fine) const {
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(fine_size()); ++i) {
-        const std::uint32_t b = offsets_[std::size_t(i)], e = offsets_[std::size_t(i) + 1];
-        double sum = 0;
-        for (std::uint32_t k = b; k < e; ++k) sum += coarse[std::size_t(sources_[k])];
-        fine[std::size_t(i)] += sum / double(e - b);
+    if (!nested || total != coarse.size()) throw Error("Prolongation: a coarse corner is missing (the levels are not nested)");
+    // The shared nodes are the coarse ones, in the same order.
+#pragma omp parallel for schedule(static) reduction(&& : nested)
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
+        std::size_t k = block_first_[std::size_t(b)];
+        for (std::size_t i = std::size_t(b) * kBlock; i < std::min(n, std::size_t(b + 1) * kBlock); ++i)
+            if (off_[i] == 0) nested = nested && fine.keys[i] == coarse.keys[k++];
     }
+    if (!nested) throw Error("Prolongation: a coarse corner is missing (the levels are not nested)");
 }
 
-void Prolongation::restrict_to(std::span<const double> fine, std::span<double> coarse) const {
-    restrict_from([&](std::size_t i) { return fine[i]; }, coarse);
-}
-
-void Prolongation::restrict_from(const std::function<double(std::size_t)>& fine_value, std::span<double> coarse) const {
-    std::fill(coarse.begin(), coarse.end(), 0.0);
-    constexpr std::size_t kBlock = std::size_t(1) << 16;
-    std::vector<double> f(std::min(kBlock, fine_size()));
-    for (std::size_t first = 0; first < fine_size(); first += kBlock) {
-        const std::size_t m = std::min(kBlock, fine_size() - first);
+void Prolongation::prolong(const NodeGraph& fine, std::span<const double> coarse, std::span<double> out) const {
+    const std::size_t n = fine_size_, blocks = block_first_.size();
 #pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(m); ++i) f[std::size_t(i)] = fine_value(first + std::size_t(i));
-        for (std::size_t i = 0; i < m; ++i) {
-            const std::uint32_t b = offsets_[first + i], e = offsets_[first + i + 1];
-            const double v = f[i] / double(e - b);
-            for (std::uint32_t k = b; k < e; ++k) coarse[std::size_t(sources_[k])] += v;
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
+        std::size_t k = block_first_[std::size_t(b)];
+        for (std::size_t i = std::size_t(b) * kBlock; i < std::min(n, std::size_t(b + 1) * kBlock); ++i)
+            if (off_[i] == 0) out[i] = coarse[k++];
+    }
+    // Edge midpoints from the shared nodes, face centers from edge midpoints, cell centers from
+    // face centers: each pass reads only what the one before wrote.
+    for (int count = 1; count <= 3; ++count) {
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
+            const unsigned off = off_[std::size_t(i)];
+            if (std::popcount(off) != count) continue;
+            double sum = 0;
+            for (int a = 0; a < 3; ++a)
+                if (off >> a & 1) sum += out[std::size_t(fine.next[std::size_t(i)][std::size_t(a)])] + out[std::size_t(fine.prev[std::size_t(i)][std::size_t(a)])];
+            out[std::size_t(i)] = sum / double(2 * count);
         }
     }
+}
+
+void Prolongation::restrict_in_place(const NodeGraph& fine, std::span<double> f, std::span<double> coarse) const {
+    const std::size_t n = fine_size_, blocks = block_first_.size();
+    // The passes of prolong transposed, last first: a node off the lattice along `count` axes
+    // gathers 1/(2(count + 1)) of each neighbour half a coarse cell away along its other axes
+    // (those neighbours are off along one axis more, and it was one of their sources).
+    for (int count = 2; count >= 0; --count) {
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
+            const unsigned off = off_[std::size_t(i)];
+            if (std::popcount(off) != count) continue;
+            double sum = 0;
+            for (int a = 0; a < 3; ++a) {
+                if (off >> a & 1) continue;
+                // A neighbour off the lattice along a is the one half a coarse cell away (segments
+                // are powers of two at least that long).
+                const std::int32_t up = fine.next[std::size_t(i)][std::size_t(a)], down = fine.prev[std::size_t(i)][std::size_t(a)];
+                if (up >= 0 && off_[std::size_t(up)] >> a & 1) sum += f[std::size_t(up)];
+                if (down >= 0 && off_[std::size_t(down)] >> a & 1) sum += f[std::size_t(down)];
+            }
+            f[std::size_t(i)] += sum / double(2 * (count + 1));
+        }
+    }
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
+        std::size_t k = block_first_[std::size_t(b)];
+        for (std::size_t i = std::size_t(b) * kBlock; i < std::min(n, std::size_t(b + 1) * kBlock); ++i)
+            if (off_[i] == 0) coarse[k++] = f[i];
+    }
+}
+
+void Prolongation::add_to(const NodeGraph& fine_graph, std::span<const double> coarse, std::span<double> fine) const {
+    std::vector<double> p(fine_size_);
+    prolong(fine_graph, coarse, p);
+    for (std::size_t i = 0; i < fine_size_; ++i) fine[i] += p[i];
+}
+
+void Prolongation::restrict_to(const NodeGraph& fine_graph, std::span<const double> fine, std::span<double> coarse) const {
+    std::vector<double> f(fine.begin(), fine.end());
+    restrict_in_place(fine_graph, f, coarse);
 }
 
 struct OctreePoisson::Impl {
@@ -213,14 +255,10 @@ struct OctreePoisson::Impl {
     // coarser level fits its own samples, the finest level's merged per cell of its level: as
     // many as the surface has cells there, not the finest level's count on every level.
     struct Level {
-        NodeGraph graph;  // keys and next (the volumes are folded into `weight`)
-        std::vector<std::array<std::int32_t, 3>> prev;  // the node whose next this one is, per axis
-        std::vector<std::array<float, 3>> weight;       // V/ℓ² of the segment (i, next[i][a]) (float: it
-                                                        // defines the operator, rounded or not)
-        SpMat S, St;                                    // samples × nodes and its transpose
-        Vec area;                                       // A_j per sample (μ: Impl::mu)
-        std::vector<float> inverse_diagonal;            // the smoother's
-        Prolongation P;  // from the next (coarser) level; empty on the coarsest
+        NodeGraph graph;  // keys, segments and their weights V/ℓ²
+        SpMat S, St;      // samples × nodes and its transpose
+        Vec area;         // A_j per sample (μ: Impl::mu)
+        Prolongation P;                          // from the next (coarser) level; empty on the coarsest
         std::vector<std::uint32_t> merged_from;  // the finer level's samples: their merged one here
     };
     const Octree& tree;
@@ -228,39 +266,14 @@ struct OctreePoisson::Impl {
     std::vector<Level> levels;
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> coarsest;
 
-    Level make_level(int level, const std::vector<ZeroSample>& samples) const {
+    Level make_level(NodeGraph graph, const std::vector<ZeroSample>& samples) const {
         Level lv;
-        lv.graph = build_node_graph(tree, level);
-        const NodeGraph& g = lv.graph;
-        const std::size_t n = g.size();
-        const double h = tree.lattice_step();
-        lv.prev.assign(n, {-1, -1, -1});
-        lv.weight.assign(n, {0.0f, 0.0f, 0.0f});
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
-            const auto p = unmorton3(g.keys[std::size_t(i)]);
-            for (int a = 0; a < 3; ++a) {
-                const std::int32_t j = g.next[std::size_t(i)][std::size_t(a)];
-                if (j < 0) continue;
-                lv.prev[std::size_t(j)][std::size_t(a)] = std::int32_t(i);
-                const double len = double(unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - p[std::size_t(a)]) * h;
-                lv.weight[std::size_t(i)][std::size_t(a)] = float(g.volume[std::size_t(i)][std::size_t(a)] / (len * len));
-            }
-        }
-        std::vector<std::array<double, 3>>().swap(lv.graph.volume);
-        lv.S = sample_matrix(tree, g, samples);
+        lv.graph = std::move(graph);
+        lv.S = sample_matrix(tree, lv.graph, samples);
         lv.St = lv.S.transpose();
         lv.area.resize(Eigen::Index(samples.size()));
         for (std::size_t j = 0; j < samples.size(); ++j) lv.area[Eigen::Index(j)] = samples[j].area;
-        lv.inverse_diagonal.resize(n);
-        set_inverse_diagonal(lv);
         return lv;
-    }
-
-    void set_inverse_diagonal(Level& lv) const {
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(lv.graph.size()); ++i)
-            lv.inverse_diagonal[std::size_t(i)] = float(1 / diagonal(lv, std::size_t(i)));
     }
 
     // `refactor`: the same pattern as before (a new μ), only the numbers change.
@@ -276,8 +289,8 @@ struct OctreePoisson::Impl {
     double diagonal(const Level& lv, std::size_t i) const {
         double d = 0;
         for (int a = 0; a < 3; ++a) {
-            d += lv.weight[i][std::size_t(a)];
-            if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) d += lv.weight[std::size_t(j)][std::size_t(a)];
+            d += lv.graph.weight(i, a);
+            if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) d += lv.graph.weight(std::size_t(j), a);
         }
         if (mu == 0) return d * (1 + kPin);
         for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) d += mu * lv.area[s.col()] * s.value() * s.value();
@@ -290,8 +303,8 @@ struct OctreePoisson::Impl {
         const std::size_t n = lv.graph.size();
         return Eigen::SparseMatrix<double>(rows_to_matrix(n, n, [&](std::size_t i, Entries& e) {
             for (int a = 0; a < 3; ++a) {
-                if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.weight[i][std::size_t(a)]);
-                if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.weight[std::size_t(j)][std::size_t(a)]);
+                if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.graph.weight(i, a));
+                if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.graph.weight(std::size_t(j), a));
             }
             for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); mu > 0 && s; ++s) {
                 const double f = mu * lv.area[s.col()] * s.value();
@@ -308,12 +321,12 @@ struct OctreePoisson::Impl {
         double v = 0, d = 0;
         for (int a = 0; a < 3; ++a) {
             if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) {
-                v += lv.weight[i][std::size_t(a)] * (xi - x[j]);
-                d += lv.weight[i][std::size_t(a)];
+                v += lv.graph.weight(i, a) * (xi - x[j]);
+                d += lv.graph.weight(i, a);
             }
-            if (const std::int32_t j = lv.prev[i][std::size_t(a)]; j >= 0) {
-                v += lv.weight[std::size_t(j)][std::size_t(a)] * (xi - x[j]);
-                d += lv.weight[std::size_t(j)][std::size_t(a)];
+            if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) {
+                v += lv.graph.weight(std::size_t(j), a) * (xi - x[j]);
+                d += lv.graph.weight(std::size_t(j), a);
             }
         }
         if (mu == 0) return v + kPin * d * xi;
@@ -339,16 +352,30 @@ struct OctreePoisson::Impl {
         for (std::ptrdiff_t s = 0; s < n; ++s) {
             const std::ptrdiff_t i = forward ? s : n - 1 - s;
             const double xi = x[i];
-            double sum = b[i];
+            // The diagonal is made on the way (the weights are read anyway), not stored.
+            double sum = b[i], d = 0;
             for (int a = 0; a < 3; ++a) {
-                if (const std::int32_t j = lv.graph.next[std::size_t(i)][std::size_t(a)]; j >= 0)
-                    sum += lv.weight[std::size_t(i)][std::size_t(a)] * x[j];
-                if (const std::int32_t j = lv.prev[std::size_t(i)][std::size_t(a)]; j >= 0)
-                    sum += lv.weight[std::size_t(j)][std::size_t(a)] * x[j];
+                if (const std::int32_t j = lv.graph.next[std::size_t(i)][std::size_t(a)]; j >= 0) {
+                    const double w = lv.graph.weight(std::size_t(i), a);
+                    sum += w * x[j];
+                    d += w;
+                }
+                if (const std::int32_t j = lv.graph.prev[std::size_t(i)][std::size_t(a)]; j >= 0) {
+                    const double w = lv.graph.weight(std::size_t(j), a);
+                    sum += w * x[j];
+                    d += w;
+                }
             }
-            if (mu > 0)
-                for (SpMat::InnerIterator k(lv.St, i); k; ++k) sum -= mu * lv.area[k.col()] * k.value() * (t[k.col()] - k.value() * xi);
-            const double updated = sum * double(lv.inverse_diagonal[std::size_t(i)]);
+            if (mu > 0) {
+                for (SpMat::InnerIterator k(lv.St, i); k; ++k) {
+                    const double f = mu * lv.area[k.col()] * k.value();
+                    sum -= f * (t[k.col()] - k.value() * xi);
+                    d += f * k.value();
+                }
+            } else {
+                d *= 1 + kPin;
+            }
+            const double updated = sum / d;
             const double delta = updated - xi;
             x[i] = updated;
             if (mu > 0)
@@ -397,30 +424,38 @@ struct OctreePoisson::Impl {
         x.setZero(b.size());
         Vec t = mu > 0 ? Vec(Vec::Zero(lv.S.rows())) : Vec();  // S x (no use without a penalty)
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, true);
-        // The coarse residual Pᵀ(b − A x), each fine residual made where it is restricted.
-        Vec rc(levels[k + 1].graph.size());
+        // The coarse residual Pᵀ(b − A x); the fine residual's vector then holds P e.
+        Vec fine(b.size()), rc(levels[k + 1].graph.size());
         const Vec at = penalty_values(lv, t);
-        lv.P.restrict_from([&](std::size_t i) { return b[Eigen::Index(i)] - row(lv, x, at, i); }, {rc.data(), std::size_t(rc.size())});
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t i = 0; i < b.size(); ++i) fine[i] = b[i] - row(lv, x, at, std::size_t(i));
+        lv.P.restrict_in_place(lv.graph, {fine.data(), std::size_t(fine.size())}, {rc.data(), std::size_t(rc.size())});
         Vec ec;
         vcycle(k + 1, rc, ec);
-        lv.P.add_to({ec.data(), std::size_t(ec.size())}, {x.data(), std::size_t(x.size())});
+        lv.P.prolong(lv.graph, {ec.data(), std::size_t(ec.size())}, {fine.data(), std::size_t(fine.size())});
+        x += fine;
         if (mu > 0) t = lv.S * x;
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, false);
     }
 };
 
 OctreePoisson::OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples, double penalty)
+    : OctreePoisson(tree, build_node_graph(tree, tree.depth()), std::move(samples), penalty) {}
+
+OctreePoisson::OctreePoisson(const Octree& tree, NodeGraph finest, std::vector<ZeroSample> samples, double penalty)
     : impl_(new Impl{tree, penalty, {}, {}}) {
     Impl& m = *impl_;
     if (samples.empty()) throw Error("the source lies outside the adaptive grid's bounds");
     if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
+    if (finest.level != tree.depth() || finest.prev.size() != finest.size() || finest.weight_code.size() != finest.size())
+        throw Error("OctreePoisson: the finest graph must be build_node_graph(tree, tree.depth())");
     // Reserved: a Level's copy constructor is what growth would use (Eigen's sparse matrices
     // have no noexcept move), copying the finest level's arrays.
     m.levels.reserve(std::size_t(tree.depth()) + 1);
     for (int level = tree.depth();; --level) {
         std::vector<std::uint32_t> merged_from;
         if (level < tree.depth()) samples = merge_by_cell(tree, samples, level, &merged_from);
-        Impl::Level lv = m.make_level(level, samples);
+        Impl::Level lv = m.make_level(level == tree.depth() ? std::move(finest) : build_node_graph(tree, level), samples);
         lv.merged_from = std::move(merged_from);
         if (!m.levels.empty()) m.levels.back().P = Prolongation(tree, m.levels.back().graph, lv.graph);
         const bool last = lv.graph.size() <= kDirectNodes || level == 0;
@@ -435,7 +470,6 @@ void OctreePoisson::set_penalty(double penalty) {
     if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
     const bool same_pattern = (m.mu > 0) == (penalty > 0);  // the samples' products in it or not
     m.mu = penalty;
-    for (Impl::Level& lv : m.levels) m.set_inverse_diagonal(lv);
     m.factor_coarsest(same_pattern);
 }
 
@@ -469,8 +503,8 @@ int OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tole
     m.conjugate_gradients(k, r, psi, tolerance, max_iterations, history, progress);
     // ψ prolonged level by level to the finest and added.
     for (std::size_t l = k; l-- > 0;) {
-        Vec fine = Vec::Zero(Eigen::Index(m.levels[l].graph.size()));
-        m.levels[l].P.add_to({psi.data(), std::size_t(psi.size())}, {fine.data(), std::size_t(fine.size())});
+        Vec fine(Eigen::Index(m.levels[l].graph.size()));
+        m.levels[l].P.prolong(m.levels[l].graph, {psi.data(), std::size_t(psi.size())}, {fine.data(), std::size_t(fine.size())});
         psi = std::move(fine);
     }
     for (std::size_t i = 0; i < phi.size(); ++i) phi[i] += psi[Eigen::Index(i)];
@@ -494,13 +528,13 @@ std::vector<double> OctreePoisson::divergence(const std::vector<float>& Y) const
         const std::size_t j = std::size_t(g.next[i][std::size_t(a)]);
         const double len = double(unmorton3(g.keys[j])[std::size_t(a)] - unmorton3(g.keys[i])[std::size_t(a)]) * h;
         const double ybar = 0.5 * (double(Y[3 * i + std::size_t(a)]) + double(Y[3 * j + std::size_t(a)]));
-        return lv.weight[i][std::size_t(a)] * len * ybar;
+        return lv.graph.weight(i, a) * len * ybar;
     };
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(g.size()); ++i) {
         double v = 0;
         for (int a = 0; a < 3; ++a) {
-            if (const std::int32_t j = lv.prev[std::size_t(i)][std::size_t(a)]; j >= 0) v += flux(std::size_t(j), a);
+            if (const std::int32_t j = lv.graph.prev[std::size_t(i)][std::size_t(a)]; j >= 0) v += flux(std::size_t(j), a);
             if (g.next[std::size_t(i)][std::size_t(a)] >= 0) v -= flux(std::size_t(i), a);
         }
         b[std::size_t(i)] = v;

@@ -32,24 +32,34 @@ std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<Zero
 /// both share keeps its value; a new one is a corner of a cell of level l, so it lies at an edge
 /// midpoint, face center or center of that cell's parent, a leaf of the coarse cut, and takes
 /// the mean of that edge's, face's or cell's 2, 4 or 8 corners (the coarse field's trilinear
-/// value there). Kept as each fine node's sources (4 bytes each, the weight is 1/count), not as
-/// a matrix.
+/// value there). Applied through the fine graph, no sources stored per node: a new node is off the
+/// coarse lattice along 1, 2 or 3 axes, and its neighbours along those axes, half a coarse cell
+/// away, are nodes off it along one axis fewer; the mean of those 2, 4 or 6 neighbours (each
+/// the mean of its own) is the mean of the corners. The shared nodes come in the same order on
+/// both levels (sorted keys), so a block's first shared node's coarse index is all it keeps
+/// besides a byte a node (the axes it is off the coarse lattice along).
 class Prolongation {
 public:
     Prolongation() = default;
+    /// Checks that the levels nest (throws if not).
     Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse);
-    /// fine += P coarse.
-    void add_to(std::span<const double> coarse, std::span<double> fine) const;
-    /// coarse = Pᵀ fine.
-    void restrict_to(std::span<const double> fine, std::span<double> coarse) const;
-    /// coarse = Pᵀ f with f_i = fine_value(i), made as it is needed: in parallel blocks, then
-    /// gathered (no vector of the fine level's size).
-    void restrict_from(const std::function<double(std::size_t)>& fine_value, std::span<double> coarse) const;
-    std::size_t fine_size() const { return offsets_.empty() ? 0 : offsets_.size() - 1; }
+    /// out = P coarse (`fine`: the graph it was made with).
+    void prolong(const NodeGraph& fine, std::span<const double> coarse, std::span<double> out) const;
+    /// coarse = Pᵀ f; f (fine-sized) is overwritten.
+    void restrict_in_place(const NodeGraph& fine, std::span<double> f, std::span<double> coarse) const;
+    /// fine += P coarse; coarse = Pᵀ fine (each with a fine-sized copy: tests).
+    void add_to(const NodeGraph& fine_graph, std::span<const double> coarse, std::span<double> fine) const;
+    void restrict_to(const NodeGraph& fine_graph, std::span<const double> fine, std::span<double> coarse) const;
+    std::size_t fine_size() const { return fine_size_; }
 
 private:
-    std::vector<std::uint32_t> offsets_;  // fine node i's sources: sources_[offsets_[i] .. offsets_[i + 1])
-    std::vector<std::int32_t> sources_;
+    /// The axes along which node i is off the coarse lattice (bit a for axis a).
+    unsigned off_axes(const NodeGraph& fine, std::size_t i) const;
+
+    std::uint32_t half_ = 0;  // a fine cell's side where new nodes are: half a coarse one, in lattice steps
+    std::size_t fine_size_ = 0;
+    std::vector<std::uint32_t> block_first_;  // per block of kBlock fine nodes: its first shared node's coarse index
+    std::vector<std::uint8_t> off_;           // off_axes of each fine node (1 byte a node, read in every pass)
 };
 
 struct OctreePoissonStats {
@@ -65,6 +75,9 @@ public:
     /// constant pinned by raising the diagonal by 1e-9 of itself, the operator as sparse as the
     /// Laplacian: the solve of φ₀ before fit_on_level).
     OctreePoisson(const Octree& tree, std::vector<ZeroSample> samples, double penalty);
+    /// The same with the finest level's graph (build_node_graph(tree, tree.depth())) made by
+    /// the caller, who needed its nodes first (step 1 runs at them before the operators exist).
+    OctreePoisson(const Octree& tree, NodeGraph finest, std::vector<ZeroSample> samples, double penalty);
     ~OctreePoisson();
 
     const NodeGraph& nodes() const;

@@ -15,6 +15,9 @@
 
 #include <algorithm>
 #include <chrono>
+#if defined(__GLIBC__)
+#include <malloc.h>
+#endif
 #include <cmath>
 #include <numeric>
 
@@ -31,16 +34,26 @@ int fit_level(const shm::Octree& tree, double spacing, double scale) {
     return levels >= tree.depth() ? tree.depth() : int(std::floor(levels));
 }
 
+// Hands the heap's freed pages back to the kernel between the stages (glibc: the CLI keeps up
+// to 256 MB freed at each arena's top for reuse, and blocks below 64 MB come from the heap; the
+// evaluator's tree and step 1's field, freed before the solve, would otherwise stay resident
+// through it: 0.5–0.9 GB on a 2·10⁶-point scan).
+void release_freed_memory() {
+#if defined(__GLIBC__)
+    malloc_trim(0);
+#endif
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 /// Bytes a node costs at the peak (step 3's solve), with its share of the coarser levels and
-/// of the octree: on the finest level its key, segments and their float weights, the smoother's
-/// diagonal, the prolongation's sources; the CG's four vectors (the zero-set fit on the finest
-/// level, `fit_scale` 0, holds φ besides them: 8 B more). Measured (peak resident memory
-/// less what the source held before, over nodes): 128–140 B on torus clouds of 1.1·10⁵ points
-/// at depths 9–10 (docs/shm-adaptive.md), rounded up.
+/// of the octree: on every level its key, segments (next and prev) and their float weights, and
+/// a byte for the prolongation; the CG's four vectors and the V-cycle's fifth. Measured (peak
+/// resident memory over nodes, what the source holds included): 151 B on a 1.1·10⁵-point torus
+/// cloud at depth 9 and 150 B on a 2·10⁶-point bunny scan at depth 10 (docs/shm-adaptive.md;
+/// 158 and 178 B before the step-1 field and the prolongation's sources left the peak).
 constexpr double kBytesPerNode = 150;
 
 // φ on a leaf's lattice of halves, in GridSpec order: 3 points an axis (corners, midpoints,
@@ -429,7 +442,50 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
                  "an adaptive grid of " + std::to_string(out.leaves) + " leaves");
     out.seconds_octree = seconds_since(t0);
 
-    // Step 3's operators first: they fix the nodes step 1 is evaluated at.
+    // The finest level's nodes first: step 1 runs at them, and its field (12 bytes a node) is
+    // folded into the divergence (8) before the other levels and the operators exist, so the
+    // two never hold memory together.
+    t0 = std::chrono::steady_clock::now();
+    if (progress) progress("nodes", 0.0);
+    shm::NodeGraph finest = shm::build_node_graph(tree, tree.depth());
+    out.nodes = finest.size();
+    out.seconds_setup = seconds_since(t0);
+
+    // Step 1–2 at every node, in chunks: a node's position is its key's, made when needed.
+    t0 = std::chrono::steady_clock::now();
+    const auto key_position = [&](const std::vector<std::uint64_t>& keys, std::size_t i) { return tree.to_world(shm::unmorton3(keys[i])); };
+    std::unique_ptr<shm::DirectionEvaluator> eval;
+    gpu::on_device(m.opt.device, [&](const auto& ctx, std::string& why_not) {
+        eval = shm::make_gpu_evaluator(ctx, m.source, m.kernel(), m.opt.chunk_size, why_not);
+        return eval != nullptr;
+    });
+    if (!eval) eval = shm::make_cpu_evaluator(m.source, m.kernel());
+    out.device = eval->device();
+    std::vector<float> Y(3 * finest.size());
+    {
+        constexpr std::size_t kChunk = std::size_t(1) << 20;
+        const std::size_t n = finest.size();
+        Points x;
+        std::vector<float> y;
+        std::vector<double> r_min;
+        for (std::size_t first = 0; first < n; first += kChunk) {
+            const std::size_t count = std::min(kChunk, n - first);
+            x.resize(Eigen::Index(count), 3);
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(count); ++i) x.row(i) = key_position(finest.keys, first + std::size_t(i)).transpose();
+            const ProgressFn part = progress ? ProgressFn([&](std::string_view stage, double f) {
+                progress(stage, (double(first) + f * double(count)) / double(n));
+            })
+                                             : ProgressFn();
+            out.kernel_terms += eval->evaluate(x, y, r_min, part);
+            std::copy(y.begin(), y.end(), Y.begin() + std::ptrdiff_t(3 * first));
+        }
+    }
+    eval.reset();
+    release_freed_memory();
+    out.seconds_diffuse = seconds_since(t0);
+
+    // Step 3's operators on every level.
     t0 = std::chrono::steady_clock::now();
     const double h = tree.lattice_step();
     // The zero-set fit's samples, one per finest cell: the source's pieces inside a cell merged
@@ -444,48 +500,16 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     // fit's correction (fit_on_level).
     const double penalty = 0;
     if (progress) progress("operators", 0.0);
-    shm::OctreePoisson poisson(tree, std::move(samples), penalty);
+    shm::OctreePoisson poisson(tree, std::move(finest), std::move(samples), penalty);
     const shm::NodeGraph& nodes = poisson.nodes();
-    out.nodes = nodes.size();
-    out.seconds_setup = seconds_since(t0);
-
-    // Step 1–2 at every node, in chunks: a node's position is its key's, made when needed.
-    t0 = std::chrono::steady_clock::now();
-    const auto position = [&](std::size_t i) { return tree.to_world(shm::unmorton3(nodes.keys[i])); };
-    std::unique_ptr<shm::DirectionEvaluator> eval;
-    gpu::on_device(m.opt.device, [&](const auto& ctx, std::string& why_not) {
-        eval = shm::make_gpu_evaluator(ctx, m.source, m.kernel(), m.opt.chunk_size, why_not);
-        return eval != nullptr;
-    });
-    if (!eval) eval = shm::make_cpu_evaluator(m.source, m.kernel());
-    out.device = eval->device();
-    std::vector<float> Y(3 * nodes.size());
-    {
-        constexpr std::size_t kChunk = std::size_t(1) << 20;
-        const std::size_t n = nodes.size();
-        Points x;
-        std::vector<float> y;
-        std::vector<double> r_min;
-        for (std::size_t first = 0; first < n; first += kChunk) {
-            const std::size_t count = std::min(kChunk, n - first);
-            x.resize(Eigen::Index(count), 3);
-#pragma omp parallel for schedule(static)
-            for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(count); ++i) x.row(i) = position(first + std::size_t(i)).transpose();
-            const ProgressFn part = progress ? ProgressFn([&](std::string_view stage, double f) {
-                progress(stage, (double(first) + f * double(count)) / double(n));
-            })
-                                             : ProgressFn();
-            out.kernel_terms += eval->evaluate(x, y, r_min, part);
-            std::copy(y.begin(), y.end(), Y.begin() + std::ptrdiff_t(3 * first));
-        }
-    }
-    eval.reset();
-    out.seconds_diffuse = seconds_since(t0);
+    const auto position = [&](std::size_t i) { return key_position(nodes.keys, i); };
+    std::vector<double> b = poisson.divergence(Y);
+    std::vector<float>().swap(Y);
+    release_freed_memory();
+    out.seconds_setup += seconds_since(t0);
 
     // Step 3.
     t0 = std::chrono::steady_clock::now();
-    std::vector<double> b = poisson.divergence(Y);
-    std::vector<float>().swap(Y);
     shm::OctreePoissonStats stats;
     std::vector<double> phi = poisson.solve(std::move(b), m.opt.tolerance, m.opt.max_iterations, stats, progress);
     out.multigrid_nodes = stats.level_nodes;

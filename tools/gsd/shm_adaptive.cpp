@@ -130,8 +130,8 @@ void add_shm_adaptive(CLI::App& shm) {
                  fmt("%.2f s", r.seconds_octree));
             std::string mg;
             for (std::size_t n : r.multigrid_nodes) mg += (mg.empty() ? "" : ", ") + std::to_string(n);
-            note("step 3's operators: " + fmt("%.2f s", r.seconds_setup) + ", multigrid levels of " + mg + " nodes");
             note("step 1 (diffuse): " + fmt("%.2f s", r.seconds_diffuse) + ", " + std::to_string(r.kernel_terms) + " kernel terms");
+            note("nodes and step 3's operators: " + fmt("%.2f s", r.seconds_setup) + ", multigrid levels of " + mg + " nodes");
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
                  " CG iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()));
             if (r.fit_level >= 0) {
