@@ -21,6 +21,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <set>
 #include <random>
 
 using namespace gsd;
@@ -147,6 +148,39 @@ TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's v
     // The weights' table: 0 first (no segment), then the few distinct ones (NodeGraph::weight_code).
     CHECK(g.weights.front() == 0.0f);
     CHECK(g.weights.size() <= std::size_t(7 * (tree.depth() + 6) + 1));
+}
+
+TEST_CASE("octree node graph: weights are ℓ·k/4 for whole k ≤ 13, the same on every build, on a box whose cells are not powers of two") {
+    // h = 2.2/2^6 needs every bit of a float: summed as floats in the order the threads visit
+    // the leaves, the weights would vary from build to build.
+    const Box box{{-1.1, -1.1, -1.1}, {1.1, 1.1, 1.1}};
+    const shm::Octree tree(box, 6, [&](int level, std::span<const std::uint64_t> codes, std::vector<char>& split) {
+        const double s = 2.2 / double(1 << level);
+        for (std::size_t i = 0; i < codes.size(); ++i) {
+            const auto c = shm::unmorton3(codes[i]);
+            split[i] = std::abs((box.lo + s * Eigen::Vector3d(c[0] + 0.5, c[1] + 0.5, c[2] + 0.5)).norm() - 0.7) < s;
+        }
+    });
+    const shm::NodeGraph g = shm::build_node_graph(tree, tree.depth());
+    std::set<int> ks;
+    for (std::size_t i = 0; i < g.size(); ++i)
+        for (int a = 0; a < 3; ++a) {
+            const std::int32_t j = g.next[i][std::size_t(a)];
+            if (j < 0) continue;
+            const double len = double(shm::unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - shm::unmorton3(g.keys[i])[std::size_t(a)]) *
+                               tree.lattice_step();
+            const double k = 4 * double(g.weight(i, a)) / len;
+            CHECK(std::abs(k - std::round(k)) < 1e-6);
+            CHECK(std::round(k) >= 1);
+            CHECK(std::round(k) <= 13);
+            ks.insert(int(std::round(k)));
+        }
+    CHECK(ks.size() >= 3);  // interior (4), box faces (2, 1), hanging nodes (> 4)
+    for (int build = 0; build < 3; ++build) {
+        const shm::NodeGraph again = shm::build_node_graph(tree, tree.depth());
+        CHECK(again.weights == g.weights);
+        CHECK(again.weight_code == g.weight_code);
+    }
 }
 
 TEST_CASE("octree Poisson: a constant field gives the linear function on any octree; CG converges") {

@@ -172,17 +172,26 @@ std::ptrdiff_t NodeGraph::find(std::uint64_t key) const {
 
 namespace {
 
-// The weights' distinct values (a few dozen: NodeGraph::weight_code) and each one's code.
-void code_weights(const std::vector<std::array<float, 3>>& weight, NodeGraph& g) {
+// The segments' weights from their quarters (V/ℓ² = ℓ·k/4, NodeGraph::weight_code), their
+// distinct values (a few dozen) and each one's code. Integers are summed, so the weights do not
+// depend on the order the leaves were visited in (float sums of h's multiples would: h need
+// not be a power of two).
+void code_weights(const std::vector<std::array<std::uint8_t, 3>>& quarters, double h, NodeGraph& g) {
+    const auto weight = [&](std::size_t i, int a) {
+        const std::int32_t j = g.next[i][std::size_t(a)];
+        if (j < 0 || quarters[i][std::size_t(a)] == 0) return 0.0f;
+        const double len = double(unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - unmorton3(g.keys[i])[std::size_t(a)]) * h;
+        return float(len * quarters[i][std::size_t(a)] / 4);
+    };
     std::vector<float> distinct{0.0f};
 #pragma omp parallel
     {
         std::vector<float> mine;
         float last = 0;  // neighbours mostly share their weights: the last one is checked first
 #pragma omp for schedule(static) nowait
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(weight.size()); ++i)
-            for (const float w : weight[std::size_t(i)])
-                if (w != last && w != 0) {
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(g.size()); ++i)
+            for (int a = 0; a < 3; ++a)
+                if (const float w = weight(std::size_t(i), a); w != last && w != 0) {
                     if (std::find(mine.begin(), mine.end(), w) == mine.end()) mine.push_back(w);
                     last = w;
                 }
@@ -193,15 +202,15 @@ void code_weights(const std::vector<std::array<float, 3>>& weight, NodeGraph& g)
     distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
     if (distinct.size() > 256) throw Error("the adaptive grid's segments have more than 256 distinct weights (is the octree balanced?)");
     g.weights = std::move(distinct);
-    g.weight_code.resize(weight.size());
+    g.weight_code.resize(g.size());
 #pragma omp parallel
     {
         float last = 0;
         std::uint8_t last_code = 0;
 #pragma omp for schedule(static)
-        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(weight.size()); ++i)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(g.size()); ++i)
             for (int a = 0; a < 3; ++a) {
-                const float w = weight[std::size_t(i)][std::size_t(a)];
+                const float w = weight(std::size_t(i), a);
                 if (w != last) {
                     last = w;
                     last_code = std::uint8_t(std::lower_bound(g.weights.begin(), g.weights.end(), w) - g.weights.begin());
@@ -251,8 +260,9 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
     sort_unique(g.keys);
     g.keys.shrink_to_fit();
     g.next.assign(g.keys.size(), {-1, -1, -1});
-    // The weights summed as floats first (12 bytes a node, while the graph is built), then coded.
-    std::vector<std::array<float, 3>> weight(g.keys.size(), {0.0f, 0.0f, 0.0f});
+    // Each segment's weight counted in quarters of its length first (V/ℓ² = ℓ·k/4: a leaf whose
+    // edge the segment is gives 1, a larger leaf whose half-edge it is 4), then coded.
+    std::vector<std::array<std::uint8_t, 3>> quarters(g.keys.size(), {0, 0, 0});
     const double h = tree.lattice_step();
     // Each leaf's twelve edges: a quarter of the leaf's volume to each edge of an axis (the four
     // together hold the volume once per axis), split evenly where a hanging node sits at the
@@ -262,9 +272,6 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
         const auto [l, code] = leaves[std::size_t(i)];
         const std::uint32_t s = std::uint32_t(1) << (D - l);
         const auto c = unmorton3(code);
-        // A quarter of the leaf's volume over the segment's length squared, s³h³/4 / (s·h)²,
-        // halved across a hanging node (ℓ halves too): a power of two times h.
-        const double share = double(s) * h / 4;
         std::int32_t at[8];
         for (int o = 0; o < 8; ++o) at[o] = std::int32_t(g.find(corner(std::size_t(i), o)));
         for (int a = 0; a < 3; ++a) {
@@ -281,22 +288,25 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
                         mid[std::size_t(a)] += s / 2;
                         middle = std::int32_t(g.find(mid));
                     }
-                    auto add = [&](std::int32_t x, std::int32_t y, double v) {
+                    // A quarter of the leaf's volume over the segment's length squared is a
+                    // quarter of the segment's length, (sh)³/4 / (sh)²; across a hanging node
+                    // half that volume over (sh/2)² is the whole half-segment's length.
+                    auto add = [&](std::int32_t x, std::int32_t y, std::uint8_t q) {
 #pragma omp atomic write
                         g.next[std::size_t(x)][std::size_t(a)] = y;
 #pragma omp atomic
-                        weight[std::size_t(x)][std::size_t(a)] += float(v);
+                        quarters[std::size_t(x)][std::size_t(a)] += q;
                     };
-                    if (middle >= 0) {  // V/2 over (ℓ/2)²
-                        add(from, middle, 2 * share);
-                        add(middle, to, 2 * share);
+                    if (middle >= 0) {
+                        add(from, middle, 4);
+                        add(middle, to, 4);
                     } else {
-                        add(from, to, share);
+                        add(from, to, 1);
                     }
                 }
         }
     }
-    code_weights(weight, g);
+    code_weights(quarters, h, g);
     // Each node is the next of at most one node per axis: the writes never collide.
     g.prev.assign(g.keys.size(), {-1, -1, -1});
 #pragma omp parallel for schedule(static)

@@ -85,8 +85,9 @@ struct NodeGraph {
     /// The weights V/ℓ² of the segments, as codes into `weights`. A weight is ℓ·k/4, ℓ a power
     /// of two times h and k ≤ 13 an integer: each of the segment's up to four leaves gives ℓ/4,
     /// or ℓ where the segment is half a larger leaf's edge (at most three can be). So a level has
-    /// at most 7·(D + 6) distinct weights and a byte names each; in the table they are floats,
-    /// exact sums of powers of two times h in any order.
+    /// at most 7·(D + 6) distinct weights and a byte names each. k is counted as an integer
+    /// while the graph is built, so a weight, float(ℓ·k/4), does not depend on the order the
+    /// leaves were visited in.
     std::vector<std::array<std::uint8_t, 3>> weight_code;
     std::vector<float> weights;  ///< the distinct weights; weights[0] = 0 (no segment)
 

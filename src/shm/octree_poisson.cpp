@@ -142,9 +142,10 @@ unsigned Prolongation::off_axes(const NodeGraph& fine, std::size_t i) const {
     return unsigned((p[0] & mask) != 0) | unsigned((p[1] & mask) != 0) << 1 | unsigned((p[2] & mask) != 0) << 2;
 }
 
-Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse)
-    : half_(std::uint32_t(1) << (tree.depth() - fine.level)), fine_size_(fine.size()) {
-    if (coarse.level + 1 != fine.level) throw Error("Prolongation: the levels must be consecutive");
+Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse) : fine_size_(fine.size()) {
+    if (coarse.level + 1 != fine.level || coarse.level < 0 || fine.level > tree.depth())
+        throw Error("Prolongation: the levels must be consecutive levels of the tree");
+    half_ = std::uint32_t(1) << (tree.depth() - fine.level);
     if (fine.next.size() != fine.size() || fine.prev.size() != fine.size()) throw Error("Prolongation: the fine graph has no segments");
     const std::size_t n = fine.size(), blocks = (n + kBlock - 1) / kBlock;
     // Shared nodes per block, then their running count; every new node's neighbours along its
@@ -256,7 +257,8 @@ struct OctreePoisson::Impl {
     // many as the surface has cells there, not the finest level's count on every level.
     struct Level {
         NodeGraph graph;  // keys, segments and their weights V/ℓ²
-        SpMat S, St;      // samples × nodes and its transpose
+        std::vector<ZeroSample> samples;  // this level's (merged per cell of it)
+        SpMat S, St;      // samples × nodes and its transpose: made when a penalty first needs them
         Vec area;         // A_j per sample (μ: Impl::mu)
         Prolongation P;                          // from the next (coarser) level; empty on the coarsest
         std::vector<std::uint32_t> merged_from;  // the finer level's samples: their merged one here
@@ -266,14 +268,23 @@ struct OctreePoisson::Impl {
     std::vector<Level> levels;
     Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> coarsest;
 
-    Level make_level(NodeGraph graph, const std::vector<ZeroSample>& samples) const {
+    Level make_level(NodeGraph graph, std::vector<ZeroSample> samples) const {
         Level lv;
         lv.graph = std::move(graph);
-        lv.S = sample_matrix(tree, lv.graph, samples);
-        lv.St = lv.S.transpose();
-        lv.area.resize(Eigen::Index(samples.size()));
-        for (std::size_t j = 0; j < samples.size(); ++j) lv.area[Eigen::Index(j)] = samples[j].area;
+        lv.samples = std::move(samples);
+        lv.area.resize(Eigen::Index(lv.samples.size()));
+        for (std::size_t j = 0; j < lv.samples.size(); ++j) lv.area[Eigen::Index(j)] = lv.samples[j].area;
         return lv;
+    }
+
+    // The samples' rows on every level, once. Without a penalty (φ₀'s solve) nothing reads them,
+    // so they are made after it, when the CG's vectors are gone (~9 bytes a node at the peak).
+    void make_sample_rows() {
+        for (Level& lv : levels) {
+            if (lv.S.rows() == Eigen::Index(lv.samples.size())) continue;
+            lv.S = sample_matrix(tree, lv.graph, lv.samples);
+            lv.St = lv.S.transpose();
+        }
     }
 
     // `refactor`: the same pattern as before (a new μ), only the numbers change.
@@ -306,11 +317,12 @@ struct OctreePoisson::Impl {
                 if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.graph.weight(i, a));
                 if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.graph.weight(std::size_t(j), a));
             }
-            for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); mu > 0 && s; ++s) {
-                const double f = mu * lv.area[s.col()] * s.value();
-                for (SpMat::InnerIterator k(lv.S, s.col()); k; ++k)
-                    if (k.col() != Eigen::Index(i)) e.emplace_back(std::int32_t(k.col()), f * k.value());
-            }
+            if (mu > 0)
+                for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) {
+                    const double f = mu * lv.area[s.col()] * s.value();
+                    for (SpMat::InnerIterator k(lv.S, s.col()); k; ++k)
+                        if (k.col() != Eigen::Index(i)) e.emplace_back(std::int32_t(k.col()), f * k.value());
+                }
             e.emplace_back(std::int32_t(i), diagonal(lv, i));  // L's and the penalty's
         }));
     }
@@ -454,14 +466,16 @@ OctreePoisson::OctreePoisson(const Octree& tree, NodeGraph finest, std::vector<Z
     m.levels.reserve(std::size_t(tree.depth()) + 1);
     for (int level = tree.depth();; --level) {
         std::vector<std::uint32_t> merged_from;
-        if (level < tree.depth()) samples = merge_by_cell(tree, samples, level, &merged_from);
-        Impl::Level lv = m.make_level(level == tree.depth() ? std::move(finest) : build_node_graph(tree, level), samples);
+        std::vector<ZeroSample> here =
+            level == tree.depth() ? std::move(samples) : merge_by_cell(tree, m.levels.back().samples, level, &merged_from);
+        Impl::Level lv = m.make_level(level == tree.depth() ? std::move(finest) : build_node_graph(tree, level), std::move(here));
         lv.merged_from = std::move(merged_from);
         if (!m.levels.empty()) m.levels.back().P = Prolongation(tree, m.levels.back().graph, lv.graph);
         const bool last = lv.graph.size() <= kDirectNodes || level == 0;
         m.levels.push_back(std::move(lv));
         if (last) break;
     }
+    if (penalty > 0) m.make_sample_rows();
     m.factor_coarsest();
 }
 
@@ -469,6 +483,7 @@ void OctreePoisson::set_penalty(double penalty) {
     Impl& m = *impl_;
     if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
     const bool same_pattern = (m.mu > 0) == (penalty > 0);  // the samples' products in it or not
+    if (penalty > 0) m.make_sample_rows();
     m.mu = penalty;
     m.factor_coarsest(same_pattern);
 }
@@ -515,6 +530,8 @@ OctreePoisson::~OctreePoisson() = default;
 
 const NodeGraph& OctreePoisson::nodes() const { return impl_->levels.front().graph; }
 
+std::vector<std::uint64_t> OctreePoisson::take_finest_keys() { return std::move(impl_->levels.front().graph.keys); }
+
 std::vector<double> OctreePoisson::divergence(const std::vector<float>& Y) const {
     const Impl::Level& lv = impl_->levels.front();
     const NodeGraph& g = lv.graph;
@@ -551,8 +568,21 @@ std::vector<double> OctreePoisson::apply(const std::vector<double>& x) const {
 double OctreePoisson::mean_on_samples(const std::vector<double>& phi) const {
     const Impl& m = *impl_;
     const Impl::Level& top = m.levels.front();
-    const Vec v = top.S * Eigen::Map<const Vec>(phi.data(), Eigen::Index(phi.size()));
-    return v.dot(top.area) / top.area.sum();
+    if (phi.size() != top.graph.size()) throw Error("mean_on_samples: φ needs a value per node");
+    // From the samples' interpolation weights (their rows may not be made yet: φ₀ needs none).
+    double sum = 0;
+#pragma omp parallel for schedule(static) reduction(+ : sum)
+    for (std::ptrdiff_t j = 0; j < std::ptrdiff_t(top.samples.size()); ++j) {
+        std::int32_t node[27];
+        double w[27];
+        const ZeroSample& y = top.samples[std::size_t(j)];
+        const int n = interpolation_weights(m.tree, top.graph, m.tree.to_lattice(y.position), node, w);
+        double v = 0;
+        for (int c = 0; c < n; ++c)
+            if (w[c] != 0) v += w[c] * phi[std::size_t(node[c])];
+        sum += y.area * v;
+    }
+    return sum / top.area.sum();
 }
 
 std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolerance, int max_iterations, OctreePoissonStats& stats,

@@ -9,7 +9,6 @@
 
 #include <gsd/core.hpp>
 
-#include <functional>
 #include <memory>
 #include <span>
 #include <vector>
@@ -81,6 +80,9 @@ public:
     ~OctreePoisson();
 
     const NodeGraph& nodes() const;
+    /// The finest level's keys, moved out (not copied) for the field that outlives the solver;
+    /// nothing else may be asked of the solver after.
+    std::vector<std::uint64_t> take_finest_keys();
     /// b of the normal equations from Y (3 floats per finest node).
     std::vector<double> divergence(const std::vector<float>& Y) const;
     /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory is let go).
@@ -88,7 +90,9 @@ public:
                               const ProgressFn& progress = {}) const;
     /// Changes μ (the constructor's `penalty`): every level's penalty rows, smoother and the
     /// coarsest factor (refactored numerically when the pattern is the same: μ stays > 0 or
-    /// stays 0; analysed and factored again when μ goes between 0 and > 0).
+    /// stays 0; analysed and factored again when μ goes between 0 and > 0). The samples' rows of
+    /// interpolation weights (S) are made the first time μ > 0: φ₀'s solve (μ = 0) runs without
+    /// them, so they never share memory with its CG vectors.
     void set_penalty(double penalty);
     /// The zero set fitted as a smooth correction (as SignedHeatGrid's fit): ψ on the tree cut
     /// at `level` (clamped to the multigrid's levels) minimizing that level's energy plus

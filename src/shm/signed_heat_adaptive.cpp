@@ -49,12 +49,11 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 }
 
 /// Bytes a node costs at the peak (step 3's solve), with its share of the coarser levels and
-/// of the octree: on every level its key, segments (next and prev) and their float weights, and
+/// of the octree: on every level its key, segments (next and prev) and their weight codes, and
 /// a byte for the prolongation; the CG's four vectors and the V-cycle's fifth. Measured (peak
-/// resident memory over nodes, what the source holds included): 151 B on a 1.1·10⁵-point torus
-/// cloud at depth 9 and 150 B on a 2·10⁶-point bunny scan at depth 10 (docs/shm-adaptive.md;
-/// 158 and 178 B before the step-1 field and the prolongation's sources left the peak).
-constexpr double kBytesPerNode = 150;
+/// resident memory over nodes, what the source holds included): 129 B on a 1.1·10⁵-point torus
+/// cloud at depth 9 and 119 B on a 2·10⁶-point bunny scan at depth 10 (docs/shm-adaptive.md).
+constexpr double kBytesPerNode = 130;
 
 // φ on a leaf's lattice of halves, in GridSpec order: 3 points an axis (corners, midpoints,
 // center) for a leaf larger than the finest, 2 (its corners) for a finest one. A node gives its
@@ -500,9 +499,8 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     // fit's correction (fit_on_level).
     const double penalty = 0;
     if (progress) progress("operators", 0.0);
-    shm::OctreePoisson poisson(tree, std::move(finest), std::move(samples), penalty);
-    const shm::NodeGraph& nodes = poisson.nodes();
-    const auto position = [&](std::size_t i) { return key_position(nodes.keys, i); };
+    auto solver = std::make_unique<shm::OctreePoisson>(tree, std::move(finest), std::move(samples), penalty);
+    shm::OctreePoisson& poisson = *solver;
     std::vector<double> b = poisson.divergence(Y);
     std::vector<float>().swap(Y);
     release_freed_memory();
@@ -526,6 +524,15 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     }
     out.seconds_fit = seconds_since(t0);
 
+    // The solver is done: its keys move to the field, and the rest is let go before the veto
+    // builds its own tree over the source.
+    field->nodes.level = poisson.nodes().level;
+    field->nodes.keys = poisson.take_finest_keys();
+    solver.reset();
+    release_freed_memory();
+    const shm::NodeGraph& nodes = field->nodes;
+    const auto position = [&](std::size_t i) { return key_position(nodes.keys, i); };
+
     t0 = std::chrono::steady_clock::now();
     if (m.opt.veto_winding > 0)
         out.vetoed_nodes = shm::veto_outside(m.source, {m.opt.veto_winding, m.opt.veto_slope, m.opt.veto_margin}, phi, position);
@@ -540,9 +547,8 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
         out.seconds_redistance = seconds_since(t0);
     }
 
-    field->nodes.level = nodes.level;
-    field->nodes.keys = nodes.keys;
     field->phi.assign(phi.begin(), phi.end());
+    std::vector<double>().swap(phi);
     out.field = OctreeField(std::move(field));
     return out;
 }
