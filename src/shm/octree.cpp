@@ -30,7 +30,8 @@ std::uint32_t compact(std::uint64_t x) {
     return std::uint32_t(x);
 }
 
-void sort_unique(std::vector<std::uint64_t>& v) {
+template <class T>
+void sort_unique(std::vector<T>& v) {
     __gnu_parallel::sort(v.begin(), v.end());
     v.erase(std::unique(v.begin(), v.end()), v.end());
 }
@@ -198,8 +199,7 @@ void code_weights(const std::vector<std::array<std::uint8_t, 3>>& quarters, doub
 #pragma omp critical
         distinct.insert(distinct.end(), mine.begin(), mine.end());
     }
-    std::sort(distinct.begin(), distinct.end());
-    distinct.erase(std::unique(distinct.begin(), distinct.end()), distinct.end());
+    sort_unique(distinct);
     if (distinct.size() > 256) throw Error("the adaptive grid's segments have more than 256 distinct weights (is the octree balanced?)");
     g.weights = std::move(distinct);
     g.weight_code.resize(g.size());
