@@ -123,7 +123,7 @@ TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's v
     for (int a = 0; a < 3; ++a) {
         double v = 0;
         for (std::size_t i = 0; i < g.size(); ++i) {  // V = weight·ℓ²
-            const std::int32_t j = g.next[i][std::size_t(a)];
+            const std::int32_t j = g.next(i, a);
             if (j < 0) continue;
             const double len = double(shm::unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - shm::unmorton3(g.keys[i])[std::size_t(a)]) *
                                tree.lattice_step();
@@ -135,19 +135,38 @@ TEST_CASE("octree node graph: each axis's segment volumes add up to the cube's v
     std::map<std::uint32_t, int> lengths;
     for (std::size_t i = 0; i < g.size(); ++i)
         for (int a = 0; a < 3; ++a) {
-            const std::int32_t j = g.next[i][std::size_t(a)];
+            const std::int32_t j = g.next(i, a);
             if (j < 0) continue;
             const auto p = shm::unmorton3(g.keys[i]), q = shm::unmorton3(g.keys[std::size_t(j)]);
             for (int b = 0; b < 3; ++b)
                 if (b != a) CHECK(p[std::size_t(b)] == q[std::size_t(b)]);
             CHECK(q[std::size_t(a)] > p[std::size_t(a)]);
-            CHECK(g.prev[std::size_t(j)][std::size_t(a)] == std::int32_t(i));
+            CHECK(g.prev(std::size_t(j), a) == std::int32_t(i));
             ++lengths[q[std::size_t(a)] - p[std::size_t(a)]];
         }
     CHECK(lengths.size() >= 4);
     // The weights' table: 0 first (no segment), then the few distinct ones (NodeGraph::weight_code).
     CHECK(g.weights.front() == 0.0f);
     CHECK(g.weights.size() <= std::size_t(7 * (tree.depth() + 6) + 1));
+}
+
+TEST_CASE("octree node graph: steps too long for 16 bits are kept aside, the same segments either way") {
+    const shm::Octree tree = point_octree(6, Eigen::Vector3d(-0.2, 0.4, 0.1));
+    const shm::NodeGraph g = shm::build_node_graph(tree, tree.depth());
+    // Steps of more than 3 nodes count as far here: most of them (65534 in use, ~1 %).
+    const shm::NodeGraph f = shm::build_node_graph(tree, tree.depth(), 3);
+    REQUIRE(f.size() == g.size());
+    CHECK(f.far_slots.size() > g.size() / 4);
+    std::size_t segments = 0;
+    for (std::size_t i = 0; i < g.size(); ++i)
+        for (int a = 0; a < 3; ++a) {
+            CHECK(f.next(i, a) == g.next(i, a));
+            CHECK(f.prev(i, a) == g.prev(i, a));
+            CHECK(f.weight(i, a) == g.weight(i, a));
+            segments += g.next(i, a) >= 0;
+        }
+    CHECK(segments > 2 * g.size());
+    CHECK_THROWS_AS(shm::build_node_graph(tree, tree.depth(), 0), gsd::Error);
 }
 
 TEST_CASE("octree node graph: weights are ℓ·k/4 for whole k ≤ 13, the same on every build, on a box whose cells are not powers of two") {
@@ -165,7 +184,7 @@ TEST_CASE("octree node graph: weights are ℓ·k/4 for whole k ≤ 13, the same 
     std::set<int> ks;
     for (std::size_t i = 0; i < g.size(); ++i)
         for (int a = 0; a < 3; ++a) {
-            const std::int32_t j = g.next[i][std::size_t(a)];
+            const std::int32_t j = g.next(i, a);
             if (j < 0) continue;
             const double len = double(shm::unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - shm::unmorton3(g.keys[i])[std::size_t(a)]) *
                                tree.lattice_step();

@@ -177,9 +177,11 @@ namespace {
 // distinct values (a few dozen) and each one's code. Integers are summed, so the weights do not
 // depend on the order the leaves were visited in (float sums of h's multiples would: h need
 // not be a power of two).
-void code_weights(const std::vector<std::array<std::uint8_t, 3>>& quarters, double h, NodeGraph& g) {
+using Links = std::vector<std::array<std::int32_t, 3>>;
+
+void code_weights(const Links& next, const std::vector<std::array<std::uint8_t, 3>>& quarters, double h, NodeGraph& g) {
     const auto weight = [&](std::size_t i, int a) {
-        const std::int32_t j = g.next[i][std::size_t(a)];
+        const std::int32_t j = next[i][std::size_t(a)];
         if (j < 0 || quarters[i][std::size_t(a)] == 0) return 0.0f;
         const double len = double(unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - unmorton3(g.keys[i])[std::size_t(a)]) * h;
         return float(len * quarters[i][std::size_t(a)] / 4);
@@ -220,9 +222,57 @@ void code_weights(const std::vector<std::array<std::uint8_t, 3>>& quarters, doub
     }
 }
 
+// The segments as steps (NodeGraph::up, down) from each node's +axis neighbour (-1: none).
+void store_steps(const Links& next, std::uint16_t max_step, NodeGraph& g) {
+    const std::size_t n = g.size();
+    g.up.assign(n, {0, 0, 0});
+    g.down.assign(n, {0, 0, 0});
+    std::vector<std::pair<std::uint64_t, std::int32_t>> far;
+#pragma omp parallel
+    {
+        std::vector<std::pair<std::uint64_t, std::int32_t>> mine;
+        // Each node is the next of at most one node per axis: the writes never collide.
+#pragma omp for schedule(static) nowait
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i)
+            for (int a = 0; a < 3; ++a) {
+                const std::int32_t j = next[std::size_t(i)][std::size_t(a)];
+                if (j < 0) continue;
+                const auto step = std::uint64_t(j - i);  // > 0: keys grow along every axis
+                const std::uint16_t s = step <= max_step ? std::uint16_t(step) : NodeGraph::kFarStep;
+                g.up[std::size_t(i)][std::size_t(a)] = s;
+                g.down[std::size_t(j)][std::size_t(a)] = s;
+                if (s == NodeGraph::kFarStep) {
+                    mine.emplace_back(6 * std::uint64_t(i) + std::uint64_t(a), j);
+                    mine.emplace_back(6 * std::uint64_t(j) + 3 + std::uint64_t(a), std::int32_t(i));
+                }
+            }
+#pragma omp critical
+        far.insert(far.end(), mine.begin(), mine.end());
+    }
+    sort_unique(far);
+    g.far_slots.resize(far.size());
+    g.far_nodes.resize(far.size());
+    for (std::size_t k = 0; k < far.size(); ++k) {
+        g.far_slots[k] = far[k].first;
+        g.far_nodes[k] = far[k].second;
+    }
+    // Where each block's slots start: a lookup scans its block's few far steps.
+    const std::size_t blocks = (n >> NodeGraph::kFarBlockBits) + 1;
+    g.far_first.assign(blocks + 1, 0);
+    for (std::size_t k = 0; k < far.size(); ++k) ++g.far_first[std::size_t(far[k].first / 6 >> NodeGraph::kFarBlockBits) + 1];
+    for (std::size_t b = 0; b < blocks; ++b) g.far_first[b + 1] += g.far_first[b];
+}
+
 }  // namespace
 
-NodeGraph build_node_graph(const Octree& tree, int level) {
+std::int32_t NodeGraph::far_node(std::size_t slot) const {
+    std::size_t k = far_first[slot / 6 >> kFarBlockBits];
+    while (far_slots[k] != slot) ++k;  // a kFarStep has its slot, in its node's block
+    return far_nodes[k];
+}
+
+NodeGraph build_node_graph(const Octree& tree, int level, std::uint16_t max_step) {
+    if (max_step == 0 || max_step >= NodeGraph::kFarStep) throw Error("build_node_graph: max_step must be in [1, 65534]");
     NodeGraph g;
     g.level = level;
     const std::vector<std::pair<int, std::uint64_t>> leaves = tree.leaves(level);
@@ -259,7 +309,7 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
     }
     sort_unique(g.keys);
     g.keys.shrink_to_fit();
-    g.next.assign(g.keys.size(), {-1, -1, -1});
+    Links next(g.keys.size(), {-1, -1, -1});
     // Each segment's weight counted in quarters of its length first (V/ℓ² = ℓ·k/4: a leaf whose
     // edge the segment is gives 1, a larger leaf whose half-edge it is 4), then coded.
     std::vector<std::array<std::uint8_t, 3>> quarters(g.keys.size(), {0, 0, 0});
@@ -293,7 +343,7 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
                     // half that volume over (sh/2)² is the whole half-segment's length.
                     auto add = [&](std::int32_t x, std::int32_t y, std::uint8_t q) {
 #pragma omp atomic write
-                        g.next[std::size_t(x)][std::size_t(a)] = y;
+                        next[std::size_t(x)][std::size_t(a)] = y;
 #pragma omp atomic
                         quarters[std::size_t(x)][std::size_t(a)] += q;
                     };
@@ -306,13 +356,9 @@ NodeGraph build_node_graph(const Octree& tree, int level) {
                 }
         }
     }
-    code_weights(quarters, h, g);
-    // Each node is the next of at most one node per axis: the writes never collide.
-    g.prev.assign(g.keys.size(), {-1, -1, -1});
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(g.size()); ++i)
-        for (int a = 0; a < 3; ++a)
-            if (const std::int32_t j = g.next[std::size_t(i)][std::size_t(a)]; j >= 0) g.prev[std::size_t(j)][std::size_t(a)] = std::int32_t(i);
+    code_weights(next, quarters, h, g);
+    std::vector<std::array<std::uint8_t, 3>>().swap(quarters);
+    store_steps(next, max_step, g);
     return g;
 }
 

@@ -76,12 +76,25 @@ private:
 /// axis-parallel segment between adjacent nodes along a leaf's edge, with the volume V it stands
 /// for (a quarter of each leaf it borders per edge, halved where a hanging node splits the
 /// edge). Σ_segments V (Δφ/ℓ − Ȳ·e)² is then a quadrature of ∫|∇φ − Y|² over the box. Kept
-/// per node: 8 + 12 + 12 + 3 bytes.
+/// per node: 8 + 6 + 6 + 3 bytes.
 struct NodeGraph {
+    /// Marks a step kept in `far` (NodeGraph::up, down).
+    static constexpr std::uint16_t kFarStep = 0xffff;
+
     int level = 0;
-    std::vector<std::uint64_t> keys;               ///< sorted Morton codes of lattice points
-    std::vector<std::array<std::int32_t, 3>> next;  ///< the node along +axis (a segment), or -1
-    std::vector<std::array<std::int32_t, 3>> prev;  ///< the node along −axis (whose next this is), or -1
+    std::vector<std::uint64_t> keys;  ///< sorted Morton codes of lattice points
+    /// The segments as steps through the keys: the node along +axis a from node i (the segment's
+    /// other end) is i + up[i][a], the one along −axis a is i − down[i][a]; 0: no segment. A
+    /// Morton code grows with each coordinate, so a +axis neighbour always comes later. Steps
+    /// are short but where the order carries into high bits (about 1 % at 16 bits): those are
+    /// kFarStep, their node kept in `far_nodes` under the slot 6i + a (up) or 6i + 3 + a (down)
+    /// in the sorted `far_slots`, whose first slot of each block of 2^kFarBlockBits nodes is
+    /// at far_first[block]. 12 bytes a node instead of two int32 indices' 24.
+    std::vector<std::array<std::uint16_t, 3>> up, down;
+    std::vector<std::uint64_t> far_slots;
+    std::vector<std::int32_t> far_nodes;
+    std::vector<std::uint32_t> far_first;
+    static constexpr int kFarBlockBits = 5;
     /// The weights V/ℓ² of the segments, as codes into `weights`. A weight is ℓ·k/4, ℓ a power
     /// of two times h and k ≤ 13 an integer: each of the segment's up to four leaves gives ℓ/4,
     /// or ℓ where the segment is half a larger leaf's edge (at most three can be). So a level has
@@ -91,15 +104,32 @@ struct NodeGraph {
     std::vector<std::array<std::uint8_t, 3>> weight_code;
     std::vector<float> weights;  ///< the distinct weights; weights[0] = 0 (no segment)
 
-    /// V/ℓ² of the segment (i, next[i][a]) (world units), 0 where there is none.
+    /// The node along +axis a from node i, or -1 (no segment).
+    std::int32_t next(std::size_t i, int a) const {
+        const std::uint16_t s = up[i][std::size_t(a)];
+        if (s == 0) return -1;
+        return s != kFarStep ? std::int32_t(i + s) : far_node(6 * i + std::size_t(a));
+    }
+    /// The node along −axis a from node i (whose next it is), or -1.
+    std::int32_t prev(std::size_t i, int a) const {
+        const std::uint16_t s = down[i][std::size_t(a)];
+        if (s == 0) return -1;
+        return s != kFarStep ? std::int32_t(i - s) : far_node(6 * i + 3 + std::size_t(a));
+    }
+    /// V/ℓ² of the segment (i, next(i, a)) (world units), 0 where there is none.
     float weight(std::size_t i, int a) const { return weights[weight_code[i][std::size_t(a)]]; }
     std::size_t size() const { return keys.size(); }
     /// Index of a node, or -1.
     std::ptrdiff_t find(std::uint64_t key) const;
     std::ptrdiff_t find(const std::array<std::uint32_t, 3>& p) const { return find(morton3(p[0], p[1], p[2])); }
+
+private:
+    std::int32_t far_node(std::size_t slot) const;
 };
 
-NodeGraph build_node_graph(const Octree& tree, int level);
+/// The node graph of the tree cut at `level`. `max_step`: the longest step kept in up/down
+/// (longer ones go to `far`; below the default only to test that path).
+NodeGraph build_node_graph(const Octree& tree, int level, std::uint16_t max_step = NodeGraph::kFarStep - 1);
 
 /// Interpolation weights of a point (continuous lattice coordinates, inside the box) in the
 /// leaf of the tree cut at `graph.level` that holds it: trilinear from the leaf's corners in a

@@ -5,7 +5,6 @@
 #include <Eigen/Sparse>
 
 #include <algorithm>
-#include <bit>
 #include <chrono>
 #include <cmath>
 
@@ -15,6 +14,7 @@ namespace {
 
 using SpMat = Eigen::SparseMatrix<double, Eigen::RowMajor>;
 using Vec = Eigen::VectorXd;
+using VecF = Eigen::VectorXf;
 
 /// Levels with at most this many nodes are factored (CHOLMOD) instead of cycled through.
 constexpr std::size_t kDirectNodes = 30000;
@@ -25,6 +25,9 @@ constexpr int kSweeps = 2;
 /// raised by this fraction instead, which pins it (the caller shifts φ after) and perturbs the
 /// rest by about as little, while the operator stays as sparse as the Laplacian.
 constexpr double kPin = 1e-9;
+/// How many axes a Prolongation off-byte (three bits) names: std::popcount is a libgcc call
+/// on CPUs the build does not assume POPCNT on, and the transfers ask it of every node.
+constexpr int kAxesOff[8] = {0, 1, 1, 2, 1, 2, 2, 3};
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -146,7 +149,7 @@ Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const Node
     if (coarse.level + 1 != fine.level || coarse.level < 0 || fine.level > tree.depth())
         throw Error("Prolongation: the levels must be consecutive levels of the tree");
     half_ = std::uint32_t(1) << (tree.depth() - fine.level);
-    if (fine.next.size() != fine.size() || fine.prev.size() != fine.size()) throw Error("Prolongation: the fine graph has no segments");
+    if (fine.up.size() != fine.size() || fine.down.size() != fine.size()) throw Error("Prolongation: the fine graph has no segments");
     const std::size_t n = fine.size(), blocks = (n + kBlock - 1) / kBlock;
     // Shared nodes per block, then their running count; every new node's neighbours along its
     // off axes must be nodes half a coarse cell away (the levels nest).
@@ -163,7 +166,7 @@ Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const Node
             const auto p = unmorton3(fine.keys[i]);
             for (int a = 0; a < 3; ++a) {
                 if (!(off >> a & 1)) continue;
-                const std::int32_t up = fine.next[i][std::size_t(a)], down = fine.prev[i][std::size_t(a)];
+                const std::int32_t up = fine.next(i, a), down = fine.prev(i, a);
                 nested = nested && up >= 0 && down >= 0 && unmorton3(fine.keys[std::size_t(up)])[std::size_t(a)] == p[std::size_t(a)] + half_ &&
                          unmorton3(fine.keys[std::size_t(down)])[std::size_t(a)] + half_ == p[std::size_t(a)];
             }
@@ -185,7 +188,8 @@ Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const Node
     if (!nested) throw Error("Prolongation: a coarse corner is missing (the levels are not nested)");
 }
 
-void Prolongation::prolong(const NodeGraph& fine, std::span<const double> coarse, std::span<double> out) const {
+template <class T>
+void Prolongation::prolong_as(const NodeGraph& fine, std::span<const T> coarse, std::span<T> out) const {
     const std::size_t n = fine_size_, blocks = block_first_.size();
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
@@ -199,16 +203,17 @@ void Prolongation::prolong(const NodeGraph& fine, std::span<const double> coarse
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
             const unsigned off = off_[std::size_t(i)];
-            if (std::popcount(off) != count) continue;
+            if (kAxesOff[off] != count) continue;
             double sum = 0;
             for (int a = 0; a < 3; ++a)
-                if (off >> a & 1) sum += out[std::size_t(fine.next[std::size_t(i)][std::size_t(a)])] + out[std::size_t(fine.prev[std::size_t(i)][std::size_t(a)])];
-            out[std::size_t(i)] = sum / double(2 * count);
+                if (off >> a & 1) sum += out[std::size_t(fine.next(std::size_t(i), a))] + out[std::size_t(fine.prev(std::size_t(i), a))];
+            out[std::size_t(i)] = T(sum / double(2 * count));
         }
     }
 }
 
-void Prolongation::restrict_in_place(const NodeGraph& fine, std::span<double> f, std::span<double> coarse) const {
+template <class T>
+void Prolongation::restrict_in_place_as(const NodeGraph& fine, std::span<T> f, std::span<T> coarse) const {
     const std::size_t n = fine_size_, blocks = block_first_.size();
     // The passes of prolong transposed, last first: a node off the lattice along `count` axes
     // gathers 1/(2(count + 1)) of each neighbour half a coarse cell away along its other axes
@@ -217,17 +222,17 @@ void Prolongation::restrict_in_place(const NodeGraph& fine, std::span<double> f,
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(n); ++i) {
             const unsigned off = off_[std::size_t(i)];
-            if (std::popcount(off) != count) continue;
+            if (kAxesOff[off] != count) continue;
             double sum = 0;
             for (int a = 0; a < 3; ++a) {
                 if (off >> a & 1) continue;
                 // A neighbour off the lattice along a is the one half a coarse cell away (segments
                 // are powers of two at least that long).
-                const std::int32_t up = fine.next[std::size_t(i)][std::size_t(a)], down = fine.prev[std::size_t(i)][std::size_t(a)];
+                const std::int32_t up = fine.next(std::size_t(i), a), down = fine.prev(std::size_t(i), a);
                 if (up >= 0 && off_[std::size_t(up)] >> a & 1) sum += f[std::size_t(up)];
                 if (down >= 0 && off_[std::size_t(down)] >> a & 1) sum += f[std::size_t(down)];
             }
-            f[std::size_t(i)] += sum / double(2 * (count + 1));
+            f[std::size_t(i)] += T(sum / double(2 * (count + 1)));
         }
     }
 #pragma omp parallel for schedule(static)
@@ -236,6 +241,19 @@ void Prolongation::restrict_in_place(const NodeGraph& fine, std::span<double> f,
         for (std::size_t i = std::size_t(b) * kBlock; i < std::min(n, std::size_t(b + 1) * kBlock); ++i)
             if (off_[i] == 0) coarse[k++] = f[i];
     }
+}
+
+void Prolongation::prolong(const NodeGraph& fine, std::span<const double> coarse, std::span<double> out) const {
+    prolong_as(fine, coarse, out);
+}
+void Prolongation::prolong(const NodeGraph& fine, std::span<const float> coarse, std::span<float> out) const {
+    prolong_as(fine, coarse, out);
+}
+void Prolongation::restrict_in_place(const NodeGraph& fine, std::span<double> f, std::span<double> coarse) const {
+    restrict_in_place_as(fine, f, coarse);
+}
+void Prolongation::restrict_in_place(const NodeGraph& fine, std::span<float> f, std::span<float> coarse) const {
+    restrict_in_place_as(fine, f, coarse);
 }
 
 void Prolongation::add_to(const NodeGraph& fine_graph, std::span<const double> coarse, std::span<double> fine) const {
@@ -301,7 +319,7 @@ struct OctreePoisson::Impl {
         double d = 0;
         for (int a = 0; a < 3; ++a) {
             d += lv.graph.weight(i, a);
-            if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) d += lv.graph.weight(std::size_t(j), a);
+            if (const std::int32_t j = lv.graph.prev(i, a); j >= 0) d += lv.graph.weight(std::size_t(j), a);
         }
         if (mu == 0) return d * (1 + kPin);
         for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) d += mu * lv.area[s.col()] * s.value() * s.value();
@@ -314,8 +332,8 @@ struct OctreePoisson::Impl {
         const std::size_t n = lv.graph.size();
         return Eigen::SparseMatrix<double>(rows_to_matrix(n, n, [&](std::size_t i, Entries& e) {
             for (int a = 0; a < 3; ++a) {
-                if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.graph.weight(i, a));
-                if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) e.emplace_back(j, -lv.graph.weight(std::size_t(j), a));
+                if (const std::int32_t j = lv.graph.next(i, a); j >= 0) e.emplace_back(j, -lv.graph.weight(i, a));
+                if (const std::int32_t j = lv.graph.prev(i, a); j >= 0) e.emplace_back(j, -lv.graph.weight(std::size_t(j), a));
             }
             if (mu > 0)
                 for (SpMat::InnerIterator s(lv.St, Eigen::Index(i)); s; ++s) {
@@ -327,17 +345,19 @@ struct OctreePoisson::Impl {
         }));
     }
 
-    // (A x)_i, given at = μA ∘ S x (the samples' weighted values; empty when μ = 0).
-    double row(const Level& lv, const Vec& x, const Vec& at, std::size_t i) const {
-        const double xi = x[Eigen::Index(i)];
+    // (A x)_i, given at = μA ∘ S x (the samples' weighted values; empty when μ = 0). x: double
+    // or float (the V-cycle's and CG's search directions), summed in double.
+    template <class X>
+    double row(const Level& lv, const X& x, const Vec& at, std::size_t i) const {
+        const double xi = double(x[Eigen::Index(i)]);
         double v = 0, d = 0;
         for (int a = 0; a < 3; ++a) {
-            if (const std::int32_t j = lv.graph.next[i][std::size_t(a)]; j >= 0) {
-                v += lv.graph.weight(i, a) * (xi - x[j]);
+            if (const std::int32_t j = lv.graph.next(i, a); j >= 0) {
+                v += lv.graph.weight(i, a) * (xi - double(x[j]));
                 d += lv.graph.weight(i, a);
             }
-            if (const std::int32_t j = lv.graph.prev[i][std::size_t(a)]; j >= 0) {
-                v += lv.graph.weight(std::size_t(j), a) * (xi - x[j]);
+            if (const std::int32_t j = lv.graph.prev(i, a); j >= 0) {
+                v += lv.graph.weight(std::size_t(j), a) * (xi - double(x[j]));
                 d += lv.graph.weight(std::size_t(j), a);
             }
         }
@@ -346,33 +366,50 @@ struct OctreePoisson::Impl {
         return v;
     }
 
+    // S x, for x of either precision (no double copy of a float x).
+    template <class X>
+    Vec samples_of(const Level& lv, const X& x) const {
+        Vec t(lv.S.rows());
+#pragma omp parallel for schedule(static)
+        for (Eigen::Index j = 0; j < lv.S.rows(); ++j) {
+            double v = 0;
+            for (SpMat::InnerIterator k(lv.S, j); k; ++k) v += k.value() * double(x[k.col()]);
+            t[j] = v;
+        }
+        return t;
+    }
+
     // μA ∘ S x (empty when μ = 0).
     Vec penalty_values(const Level& lv, const Vec& Sx) const { return mu > 0 ? Vec(mu * lv.area.cwiseProduct(Sx)) : Vec(); }
+    template <class X>
+    Vec penalty_of(const Level& lv, const X& x) const { return mu > 0 ? penalty_values(lv, samples_of(lv, x)) : Vec(); }
 
     void apply(const Level& lv, const Vec& x, Vec& y) const {
         const auto n = std::ptrdiff_t(lv.graph.size());
-        const Vec at = mu > 0 ? penalty_values(lv, lv.S * x) : Vec();
+        const Vec at = penalty_of(lv, x);
         y.resize(n);
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < n; ++i) y[i] = row(lv, x, at, std::size_t(i));
     }
 
-    // One Gauss–Seidel sweep. t = S x on entry and on return: the samples' values follow each
-    // node's update, so a node's penalty row costs its samples, not their products.
-    void gauss_seidel(const Level& lv, const Vec& b, Vec& x, Vec& t, bool forward) const {
+    // One Gauss–Seidel sweep on x (float: the V-cycle's correction), b of either precision. t =
+    // S x on entry and on return: the samples' values follow each node's update, so a node's
+    // penalty row costs its samples, not their products.
+    template <class B>
+    void gauss_seidel(const Level& lv, const B& b, VecF& x, Vec& t, bool forward) const {
         const auto n = std::ptrdiff_t(lv.graph.size());
         for (std::ptrdiff_t s = 0; s < n; ++s) {
             const std::ptrdiff_t i = forward ? s : n - 1 - s;
             const double xi = x[i];
             // The diagonal is made on the way (the weights are read anyway), not stored.
-            double sum = b[i], d = 0;
+            double sum = double(b[i]), d = 0;
             for (int a = 0; a < 3; ++a) {
-                if (const std::int32_t j = lv.graph.next[std::size_t(i)][std::size_t(a)]; j >= 0) {
+                if (const std::int32_t j = lv.graph.next(std::size_t(i), a); j >= 0) {
                     const double w = lv.graph.weight(std::size_t(i), a);
                     sum += w * x[j];
                     d += w;
                 }
-                if (const std::int32_t j = lv.graph.prev[std::size_t(i)][std::size_t(a)]; j >= 0) {
+                if (const std::int32_t j = lv.graph.prev(std::size_t(i), a); j >= 0) {
                     const double w = lv.graph.weight(std::size_t(j), a);
                     sum += w * x[j];
                     d += w;
@@ -387,8 +424,8 @@ struct OctreePoisson::Impl {
             } else {
                 d *= 1 + kPin;
             }
-            const double updated = sum / d;
-            const double delta = updated - xi;
+            const float updated = float(sum / d);
+            const double delta = double(updated) - xi;
             x[i] = updated;
             if (mu > 0)
                 for (SpMat::InnerIterator k(lv.St, i); k; ++k) t[k.col()] += k.value() * delta;
@@ -396,57 +433,103 @@ struct OctreePoisson::Impl {
     }
 
     // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
-    // coarsest: factored, exact). r is the residual throughout; x starts at 0.
+    // coarsest: factored, exact). r is the residual throughout; x starts at 0. x and r are
+    // double; the search direction p and the preconditioned residual z are float (the V-cycle
+    // is a float approximation anyway): 24 bytes a node instead of 32. A p is not stored: p·Ap
+    // and r −= αAp each apply A on the way, so r stays b − A x to double rounding.
     void conjugate_gradients(std::size_t k, Vec& r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
                              std::vector<double>& history, const ProgressFn& progress) const {
         const Level& lv = levels[k];
         const double bn = r.norm();
-        Vec z;
+        const auto n = std::ptrdiff_t(lv.graph.size());
         if (k + 1 == levels.size()) {  // small enough to factor: exact
             x = coarsest.solve(r);
+            Vec z;
             apply(lv, x, z);
             history.push_back(bn > 0 ? (r - z).norm() / bn : 0.0);
             return;
         }
+        VecF z;
         vcycle(k, r, z);
-        Vec p = z;
-        double rz = r.dot(z);
+        VecF p = z;
+        double rz = dot(r, z);
         for (int it = 0; it < max_iterations && bn > 0; ++it) {
-            apply(lv, p, z);
-            const double alpha = rz / p.dot(z);
-            x += alpha * p;
-            r -= alpha * z;
-            const double rel = r.norm() / bn;
+            const Vec at = penalty_of(lv, p);
+            const double pap = blocked_sum(n, [&](std::ptrdiff_t i) { return double(p[i]) * row(lv, p, at, std::size_t(i)); });
+            const double alpha = rz / pap;
+            const double rr = blocked_sum(n, [&](std::ptrdiff_t i) {
+                x[i] += alpha * double(p[i]);
+                r[i] -= alpha * row(lv, p, at, std::size_t(i));
+                return r[i] * r[i];
+            });
+            const double rel = std::sqrt(rr) / bn;
             history.push_back(rel);
             if (progress) progress("solve", std::clamp(std::log(std::max(rel, 1e-300)) / std::log(tolerance), 0.0, 1.0));
             if (rel <= tolerance) break;
             vcycle(k, r, z);
-            const double rz_new = r.dot(z);
-            p = z + (rz_new / rz) * p;
+            const double rz_new = dot(r, z);
+            const float beta = float(rz_new / rz);
+#pragma omp parallel for schedule(static)
+            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
             rz = rz_new;
         }
     }
 
-    void vcycle(std::size_t k, const Vec& b, Vec& x) const {
+    // Σ f(i) over i < n in parallel, in the same order whatever the threads (blocks' partial
+    // sums, added in turn): the solve is reproducible.
+    template <class F>
+    static double blocked_sum(std::ptrdiff_t n, F&& f) {
+        constexpr std::ptrdiff_t kBlock = 4096;
+        const std::ptrdiff_t blocks = (n + kBlock - 1) / kBlock;
+        std::vector<double> part(std::size_t(blocks), 0.0);
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t b = 0; b < blocks; ++b) {
+            double v = 0;
+            for (std::ptrdiff_t i = b * kBlock; i < std::min(n, (b + 1) * kBlock); ++i) v += f(i);
+            part[std::size_t(b)] = v;
+        }
+        double sum = 0;
+        for (const double v : part) sum += v;
+        return sum;
+    }
+
+    static double dot(const Vec& r, const VecF& z) {
+        return blocked_sum(r.size(), [&](std::ptrdiff_t i) { return r[i] * double(z[i]); });
+    }
+
+    // x ≈ A⁻¹ b on level k by one V-cycle, in float (b: the finest level's residual in double,
+    // a coarser level's in float).
+    template <class B>
+    void vcycle(std::size_t k, const B& b, VecF& x) const {
         const Level& lv = levels[k];
         if (k + 1 == levels.size()) {
-            x = coarsest.solve(b);
+            // Without a penalty the operator is the Laplacian pinned by 1e-9 of its diagonal:
+            // its inverse scales a constant by ~1e9, and the constant that rounding leaves in
+            // a float residual would come back as a correction whose constant swamps, in
+            // float, the rest of it (CG stalled). So the constant is taken out before and
+            // after: the Laplacian's pseudo-inverse, still symmetric as CG's preconditioner
+            // must be (φ's constant is the caller's to set).
+            Vec rhs = b.template cast<double>();
+            if (mu == 0) rhs.array() -= rhs.mean();
+            Vec e = coarsest.solve(rhs);
+            if (mu == 0) e.array() -= e.mean();
+            x = e.cast<float>();
             return;
         }
         x.setZero(b.size());
         Vec t = mu > 0 ? Vec(Vec::Zero(lv.S.rows())) : Vec();  // S x (no use without a penalty)
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, true);
         // The coarse residual Pᵀ(b − A x); the fine residual's vector then holds P e.
-        Vec fine(b.size()), rc(levels[k + 1].graph.size());
+        VecF fine(b.size()), rc(levels[k + 1].graph.size());
         const Vec at = penalty_values(lv, t);
 #pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < b.size(); ++i) fine[i] = b[i] - row(lv, x, at, std::size_t(i));
-        lv.P.restrict_in_place(lv.graph, {fine.data(), std::size_t(fine.size())}, {rc.data(), std::size_t(rc.size())});
-        Vec ec;
+        for (std::ptrdiff_t i = 0; i < b.size(); ++i) fine[i] = float(double(b[i]) - row(lv, x, at, std::size_t(i)));
+        lv.P.restrict_in_place(lv.graph, std::span<float>(fine.data(), std::size_t(fine.size())), std::span<float>(rc.data(), std::size_t(rc.size())));
+        VecF ec;
         vcycle(k + 1, rc, ec);
-        lv.P.prolong(lv.graph, {ec.data(), std::size_t(ec.size())}, {fine.data(), std::size_t(fine.size())});
+        lv.P.prolong(lv.graph, std::span<const float>(ec.data(), std::size_t(ec.size())), std::span<float>(fine.data(), std::size_t(fine.size())));
         x += fine;
-        if (mu > 0) t = lv.S * x;
+        if (mu > 0) t = samples_of(lv, x);
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, false);
     }
 };
@@ -459,7 +542,7 @@ OctreePoisson::OctreePoisson(const Octree& tree, NodeGraph finest, std::vector<Z
     Impl& m = *impl_;
     if (samples.empty()) throw Error("the source lies outside the adaptive grid's bounds");
     if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
-    if (finest.level != tree.depth() || finest.prev.size() != finest.size() || finest.weight_code.size() != finest.size())
+    if (finest.level != tree.depth() || finest.down.size() != finest.size() || finest.weight_code.size() != finest.size())
         throw Error("OctreePoisson: the finest graph must be build_node_graph(tree, tree.depth())");
     // Reserved: a Level's copy constructor is what growth would use (Eigen's sparse matrices
     // have no noexcept move), copying the finest level's arrays.
@@ -542,7 +625,7 @@ std::vector<double> OctreePoisson::divergence(const std::vector<float>& Y) const
     // b_j (the normal equations of Σ V((φ_j − φ_i)/ℓ − Ȳ_a)²; V/ℓ is the weight V/ℓ² times ℓ).
     // Each node gathers its two segments per axis, in parallel.
     auto flux = [&](std::size_t i, int a) {  // of the segment from i along +a
-        const std::size_t j = std::size_t(g.next[i][std::size_t(a)]);
+        const std::size_t j = std::size_t(g.next(i, a));
         const double len = double(unmorton3(g.keys[j])[std::size_t(a)] - unmorton3(g.keys[i])[std::size_t(a)]) * h;
         const double ybar = 0.5 * (double(Y[3 * i + std::size_t(a)]) + double(Y[3 * j + std::size_t(a)]));
         return lv.graph.weight(i, a) * len * ybar;
@@ -551,8 +634,8 @@ std::vector<double> OctreePoisson::divergence(const std::vector<float>& Y) const
     for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(g.size()); ++i) {
         double v = 0;
         for (int a = 0; a < 3; ++a) {
-            if (const std::int32_t j = lv.graph.prev[std::size_t(i)][std::size_t(a)]; j >= 0) v += flux(std::size_t(j), a);
-            if (g.next[std::size_t(i)][std::size_t(a)] >= 0) v -= flux(std::size_t(i), a);
+            if (const std::int32_t j = lv.graph.prev(std::size_t(i), a); j >= 0) v += flux(std::size_t(j), a);
+            if (g.next(std::size_t(i), a) >= 0) v -= flux(std::size_t(i), a);
         }
         b[std::size_t(i)] = v;
     }

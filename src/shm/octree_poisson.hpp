@@ -42,16 +42,22 @@ public:
     Prolongation() = default;
     /// Checks that the levels nest (throws if not).
     Prolongation(const Octree& tree, const NodeGraph& fine, const NodeGraph& coarse);
-    /// out = P coarse (`fine`: the graph it was made with).
+    /// out = P coarse (`fine`: the graph it was made with); in double or in float (the V-cycle).
     void prolong(const NodeGraph& fine, std::span<const double> coarse, std::span<double> out) const;
+    void prolong(const NodeGraph& fine, std::span<const float> coarse, std::span<float> out) const;
     /// coarse = Pᵀ f; f (fine-sized) is overwritten.
     void restrict_in_place(const NodeGraph& fine, std::span<double> f, std::span<double> coarse) const;
+    void restrict_in_place(const NodeGraph& fine, std::span<float> f, std::span<float> coarse) const;
     /// fine += P coarse; coarse = Pᵀ fine (each with a fine-sized copy: tests).
     void add_to(const NodeGraph& fine_graph, std::span<const double> coarse, std::span<double> fine) const;
     void restrict_to(const NodeGraph& fine_graph, std::span<const double> fine, std::span<double> coarse) const;
     std::size_t fine_size() const { return fine_size_; }
 
 private:
+    template <class T>
+    void prolong_as(const NodeGraph& fine, std::span<const T> coarse, std::span<T> out) const;
+    template <class T>
+    void restrict_in_place_as(const NodeGraph& fine, std::span<T> f, std::span<T> coarse) const;
     /// The axes along which node i is off the coarse lattice (bit a for axis a).
     unsigned off_axes(const NodeGraph& fine, std::size_t i) const;
 
