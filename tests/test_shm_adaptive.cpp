@@ -167,6 +167,21 @@ TEST_CASE("octree node graph: steps too long for 16 bits are kept aside, the sam
         }
     CHECK(segments > 2 * g.size());
     CHECK_THROWS_AS(shm::build_node_graph(tree, tree.depth(), 0), gsd::Error);
+    // The keys packed (as the solve holds them) and back: the same keys, the same size; no
+    // lookups meanwhile. Small blocks, so that the blocks' seams are crossed.
+    shm::NodeGraph p = g;
+    REQUIRE(g.size() > 500);
+    p.pack_keys(64);
+    CHECK(p.keys_packed());
+    CHECK(p.keys.empty());
+    CHECK(p.size() == g.size());
+    CHECK(p.packed_keys.size() < 3 * g.size());  // deltas of neighbours: a byte or two each
+    CHECK(p.next(5, 0) == g.next(5, 0));
+    CHECK_THROWS_AS(p.find(g.keys[7]), gsd::Error);
+    p.unpack_keys();
+    CHECK(!p.keys_packed());
+    CHECK(p.keys == g.keys);
+    CHECK(p.find(g.keys[7]) == 7);
 }
 
 TEST_CASE("octree node graph: weights are ℓ·k/4 for whole k ≤ 13, the same on every build, on a box whose cells are not powers of two") {
@@ -215,7 +230,7 @@ TEST_CASE("octree Poisson: a constant field gives the linear function on any oct
             const Eigen::Vector3d y = x0 + 0.09 * i * t1 + 0.09 * j * t2;
             if (y.cwiseAbs().maxCoeff() < 1) samples.push_back({y, 0.01});
         }
-    const shm::OctreePoisson poisson(tree, samples, 1.0 / tree.lattice_step());
+    shm::OctreePoisson poisson(tree, samples, 1.0 / tree.lattice_step());
     const shm::NodeGraph& g = poisson.nodes();
     std::vector<float> Y(3 * g.size());
     for (std::size_t i = 0; i < g.size(); ++i)
@@ -261,7 +276,7 @@ TEST_CASE("octree Poisson: the zero-set fit as a correction on a coarser level")
     const double shift = poisson.mean_on_samples(phi0);
     for (double& v : phi0) v -= shift;
     // The fit and the solve as one problem, at μ.
-    const shm::OctreePoisson joint(tree, samples, mu);
+    shm::OctreePoisson joint(tree, samples, mu);
     shm::OctreePoissonStats joint_stats;
     const std::vector<double> phi_joint = joint.solve(b, 1e-10, 200, joint_stats);
     // J(φ) = ½φᵀAφ − bᵀφ with A the operator at μ: what both minimize. μ set twice: from the pin

@@ -42,22 +42,13 @@ std::uint64_t morton3(std::uint32_t x, std::uint32_t y, std::uint32_t z) { retur
 
 std::array<std::uint32_t, 3> unmorton3(std::uint64_t code) { return {compact(code), compact(code >> 1), compact(code >> 2)}; }
 
-Octree::Octree(const Box& cube, int depth, const SplitRule& rule) : box_(cube), depth_(depth) {
-    cells_.assign(std::size_t(depth) + 1, {});
-    cells_[0] = {0};
-    for (int l = 0; l < depth; ++l) {
-        const std::vector<std::uint64_t>& parents = cells_[std::size_t(l)];
-        std::vector<char> split(parents.size(), 0);
-        rule(l, parents, split);
-        std::vector<std::uint64_t>& children = cells_[std::size_t(l) + 1];
-        // Children of sorted parents come out sorted: a child's code is its parent's shifted.
-        for (std::size_t i = 0; i < parents.size(); ++i)
-            if (split[i])
-                for (std::uint64_t o = 0; o < 8; ++o) children.push_back(parents[i] << 3 | o);
-        if (children.empty()) break;
-    }
-    balance();
-    mark_internal();
+namespace {
+
+using Levels = std::vector<std::vector<std::uint64_t>>;
+
+std::ptrdiff_t find_in(const std::vector<std::uint64_t>& v, std::uint64_t code) {
+    const auto it = std::lower_bound(v.begin(), v.end(), code);
+    return it != v.end() && *it == code ? it - v.begin() : -1;
 }
 
 // 2:1 balance across faces, edges and corners: for every cell of level m, the 27 cells of level
@@ -65,13 +56,14 @@ Octree::Octree(const Box& cube, int depth, const SplitRule& rule) : box_(cube), 
 // parent (level m − 2), which may require more at m − 2: hence the sweep from the finest level
 // up. Then no two touching leaves differ by more than one level, so a leaf's edge holds at
 // most one hanging node, at its midpoint.
-void Octree::balance() {
-    for (int m = depth_; m >= 2; --m) {
-        std::vector<std::uint64_t> parents(cells_[std::size_t(m)].size());
-        std::transform(cells_[std::size_t(m)].begin(), cells_[std::size_t(m)].end(), parents.begin(),
+void balance(Levels& cells, int depth) {
+    for (int m = depth; m >= 2; --m) {
+        std::vector<std::uint64_t> parents(cells[std::size_t(m)].size());
+        std::transform(cells[std::size_t(m)].begin(), cells[std::size_t(m)].end(), parents.begin(),
                        [](std::uint64_t c) { return c >> 3; });
         parents.erase(std::unique(parents.begin(), parents.end()), parents.end());  // sorted already
         const std::int64_t n = std::int64_t(1) << (m - 1);
+        const std::vector<std::uint64_t>& above = cells[std::size_t(m) - 1];
         std::vector<std::uint64_t> missing;
 #pragma omp parallel
         {
@@ -85,7 +77,7 @@ void Octree::balance() {
                             const std::int64_t q[3] = {std::int64_t(p[0]) + dx, std::int64_t(p[1]) + dy, std::int64_t(p[2]) + dz};
                             if (q[0] < 0 || q[1] < 0 || q[2] < 0 || q[0] >= n || q[1] >= n || q[2] >= n) continue;
                             const std::uint64_t code = morton3(std::uint32_t(q[0]), std::uint32_t(q[1]), std::uint32_t(q[2]));
-                            if (find(m - 1, code) < 0) mine.push_back(code >> 3);
+                            if (find_in(above, code) < 0) mine.push_back(code >> 3);
                         }
             }
 #pragma omp critical
@@ -93,41 +85,77 @@ void Octree::balance() {
         }
         if (missing.empty()) continue;
         sort_unique(missing);
-        std::vector<std::uint64_t>& level = cells_[std::size_t(m) - 1];
+        std::vector<std::uint64_t>& level = cells[std::size_t(m) - 1];
         for (const std::uint64_t q : missing)
             for (std::uint64_t o = 0; o < 8; ++o) level.push_back(q << 3 | o);
         sort_unique(level);
     }
 }
 
-void Octree::mark_internal() {
-    internal_.assign(cells_.size(), {});
-    for (std::size_t l = 0; l < cells_.size(); ++l) {
-        internal_[l].assign(cells_[l].size(), 0);
-        if (l + 1 == cells_.size() || cells_[l + 1].empty()) continue;
-        const auto count = std::ptrdiff_t(cells_[l].size());
-#pragma omp parallel for schedule(static)
-        for (std::ptrdiff_t i = 0; i < count; ++i)
-            internal_[l][std::size_t(i)] = find(int(l) + 1, cells_[l][std::size_t(i)] << 3) >= 0;
+}  // namespace
+
+Octree::Octree(const Box& cube, int depth, const SplitRule& rule) : box_(cube), depth_(depth) {
+    Levels cells(std::size_t(depth) + 1);
+    cells[0] = {0};
+    for (int l = 0; l < depth; ++l) {
+        const std::vector<std::uint64_t>& parents = cells[std::size_t(l)];
+        std::vector<char> split(parents.size(), 0);
+        rule(l, parents, split);
+        std::vector<std::uint64_t>& children = cells[std::size_t(l) + 1];
+        // Children of sorted parents come out sorted: a child's code is its parent's shifted.
+        for (std::size_t i = 0; i < parents.size(); ++i)
+            if (split[i])
+                for (std::uint64_t o = 0; o < 8; ++o) children.push_back(parents[i] << 3 | o);
+        if (children.empty()) break;
+    }
+    balance(cells, depth);
+    // Kept: the cells that have children (their eight children are the next level's cells, in
+    // order), finest first so that each level's full list is let go as soon as it is read.
+    parents_.assign(std::size_t(depth) + 1, {});
+    split_.assign(std::size_t(depth) + 1, {});
+    for (int l = depth; l >= 0; --l) {
+        std::vector<std::uint64_t>& level = cells[std::size_t(l)];
+        if (l > 0) {
+            std::vector<std::uint64_t>& up = parents_[std::size_t(l) - 1];
+            up.resize(level.size() / 8);
+            for (std::size_t k = 0; k < up.size(); ++k) up[k] = level[8 * k] >> 3;
+        }
+        const std::vector<std::uint64_t>& mine = parents_[std::size_t(l)];
+        std::vector<std::uint64_t>& bits = split_[std::size_t(l)];
+        bits.assign((level.size() + 63) / 64, 0);
+        // Both sorted: one merge marks the cells that are parents.
+        for (std::size_t i = 0, k = 0; i < level.size() && k < mine.size(); ++i) {
+            if (level[i] != mine[k]) continue;
+            bits[i >> 6] |= std::uint64_t(1) << (i & 63);
+            ++k;
+        }
+        std::vector<std::uint64_t>().swap(level);
     }
 }
 
+std::size_t Octree::cell_count(int level) const {
+    return level == 0 ? 1 : 8 * parents_[std::size_t(level) - 1].size();
+}
+
+std::uint64_t Octree::cell_code(int level, std::size_t index) const {
+    return level == 0 ? 0 : parents_[std::size_t(level) - 1][index >> 3] << 3 | (index & 7);
+}
+
 std::ptrdiff_t Octree::find(int level, std::uint64_t code) const {
-    const std::vector<std::uint64_t>& v = cells_[std::size_t(level)];
-    const auto it = std::lower_bound(v.begin(), v.end(), code);
-    return it != v.end() && *it == code ? it - v.begin() : -1;
+    if (level == 0) return code == 0 ? 0 : -1;
+    const std::ptrdiff_t p = find_in(parents_[std::size_t(level) - 1], code >> 3);
+    return p < 0 ? -1 : 8 * p + std::ptrdiff_t(code & 7);
 }
 
 std::size_t Octree::cell_count() const {
     std::size_t n = 0;
-    for (const auto& v : cells_) n += v.size();
+    for (int l = 0; l <= depth_; ++l) n += cell_count(l);
     return n;
 }
 
 std::size_t Octree::leaf_count(int level) const {
-    std::size_t n = cells_[std::size_t(level)].size();
-    for (int l = 0; l < level; ++l)
-        n += std::size_t(std::count(internal_[std::size_t(l)].begin(), internal_[std::size_t(l)].end(), 0));
+    std::size_t n = cell_count(level);
+    for (int l = 0; l < level; ++l) n += cell_count(l) - parents_[std::size_t(l)].size();
     return n;
 }
 
@@ -137,8 +165,7 @@ std::pair<int, std::uint64_t> Octree::leaf_at(int level, const std::array<std::u
         const int shift = depth_ - l;
         const std::uint64_t code = morton3(std::min(p[0] >> shift, last), std::min(p[1] >> shift, last), std::min(p[2] >> shift, last));
         if (l == level) return {l, code};
-        const std::ptrdiff_t i = find(l, code);
-        if (i < 0 || !internal_[std::size_t(l)][std::size_t(i)]) return {l, code};
+        if (find_in(parents_[std::size_t(l)], code) < 0) return {l, code};  // no children (or no cell)
     }
 }
 
@@ -154,9 +181,9 @@ Eigen::Vector3d Octree::to_world(const std::array<std::uint32_t, 3>& p) const {
 }
 
 void Octree::for_each_leaf(int level, const std::function<void(int, std::uint64_t)>& f) const {
-    for (int l = 0; l <= level && l < int(cells_.size()); ++l)
-        for (std::size_t i = 0; i < cells_[std::size_t(l)].size(); ++i)
-            if (l == level || !internal_[std::size_t(l)][i]) f(l, cells_[std::size_t(l)][i]);
+    for (int l = 0; l <= level && l <= depth_; ++l)
+        for (std::size_t i = 0, n = cell_count(l); i < n; ++i)
+            if (l == level || !has_children(l, i)) f(l, cell_code(l, i));
 }
 
 std::vector<std::pair<int, std::uint64_t>> Octree::leaves(int level) const {
@@ -166,7 +193,65 @@ std::vector<std::pair<int, std::uint64_t>> Octree::leaves(int level) const {
     return out;
 }
 
+void NodeGraph::pack_keys(std::size_t block) {
+    if (keys_packed() || keys.empty()) return;
+    if (block == 0) throw Error("NodeGraph::pack_keys: a block needs a key");
+    const std::size_t n = keys.size(), blocks = (n + block - 1) / block;
+    std::vector<std::vector<std::uint8_t>> part(blocks);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
+        std::vector<std::uint8_t>& out = part[std::size_t(b)];
+        const std::size_t first = std::size_t(b) * block, last = std::min(n, first + block);
+        std::uint64_t previous = 0;  // the block's first key is its own delta from 0
+        for (std::size_t i = first; i < last; ++i) {
+            std::uint64_t d = keys[i] - previous;  // ≥ 0: sorted
+            previous = keys[i];
+            do {
+                out.push_back(std::uint8_t(d & 0x7f) | std::uint8_t(d >= 0x80 ? 0x80 : 0));
+                d >>= 7;
+            } while (d != 0);
+        }
+        out.shrink_to_fit();
+    }
+    pack_starts.assign(blocks + 1, 0);
+    for (std::size_t b = 0; b < blocks; ++b) pack_starts[b + 1] = pack_starts[b] + part[b].size();
+    std::vector<std::uint64_t>().swap(keys);
+    packed_keys.resize(pack_starts[blocks]);
+    for (std::size_t b = 0; b < blocks; ++b) {
+        std::copy(part[b].begin(), part[b].end(), packed_keys.begin() + std::ptrdiff_t(pack_starts[b]));
+        std::vector<std::uint8_t>().swap(part[b]);
+    }
+    packed_count = n;
+    pack_block = block;
+}
+
+void NodeGraph::unpack_keys() {
+    if (!keys_packed()) return;
+    const std::size_t n = packed_count, blocks = pack_starts.size() - 1;
+    keys.resize(n);
+#pragma omp parallel for schedule(dynamic, 1)
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
+        const std::uint8_t* at = packed_keys.data() + pack_starts[std::size_t(b)];
+        const std::size_t first = std::size_t(b) * pack_block, last = std::min(n, first + pack_block);
+        std::uint64_t previous = 0;
+        for (std::size_t i = first; i < last; ++i) {
+            std::uint64_t d = 0;
+            for (int shift = 0;; shift += 7) {
+                const std::uint8_t byte = *at++;
+                d |= std::uint64_t(byte & 0x7f) << shift;
+                if (!(byte & 0x80)) break;
+            }
+            previous += d;
+            keys[i] = previous;
+        }
+    }
+    std::vector<std::uint8_t>().swap(packed_keys);
+    std::vector<std::uint64_t>().swap(pack_starts);
+    packed_count = pack_block = 0;
+}
+
 std::ptrdiff_t NodeGraph::find(std::uint64_t key) const {
+    if (keys_packed()) throw Error("NodeGraph::find: the keys are packed (unpack_keys)");
     const auto it = std::lower_bound(keys.begin(), keys.end(), key);
     return it != keys.end() && *it == key ? it - keys.begin() : -1;
 }

@@ -2,8 +2,9 @@
 // of the octree cut off at any level (its multigrid levels).
 //
 // Cells are addressed per level by the Morton code of their integer coordinates (i, j, k) ∈
-// [0, 2^l)³; each level keeps its cells as a sorted vector of codes (parents sorted ⇒ children
-// sorted), so the tree costs 8 bytes a cell and a lookup is a binary search. Nodes (cell
+// [0, 2^l)³; each level keeps the sorted codes of its cells that have children (parents sorted
+// ⇒ children sorted: a level's cells are its parents' children in order), so the tree costs
+// about a byte a cell and a lookup is a binary search. Nodes (cell
 // corners) live on the finest lattice, coordinates in [0, 2^D]³, also keyed by Morton code.
 #pragma once
 
@@ -40,9 +41,12 @@ public:
     /// World size of a cell of `level`; of the finest lattice's step at depth().
     double cell_size(int level) const { return box_.extent().x() / double(std::uint64_t(1) << level); }
     double lattice_step() const { return cell_size(depth_); }
-    /// Cells of `level` (sorted Morton codes) and whether each has children.
-    const std::vector<std::uint64_t>& cells(int level) const { return cells_[std::size_t(level)]; }
-    bool has_children(int level, std::size_t index) const { return internal_[std::size_t(level)][index] != 0; }
+    /// Cells of `level` in Morton order: how many, the code of the index-th, whether it has
+    /// children. The tree keeps only the cells that have children (a split makes all eight, so
+    /// they are the next level's cells): about a byte a cell instead of a code's eight.
+    std::size_t cell_count(int level) const;
+    std::uint64_t cell_code(int level, std::size_t index) const;
+    bool has_children(int level, std::size_t index) const { return split_[std::size_t(level)][index >> 6] >> (index & 63) & 1; }
     /// Index of a cell in its level, or -1.
     std::ptrdiff_t find(int level, std::uint64_t code) const;
     std::size_t cell_count() const;
@@ -63,13 +67,10 @@ public:
     std::vector<std::pair<int, std::uint64_t>> leaves(int level) const;
 
 private:
-    void balance();
-    void mark_internal();
-
     Box box_;
     int depth_ = 0;
-    std::vector<std::vector<std::uint64_t>> cells_;
-    std::vector<std::vector<char>> internal_;
+    std::vector<std::vector<std::uint64_t>> parents_;  ///< per level: the sorted codes of its cells that have children
+    std::vector<std::vector<std::uint64_t>> split_;    ///< per level: a bit a cell, set where it has children
 };
 
 /// The nodes of the octree cut at a level, and the least-squares gradient graph on them: each
@@ -116,9 +117,20 @@ struct NodeGraph {
         if (s == 0) return -1;
         return s != kFarStep ? std::int32_t(i - s) : far_node(6 * i + 3 + std::size_t(a));
     }
+    /// The keys delta-coded while nothing reads them (the solve walks the steps alone): about a
+    /// byte a key instead of 8. pack_keys() moves them into `packed_keys` and frees `keys`;
+    /// unpack_keys() restores them, the same. Neither does anything twice. `block`: keys a block
+    /// (blocks are coded and decoded in parallel).
+    void pack_keys(std::size_t block = std::size_t(1) << 16);
+    void unpack_keys();
+    bool keys_packed() const { return !packed_keys.empty(); }
+    std::vector<std::uint8_t> packed_keys;   ///< blocks of pack_block keys, LEB128 deltas from the block's first
+    std::vector<std::uint64_t> pack_starts;  ///< each block's offset in packed_keys; one more at the end
+    std::size_t packed_count = 0, pack_block = 0;
+
     /// V/ℓ² of the segment (i, next(i, a)) (world units), 0 where there is none.
     float weight(std::size_t i, int a) const { return weights[weight_code[i][std::size_t(a)]]; }
-    std::size_t size() const { return keys.size(); }
+    std::size_t size() const { return keys_packed() ? packed_count : keys.size(); }
     /// Index of a node, or -1.
     std::ptrdiff_t find(std::uint64_t key) const;
     std::ptrdiff_t find(const std::array<std::uint32_t, 3>& p) const { return find(morton3(p[0], p[1], p[2])); }

@@ -669,18 +669,26 @@ double OctreePoisson::mean_on_samples(const std::vector<double>& phi) const {
 }
 
 std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolerance, int max_iterations, OctreePoissonStats& stats,
-                                         const ProgressFn& progress) const {
-    const Impl& m = *impl_;
+                                         const ProgressFn& progress) {
+    Impl& m = *impl_;
     for (const auto& lv : m.levels) stats.level_nodes.push_back(lv.graph.size());
     const auto t0 = std::chrono::steady_clock::now();
     const auto n = Eigen::Index(b_in.size());
     std::vector<double> phi(b_in.size(), 0.0);
     Eigen::Map<Vec> x(phi.data(), n);
-    // Four vectors of the nodes' size through the iterations (b is let go once copied into r;
-    // z holds A p, then the preconditioned residual).
+    // Through the iterations x (φ) and r in double, p and z in float (conjugate_gradients), and
+    // the V-cycle's residual in float: 28 bytes a node (b is let go once copied into r).
     Vec r = Eigen::Map<const Vec>(b_in.data(), n);
     std::vector<double>().swap(b_in);
-    m.conjugate_gradients(0, r, x, tolerance, max_iterations, stats.residual_history, progress);
+    // The iterations walk the steps alone: the keys wait packed (8 bytes a node → about 1).
+    for (Impl::Level& lv : m.levels) lv.graph.pack_keys();
+    try {
+        m.conjugate_gradients(0, r, x, tolerance, max_iterations, stats.residual_history, progress);
+    } catch (...) {
+        for (Impl::Level& lv : m.levels) lv.graph.unpack_keys();
+        throw;
+    }
+    for (Impl::Level& lv : m.levels) lv.graph.unpack_keys();
     stats.seconds_solve = seconds_since(t0);
     return phi;
 }

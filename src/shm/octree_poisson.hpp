@@ -92,8 +92,9 @@ public:
     /// b of the normal equations from Y (3 floats per finest node).
     std::vector<double> divergence(const std::vector<float>& Y) const;
     /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory is let go).
+    /// Not const: the levels' keys are held packed while it iterates (NodeGraph::pack_keys).
     std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
-                              const ProgressFn& progress = {}) const;
+                              const ProgressFn& progress = {});
     /// Changes μ (the constructor's `penalty`): every level's penalty rows, smoother and the
     /// coarsest factor (refactored numerically when the pattern is the same: μ stays > 0 or
     /// stays 0; analysed and factored again when μ goes between 0 and > 0). The samples' rows of

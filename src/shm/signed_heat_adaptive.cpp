@@ -433,7 +433,7 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     out.leaves = tree.leaf_count(tree.depth());
     for (int l = 0; l <= tree.depth(); ++l) {
         std::size_t n = 0;
-        for (std::size_t i = 0; i < tree.cells(l).size(); ++i) n += !tree.has_children(l, i);
+        for (std::size_t i = 0; i < tree.cell_count(l); ++i) n += !tree.has_children(l, i);
         out.leaves_per_level.push_back(n);
     }
     // The estimate again, now from the leaves themselves (about a node each).
