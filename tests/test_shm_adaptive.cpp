@@ -182,6 +182,17 @@ TEST_CASE("octree node graph: steps too long for 16 bits are kept aside, the sam
     CHECK(!p.keys_packed());
     CHECK(p.keys == g.keys);
     CHECK(p.find(g.keys[7]) == 7);
+    // find_near finds what find finds from any hint (before, at, after, past the end), and
+    // leaves the hint where it found the key.
+    for (std::size_t i = 0; i < g.size(); i += 37)
+        for (const std::size_t start : {std::size_t(0), i / 2, i, i + 1, (i + g.size()) / 2, g.size() - 1, 10 * g.size()}) {
+            std::size_t hint = start;
+            CHECK(g.find_near(g.keys[i], hint) == std::ptrdiff_t(i));
+            CHECK(hint == i);
+            std::size_t miss = start;  // one past a key: a lattice point that is no node, or is one
+            const std::uint64_t key = g.keys[i] + 1;
+            CHECK(g.find_near(key, miss) == g.find(key));
+        }
 }
 
 TEST_CASE("octree node graph: weights are ℓ·k/4 for whole k ≤ 13, the same on every build, on a box whose cells are not powers of two") {

@@ -256,6 +256,38 @@ std::ptrdiff_t NodeGraph::find(std::uint64_t key) const {
     return it != keys.end() && *it == key ? it - keys.begin() : -1;
 }
 
+std::ptrdiff_t NodeGraph::find_near(std::uint64_t key, std::size_t& hint) const {
+    if (keys_packed()) throw Error("NodeGraph::find: the keys are packed (unpack_keys)");
+    const std::size_t n = keys.size();
+    if (n == 0) return -1;
+    const std::size_t h = std::min(hint, n - 1);
+    // The bracket [lo, hi) that holds the first key ≥ key, by steps doubling away from h.
+    std::size_t lo = 0, hi = n;
+    if (keys[h] < key) {
+        lo = h + 1;
+        for (std::size_t step = 1; h + step < n; step *= 2) {
+            if (keys[h + step] >= key) {
+                hi = h + step + 1;
+                break;
+            }
+            lo = h + step + 1;
+        }
+    } else {
+        hi = h + 1;
+        for (std::size_t step = 1; step <= h; step *= 2) {
+            if (keys[h - step] < key) {
+                lo = h - step + 1;
+                break;
+            }
+            hi = h - step + 1;
+        }
+    }
+    const auto it = std::lower_bound(keys.begin() + std::ptrdiff_t(lo), keys.begin() + std::ptrdiff_t(hi), key);
+    if (it == keys.begin() + std::ptrdiff_t(hi) || *it != key) return -1;
+    hint = std::size_t(it - keys.begin());
+    return std::ptrdiff_t(hint);
+}
+
 namespace {
 
 // The segments' weights from their quarters (V/ℓ² = ℓ·k/4, NodeGraph::weight_code), their
@@ -360,7 +392,7 @@ NodeGraph build_node_graph(const Octree& tree, int level, std::uint16_t max_step
     if (max_step == 0 || max_step >= NodeGraph::kFarStep) throw Error("build_node_graph: max_step must be in [1, 65534]");
     NodeGraph g;
     g.level = level;
-    const std::vector<std::pair<int, std::uint64_t>> leaves = tree.leaves(level);
+    std::vector<std::pair<int, std::uint64_t>> leaves = tree.leaves(level);
     const int D = tree.depth();
     const auto corner = [&](std::size_t leaf, int o) {
         const auto [l, code] = leaves[leaf];
@@ -401,46 +433,53 @@ NodeGraph build_node_graph(const Octree& tree, int level, std::uint16_t max_step
     const double h = tree.lattice_step();
     // Each leaf's twelve edges: a quarter of the leaf's volume to each edge of an axis (the four
     // together hold the volume once per axis), split evenly where a hanging node sits at the
-    // edge's midpoint (the neighbour across it is finer). The leaf's corners are looked up once.
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(leaves.size()); ++i) {
-        const auto [l, code] = leaves[std::size_t(i)];
-        const std::uint32_t s = std::uint32_t(1) << (D - l);
-        const auto c = unmorton3(code);
-        std::int32_t at[8];
-        for (int o = 0; o < 8; ++o) at[o] = std::int32_t(g.find(corner(std::size_t(i), o)));
-        for (int a = 0; a < 3; ++a) {
-            const int b = (a + 1) % 3, d = (a + 2) % 3;
-            for (int ob = 0; ob < 2; ++ob)
-                for (int od = 0; od < 2; ++od) {
-                    const int o = ob << b | od << d;  // the edge's low corner; its high one adds 1 << a
-                    const std::int32_t from = at[o], to = at[o | 1 << a];
-                    std::int32_t middle = -1;
-                    if (s >= 2) {
-                        std::array<std::uint32_t, 3> mid{c[0] * s, c[1] * s, c[2] * s};
-                        mid[std::size_t(b)] += std::uint32_t(ob) * s;
-                        mid[std::size_t(d)] += std::uint32_t(od) * s;
-                        mid[std::size_t(a)] += s / 2;
-                        middle = std::int32_t(g.find(mid));
-                    }
-                    // A quarter of the leaf's volume over the segment's length squared is a
-                    // quarter of the segment's length, (sh)³/4 / (sh)²; across a hanging node
-                    // half that volume over (sh/2)² is the whole half-segment's length.
-                    auto add = [&](std::int32_t x, std::int32_t y, std::uint8_t q) {
+    // edge's midpoint (the neighbour across it is finer). The leaf's corners are looked up once,
+    // each from where the thread's last leaf found the same corner (leaves in Morton order have
+    // their corners near each other's: a few probes instead of a search through every key).
+#pragma omp parallel
+    {
+        std::size_t hint[8 + 12] = {};
+#pragma omp for schedule(static)
+        for (std::ptrdiff_t i = 0; i < std::ptrdiff_t(leaves.size()); ++i) {
+            const auto [l, code] = leaves[std::size_t(i)];
+            const std::uint32_t s = std::uint32_t(1) << (D - l);
+            const auto c = unmorton3(code);
+            std::int32_t at[8];
+            for (int o = 0; o < 8; ++o) at[o] = std::int32_t(g.find_near(corner(std::size_t(i), o), hint[o]));
+            for (int a = 0; a < 3; ++a) {
+                const int b = (a + 1) % 3, d = (a + 2) % 3;
+                for (int ob = 0; ob < 2; ++ob)
+                    for (int od = 0; od < 2; ++od) {
+                        const int o = ob << b | od << d;  // the edge's low corner; its high one adds 1 << a
+                        const std::int32_t from = at[o], to = at[o | 1 << a];
+                        std::int32_t middle = -1;
+                        if (s >= 2) {
+                            std::array<std::uint32_t, 3> mid{c[0] * s, c[1] * s, c[2] * s};
+                            mid[std::size_t(b)] += std::uint32_t(ob) * s;
+                            mid[std::size_t(d)] += std::uint32_t(od) * s;
+                            mid[std::size_t(a)] += s / 2;
+                            middle = std::int32_t(g.find_near(morton3(mid[0], mid[1], mid[2]), hint[8 + 4 * a + 2 * ob + od]));
+                        }
+                        // A quarter of the leaf's volume over the segment's length squared is a
+                        // quarter of the segment's length, (sh)³/4 / (sh)²; across a hanging node
+                        // half that volume over (sh/2)² is the whole half-segment's length.
+                        auto add = [&](std::int32_t x, std::int32_t y, std::uint8_t q) {
 #pragma omp atomic write
-                        next[std::size_t(x)][std::size_t(a)] = y;
+                            next[std::size_t(x)][std::size_t(a)] = y;
 #pragma omp atomic
-                        quarters[std::size_t(x)][std::size_t(a)] += q;
-                    };
-                    if (middle >= 0) {
-                        add(from, middle, 4);
-                        add(middle, to, 4);
-                    } else {
-                        add(from, to, 1);
+                            quarters[std::size_t(x)][std::size_t(a)] += q;
+                        };
+                        if (middle >= 0) {
+                            add(from, middle, 4);
+                            add(middle, to, 4);
+                        } else {
+                            add(from, to, 1);
+                        }
                     }
-                }
+            }
         }
     }
+    std::vector<std::pair<int, std::uint64_t>>().swap(leaves);  // 16 bytes a leaf, not needed below
     code_weights(next, quarters, h, g);
     std::vector<std::array<std::uint8_t, 3>>().swap(quarters);
     store_steps(next, max_step, g);

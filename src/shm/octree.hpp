@@ -133,6 +133,9 @@ struct NodeGraph {
     std::size_t size() const { return keys_packed() ? packed_count : keys.size(); }
     /// Index of a node, or -1.
     std::ptrdiff_t find(std::uint64_t key) const;
+    /// The same, searched outward from `hint` (any index; a nearby key's makes it a few probes),
+    /// which is set to the node's index when it is found.
+    std::ptrdiff_t find_near(std::uint64_t key, std::size_t& hint) const;
     std::ptrdiff_t find(const std::array<std::uint32_t, 3>& p) const { return find(morton3(p[0], p[1], p[2])); }
 
 private:

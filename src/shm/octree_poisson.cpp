@@ -392,11 +392,11 @@ struct OctreePoisson::Impl {
         for (std::ptrdiff_t i = 0; i < n; ++i) y[i] = row(lv, x, at, std::size_t(i));
     }
 
-    // One Gauss–Seidel sweep on x (float: the V-cycle's correction), b of either precision. t =
-    // S x on entry and on return: the samples' values follow each node's update, so a node's
-    // penalty row costs its samples, not their products.
-    template <class B>
-    void gauss_seidel(const Level& lv, const B& b, VecF& x, Vec& t, bool forward) const {
+    // One Gauss–Seidel sweep on x (the V-cycle's correction: double on the finest level, float
+    // below), b of either precision. t = S x on entry and on return: the samples' values follow
+    // each node's update, so a node's penalty row costs its samples, not their products.
+    template <class B, class X>
+    void gauss_seidel(const Level& lv, const B& b, X& x, Vec& t, bool forward) const {
         const auto n = std::ptrdiff_t(lv.graph.size());
         for (std::ptrdiff_t s = 0; s < n; ++s) {
             const std::ptrdiff_t i = forward ? s : n - 1 - s;
@@ -424,7 +424,7 @@ struct OctreePoisson::Impl {
             } else {
                 d *= 1 + kPin;
             }
-            const float updated = float(sum / d);
+            const auto updated = typename X::Scalar(sum / d);
             const double delta = double(updated) - xi;
             x[i] = updated;
             if (mu > 0)
@@ -433,11 +433,13 @@ struct OctreePoisson::Impl {
     }
 
     // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
-    // coarsest: factored, exact). r is the residual throughout; x starts at 0. x and r are
-    // double; the search direction p and the preconditioned residual z are float (the V-cycle
-    // is a float approximation anyway): 24 bytes a node instead of 32. A p is not stored: p·Ap
-    // and r −= αAp each apply A on the way, so r stays b − A x to double rounding.
-    void conjugate_gradients(std::size_t k, Vec& r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
+    // coarsest: factored, exact). r is the residual throughout; x starts at 0. x, r and the
+    // preconditioned residual z are double, the search direction p float: 28 bytes a node
+    // instead of 32. A p is not stored: p·Ap and r −= αAp each apply A on the way, so r stays
+    // b − A x to double rounding. (z in float cost iterations on large grids: z's smooth part
+    // is up to (2^D/π)² times its rough part, and float's rounding of the one swamped the
+    // other — 10 iterations instead of 5 at depth 11.)
+    void conjugate_gradients(std::size_t k, Eigen::Ref<Vec> r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
                              std::vector<double>& history, const ProgressFn& progress) const {
         const Level& lv = levels[k];
         const double bn = r.norm();
@@ -449,9 +451,9 @@ struct OctreePoisson::Impl {
             history.push_back(bn > 0 ? (r - z).norm() / bn : 0.0);
             return;
         }
-        VecF z;
+        Vec z;
         vcycle(k, r, z);
-        VecF p = z;
+        VecF p = z.cast<float>();
         double rz = dot(r, z);
         for (int it = 0; it < max_iterations && bn > 0; ++it) {
             const Vec at = penalty_of(lv, p);
@@ -468,9 +470,9 @@ struct OctreePoisson::Impl {
             if (rel <= tolerance) break;
             vcycle(k, r, z);
             const double rz_new = dot(r, z);
-            const float beta = float(rz_new / rz);
+            const double beta = rz_new / rz;
 #pragma omp parallel for schedule(static)
-            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = float(z[i] + beta * double(p[i]));
             rz = rz_new;
         }
     }
@@ -493,14 +495,14 @@ struct OctreePoisson::Impl {
         return sum;
     }
 
-    static double dot(const Vec& r, const VecF& z) {
-        return blocked_sum(r.size(), [&](std::ptrdiff_t i) { return r[i] * double(z[i]); });
+    static double dot(const Vec& r, const Vec& z) {
+        return blocked_sum(r.size(), [&](std::ptrdiff_t i) { return r[i] * z[i]; });
     }
 
-    // x ≈ A⁻¹ b on level k by one V-cycle, in float (b: the finest level's residual in double,
-    // a coarser level's in float).
-    template <class B>
-    void vcycle(std::size_t k, const B& b, VecF& x) const {
+    // x ≈ A⁻¹ b on level k by one V-cycle: x in double on the finest level (CG's z), in float on
+    // the coarser ones, as their residuals b and the transfers are.
+    template <class B, class X>
+    void vcycle(std::size_t k, const B& b, X& x) const {
         const Level& lv = levels[k];
         if (k + 1 == levels.size()) {
             // Without a penalty the operator is the Laplacian pinned by 1e-9 of its diagonal:
@@ -513,7 +515,7 @@ struct OctreePoisson::Impl {
             if (mu == 0) rhs.array() -= rhs.mean();
             Vec e = coarsest.solve(rhs);
             if (mu == 0) e.array() -= e.mean();
-            x = e.cast<float>();
+            x = e.cast<typename X::Scalar>();
             return;
         }
         x.setZero(b.size());
@@ -528,7 +530,7 @@ struct OctreePoisson::Impl {
         VecF ec;
         vcycle(k + 1, rc, ec);
         lv.P.prolong(lv.graph, std::span<const float>(ec.data(), std::size_t(ec.size())), std::span<float>(fine.data(), std::size_t(fine.size())));
-        x += fine;
+        x += fine.cast<typename X::Scalar>();
         if (mu > 0) t = samples_of(lv, x);
         for (int s = 0; s < kSweeps; ++s) gauss_seidel(lv, b, x, t, false);
     }
@@ -676,10 +678,9 @@ std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolera
     const auto n = Eigen::Index(b_in.size());
     std::vector<double> phi(b_in.size(), 0.0);
     Eigen::Map<Vec> x(phi.data(), n);
-    // Through the iterations x (φ) and r in double, p and z in float (conjugate_gradients), and
-    // the V-cycle's residual in float: 28 bytes a node (b is let go once copied into r).
-    Vec r = Eigen::Map<const Vec>(b_in.data(), n);
-    std::vector<double>().swap(b_in);
+    // Through the iterations x (φ), r (in b's memory) and z in double, p in float
+    // (conjugate_gradients), and the V-cycle's residual in float: 32 bytes a node.
+    Eigen::Map<Vec> r(b_in.data(), n);  // b's memory is r's
     // The iterations walk the steps alone: the keys wait packed (8 bytes a node → about 1).
     for (Impl::Level& lv : m.levels) lv.graph.pack_keys();
     try {

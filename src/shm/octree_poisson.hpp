@@ -91,7 +91,8 @@ public:
     std::vector<std::uint64_t> take_finest_keys();
     /// b of the normal equations from Y (3 floats per finest node).
     std::vector<double> divergence(const std::vector<float>& Y) const;
-    /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory is let go).
+    /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory holds the
+    /// residual while the solve iterates).
     /// Not const: the levels' keys are held packed while it iterates (NodeGraph::pack_keys).
     std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
                               const ProgressFn& progress = {});
