@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace gsd::shm {
 
@@ -193,36 +194,51 @@ std::vector<std::pair<int, std::uint64_t>> Octree::leaves(int level) const {
     return out;
 }
 
+namespace {
+
+// A key's LEB128 code: 7 bits a byte, low first, the high bit set on all but the last.
+int code_length(std::uint64_t d) {
+    int bytes = 1;
+    while (d >= 0x80) {
+        d >>= 7;
+        ++bytes;
+    }
+    return bytes;
+}
+
+}  // namespace
+
 void NodeGraph::pack_keys(std::size_t block) {
     if (keys_packed() || keys.empty()) return;
     if (block == 0) throw Error("NodeGraph::pack_keys: a block needs a key");
     const std::size_t n = keys.size(), blocks = (n + block - 1) / block;
-    std::vector<std::vector<std::uint8_t>> part(blocks);
-#pragma omp parallel for schedule(dynamic, 1)
+    // Each block's bytes counted, then written in place: nothing in the parallel loops can
+    // throw, and `keys` goes only once the packed copy is whole (an allocation that fails
+    // leaves the graph as it was).
+    const auto delta = [&](std::size_t i) { return i % block == 0 ? keys[i] : keys[i] - keys[i - 1]; };  // ≥ 0: sorted
+    std::vector<std::uint64_t> starts(blocks + 1, 0);
+#pragma omp parallel for schedule(static)
     for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
-        std::vector<std::uint8_t>& out = part[std::size_t(b)];
-        const std::size_t first = std::size_t(b) * block, last = std::min(n, first + block);
-        std::uint64_t previous = 0;  // the block's first key is its own delta from 0
-        for (std::size_t i = first; i < last; ++i) {
-            std::uint64_t d = keys[i] - previous;  // ≥ 0: sorted
-            previous = keys[i];
-            do {
-                out.push_back(std::uint8_t(d & 0x7f) | std::uint8_t(d >= 0x80 ? 0x80 : 0));
-                d >>= 7;
-            } while (d != 0);
-        }
-        out.shrink_to_fit();
+        std::uint64_t bytes = 0;
+        for (std::size_t i = std::size_t(b) * block; i < std::min(n, std::size_t(b + 1) * block); ++i) bytes += std::uint64_t(code_length(delta(i)));
+        starts[std::size_t(b) + 1] = bytes;
     }
-    pack_starts.assign(blocks + 1, 0);
-    for (std::size_t b = 0; b < blocks; ++b) pack_starts[b + 1] = pack_starts[b] + part[b].size();
-    std::vector<std::uint64_t>().swap(keys);
-    packed_keys.resize(pack_starts[blocks]);
-    for (std::size_t b = 0; b < blocks; ++b) {
-        std::copy(part[b].begin(), part[b].end(), packed_keys.begin() + std::ptrdiff_t(pack_starts[b]));
-        std::vector<std::uint8_t>().swap(part[b]);
+    for (std::size_t b = 0; b < blocks; ++b) starts[b + 1] += starts[b];
+    std::vector<std::uint8_t> packed(starts[blocks]);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t b = 0; b < std::ptrdiff_t(blocks); ++b) {
+        std::uint8_t* out = packed.data() + starts[std::size_t(b)];
+        for (std::size_t i = std::size_t(b) * block; i < std::min(n, std::size_t(b + 1) * block); ++i)
+            for (std::uint64_t d = delta(i);; d >>= 7) {
+                *out++ = std::uint8_t(d & 0x7f) | std::uint8_t(d >= 0x80 ? 0x80 : 0);
+                if (d < 0x80) break;
+            }
     }
+    packed_keys = std::move(packed);
+    pack_starts = std::move(starts);
     packed_count = n;
     pack_block = block;
+    std::vector<std::uint64_t>().swap(keys);
 }
 
 void NodeGraph::unpack_keys() {
@@ -283,9 +299,8 @@ std::ptrdiff_t NodeGraph::find_near(std::uint64_t key, std::size_t& hint) const 
         }
     }
     const auto it = std::lower_bound(keys.begin() + std::ptrdiff_t(lo), keys.begin() + std::ptrdiff_t(hi), key);
-    if (it == keys.begin() + std::ptrdiff_t(hi) || *it != key) return -1;
-    hint = std::size_t(it - keys.begin());
-    return std::ptrdiff_t(hint);
+    hint = std::size_t(it - keys.begin());  // on a miss too: where the key would be
+    return it != keys.begin() + std::ptrdiff_t(hi) && *it == key ? std::ptrdiff_t(hint) : -1;
 }
 
 namespace {
@@ -367,6 +382,8 @@ void store_steps(const Links& next, std::uint16_t max_step, NodeGraph& g) {
         far.insert(far.end(), mine.begin(), mine.end());
     }
     sort_unique(far);
+    if (far.size() > std::numeric_limits<std::uint32_t>::max())
+        throw Error("the adaptive grid's node graph has more far steps than 32-bit offsets hold (max_step too small?)");
     g.far_slots.resize(far.size());
     g.far_nodes.resize(far.size());
     for (std::size_t k = 0; k < far.size(); ++k) {

@@ -79,7 +79,7 @@ private:
 /// edge). Σ_segments V (Δφ/ℓ − Ȳ·e)² is then a quadrature of ∫|∇φ − Y|² over the box. Kept
 /// per node: 8 + 6 + 6 + 3 bytes.
 struct NodeGraph {
-    /// Marks a step kept in `far` (NodeGraph::up, down).
+    /// Marks a step kept aside, in far_slots and far_nodes (NodeGraph::up, down).
     static constexpr std::uint16_t kFarStep = 0xffff;
 
     int level = 0;
@@ -87,7 +87,7 @@ struct NodeGraph {
     /// The segments as steps through the keys: the node along +axis a from node i (the segment's
     /// other end) is i + up[i][a], the one along −axis a is i − down[i][a]; 0: no segment. A
     /// Morton code grows with each coordinate, so a +axis neighbour always comes later. Steps
-    /// are short but where the order carries into high bits (about 1 % at 16 bits): those are
+    /// are short but where the order carries into high bits (about 1.5 % at 16 bits): those are
     /// kFarStep, their node kept in `far_nodes` under the slot 6i + a (up) or 6i + 3 + a (down)
     /// in the sorted `far_slots`, whose first slot of each block of 2^kFarBlockBits nodes is
     /// at far_first[block]. 12 bytes a node instead of two int32 indices' 24.
@@ -134,7 +134,7 @@ struct NodeGraph {
     /// Index of a node, or -1.
     std::ptrdiff_t find(std::uint64_t key) const;
     /// The same, searched outward from `hint` (any index; a nearby key's makes it a few probes),
-    /// which is set to the node's index when it is found.
+    /// which is set to where the key is, or would be.
     std::ptrdiff_t find_near(std::uint64_t key, std::size_t& hint) const;
     std::ptrdiff_t find(const std::array<std::uint32_t, 3>& p) const { return find(morton3(p[0], p[1], p[2])); }
 

@@ -433,12 +433,11 @@ struct OctreePoisson::Impl {
     }
 
     // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
-    // coarsest: factored, exact). r is the residual throughout; x starts at 0. x, r and the
-    // preconditioned residual z are double, the search direction p float: 28 bytes a node
-    // instead of 32. A p is not stored: p·Ap and r −= αAp each apply A on the way, so r stays
-    // b − A x to double rounding. (z in float cost iterations on large grids: z's smooth part
-    // is up to (2^D/π)² times its rough part, and float's rounding of the one swamped the
-    // other — 10 iterations instead of 5 at depth 11.)
+    // coarsest: factored, exact). r is the residual throughout; x starts at 0. A p is not
+    // stored: p·Ap and r −= αAp each apply A on the way, so r stays b − A x to double rounding
+    // and CG keeps four vectors, not five. They stay double: p's and z's smooth parts are up to
+    // (2^D/π)² times their rough parts, and float's rounding of the one swamped the other (10
+    // CG iterations instead of 7 on a 2·10⁶-point scan at depth 11 with p or z in float).
     void conjugate_gradients(std::size_t k, Eigen::Ref<Vec> r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
                              std::vector<double>& history, const ProgressFn& progress) const {
         const Level& lv = levels[k];
@@ -453,7 +452,7 @@ struct OctreePoisson::Impl {
         }
         Vec z;
         vcycle(k, r, z);
-        VecF p = z.cast<float>();
+        Vec p = z;
         double rz = dot(r, z);
         for (int it = 0; it < max_iterations && bn > 0; ++it) {
             const Vec at = penalty_of(lv, p);
@@ -472,7 +471,7 @@ struct OctreePoisson::Impl {
             const double rz_new = dot(r, z);
             const double beta = rz_new / rz;
 #pragma omp parallel for schedule(static)
-            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = float(z[i] + beta * double(p[i]));
+            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
             rz = rz_new;
         }
     }
@@ -495,8 +494,10 @@ struct OctreePoisson::Impl {
         return sum;
     }
 
-    static double dot(const Vec& r, const Vec& z) {
-        return blocked_sum(r.size(), [&](std::ptrdiff_t i) { return r[i] * z[i]; });
+    // r·v without a copy of either (r is a Ref: a Vec parameter would copy it).
+    template <class R, class V>
+    static double dot(const R& r, const V& v) {
+        return blocked_sum(r.size(), [&](std::ptrdiff_t i) { return r[i] * double(v[i]); });
     }
 
     // x ≈ A⁻¹ b on level k by one V-cycle: x in double on the finest level (CG's z), in float on
@@ -601,13 +602,18 @@ int OctreePoisson::fit_on_level(std::vector<double>& phi, int level, double tole
     Vec r = -m.mu * (lk.St * lk.area.cwiseProduct(v));
     Vec psi = Vec::Zero(Eigen::Index(lk.graph.size()));
     m.conjugate_gradients(k, r, psi, tolerance, max_iterations, history, progress);
-    // ψ prolonged level by level to the finest and added.
+    // ψ prolonged level by level to the finest and added; in float (a smooth correction: its
+    // rounding is 1e-7 of itself) on the way, so the finest level's copy costs 4 bytes a node
+    // beside φ, not 8 (it was the whole run's peak at depth 11).
+    VecF psi_f = psi.cast<float>();
+    Vec().swap(psi);
     for (std::size_t l = k; l-- > 0;) {
-        Vec fine(Eigen::Index(m.levels[l].graph.size()));
-        m.levels[l].P.prolong(m.levels[l].graph, {psi.data(), std::size_t(psi.size())}, {fine.data(), std::size_t(fine.size())});
-        psi = std::move(fine);
+        VecF fine(Eigen::Index(m.levels[l].graph.size()));
+        m.levels[l].P.prolong(m.levels[l].graph, std::span<const float>(psi_f.data(), std::size_t(psi_f.size())),
+                              std::span<float>(fine.data(), std::size_t(fine.size())));
+        psi_f = std::move(fine);
     }
-    for (std::size_t i = 0; i < phi.size(); ++i) phi[i] += psi[Eigen::Index(i)];
+    for (std::size_t i = 0; i < phi.size(); ++i) phi[i] += double(psi_f[Eigen::Index(i)]);
     return lk.graph.level;
 }
 
@@ -678,12 +684,12 @@ std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolera
     const auto n = Eigen::Index(b_in.size());
     std::vector<double> phi(b_in.size(), 0.0);
     Eigen::Map<Vec> x(phi.data(), n);
-    // Through the iterations x (φ), r (in b's memory) and z in double, p in float
-    // (conjugate_gradients), and the V-cycle's residual in float: 32 bytes a node.
+    // Through the iterations x (φ), r (in b's memory), z and p in double (conjugate_gradients),
+    // and the V-cycle's residual in float: 36 bytes a node.
     Eigen::Map<Vec> r(b_in.data(), n);  // b's memory is r's
     // The iterations walk the steps alone: the keys wait packed (8 bytes a node → about 1).
-    for (Impl::Level& lv : m.levels) lv.graph.pack_keys();
     try {
+        for (Impl::Level& lv : m.levels) lv.graph.pack_keys();
         m.conjugate_gradients(0, r, x, tolerance, max_iterations, stats.residual_history, progress);
     } catch (...) {
         for (Impl::Level& lv : m.levels) lv.graph.unpack_keys();

@@ -48,12 +48,15 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-/// Bytes a node costs at the peak (step 3's solve), with its share of the coarser levels and
-/// of the octree: on every level its key, segments (next and prev) and their weight codes, and
-/// a byte for the prolongation; the CG's four vectors and the V-cycle's fifth. Measured (peak
-/// resident memory over nodes, what the source holds included): 129 B on a 1.1·10⁵-point torus
-/// cloud at depth 9 and 119 B on a 2·10⁶-point bunny scan at depth 10 (docs/shm-adaptive.md).
-constexpr double kBytesPerNode = 130;
+/// Bytes a node costs at the peak, with its share of the coarser levels and of the octree. The
+/// peak is step 3's solve on large grids: on every level a node's segments as two 16-bit steps
+/// each way, their weight codes and a byte for the prolongation, its key packed to about a
+/// byte; CG's four double vectors and the V-cycle's float one (~60 bytes). On smaller ones it
+/// is step 1 (the finest graph with its keys, the 12-byte field, the evaluator's tree over the
+/// source) or the veto. Measured, peak resident memory over the estimate's nodes (what the
+/// source holds included): 74 B on a 1.1·10⁵-point torus cloud at depth 9 and 75 B on a
+/// 2·10⁶-point bunny scan at depth 10, less at depth 11 (docs/shm-adaptive.md); 80 is taken.
+constexpr double kBytesPerNode = 80;
 
 // φ on a leaf's lattice of halves, in GridSpec order: 3 points an axis (corners, midpoints,
 // center) for a leaf larger than the finest, 2 (its corners) for a finest one. A node gives its
