@@ -156,7 +156,7 @@ std::size_t Octree::cell_count() const {
 
 std::size_t Octree::leaf_count(int level) const {
     std::size_t n = cell_count(level);
-    for (int l = 0; l < level; ++l) n += cell_count(l) - parents_[std::size_t(l)].size();
+    for (int l = 0; l < level; ++l) n += childless_count(l);
     return n;
 }
 

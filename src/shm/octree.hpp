@@ -52,6 +52,8 @@ public:
     std::size_t cell_count() const;
     /// Leaves of the tree cut at `level` (cells of `level` count as leaves).
     std::size_t leaf_count(int level) const;
+    /// Cells of `level` that have no children (the whole tree's leaves there).
+    std::size_t childless_count(int level) const { return cell_count(level) - parents_[std::size_t(level)].size(); }
 
     /// The leaf of the tree cut at `level` that holds lattice point p (coordinates in
     /// [0, 2^D]; points on a face go to the cell above them, the box's far faces to the last

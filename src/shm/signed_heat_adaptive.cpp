@@ -434,11 +434,7 @@ AdaptiveShmResult SignedHeatOctree::solve(const ProgressFn& progress) const {
     const shm::Octree& tree = field->tree;
     out.cells = tree.cell_count();
     out.leaves = tree.leaf_count(tree.depth());
-    for (int l = 0; l <= tree.depth(); ++l) {
-        std::size_t n = 0;
-        for (std::size_t i = 0; i < tree.cell_count(l); ++i) n += !tree.has_children(l, i);
-        out.leaves_per_level.push_back(n);
-    }
+    for (int l = 0; l <= tree.depth(); ++l) out.leaves_per_level.push_back(tree.childless_count(l));
     // The estimate again, now from the leaves themselves (about a node each).
     check_memory(double(out.leaves) * 1.15 * kBytesPerNode, "AdaptiveShmOptions::depth",
                  "an adaptive grid of " + std::to_string(out.leaves) + " leaves");
