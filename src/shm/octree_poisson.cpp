@@ -102,6 +102,89 @@ SpMat sample_matrix(const Octree& tree, const NodeGraph& g, const std::vector<Ze
     });
 }
 
+// Gauss–Seidel's order on a level, such that both threads can sweep it. The level's nodes go
+// by the cells of a coarser level (Morton-contiguous runs of nodes), the cells coloured like a
+// checkerboard by the parity of i + j + k. A segment no longer than such a cell joins nodes of
+// one cell or of two face-adjacent ones, which have opposite colours: so the runs of one colour
+// are independent and are swept in parallel, then the other colour's. Nodes with a longer
+// segment (corners of leaves coarser than the cells: the far field's few) are swept last, in
+// turn. That is Gauss–Seidel in one fixed order whatever the threads, and the backward sweep is
+// its exact reverse, so the V-cycle stays a symmetric preconditioner.
+struct SweepOrder {
+    /// Cells of the level this many levels coarser: up to 16³ nodes a run.
+    static constexpr int kCoarser = 4;
+    std::vector<std::uint32_t> runs[2];     // per colour: begin, end of each run, in turn
+    std::vector<std::uint32_t> lone;        // nodes with a segment longer than a cell, ascending
+    std::vector<std::uint64_t> lone_bits;   // a bit a node: in `lone`
+
+    bool is_lone(std::size_t i) const { return lone_bits[i >> 6] >> (i & 63) & 1; }
+
+    SweepOrder() = default;
+    SweepOrder(const NodeGraph& g, int depth) {
+        const int cell_shift = depth - std::max(0, g.level - kCoarser);  // lattice bits below a cell
+        const std::uint32_t cell = std::uint32_t(1) << cell_shift;
+        const std::size_t n = g.size();
+        lone_bits.assign((n + 63) / 64, 0);
+        // Each word of bits by one thread: node i is lone if one of its own segments is long.
+#pragma omp parallel for schedule(static)
+        for (std::ptrdiff_t w = 0; w < std::ptrdiff_t(lone_bits.size()); ++w) {
+            std::uint64_t bits = 0;
+            for (std::size_t i = std::size_t(w) * 64; i < std::min(n, std::size_t(w + 1) * 64); ++i) {
+                const auto p = unmorton3(g.keys[i]);
+                bool long_segment = false;
+                for (int a = 0; a < 3 && !long_segment; ++a) {
+                    const std::int32_t up = g.next(i, a), down = g.prev(i, a);
+                    long_segment = (up >= 0 && unmorton3(g.keys[std::size_t(up)])[std::size_t(a)] - p[std::size_t(a)] > cell) ||
+                                   (down >= 0 && p[std::size_t(a)] - unmorton3(g.keys[std::size_t(down)])[std::size_t(a)] > cell);
+                }
+                if (long_segment) bits |= std::uint64_t(1) << (i & 63);
+            }
+            lone_bits[std::size_t(w)] = bits;
+        }
+        for (std::size_t i = 0; i < n; ++i)
+            if (is_lone(i)) lone.push_back(std::uint32_t(i));
+        for (std::size_t i = 0; i < n;) {
+            const std::uint64_t code = g.keys[i] >> (3 * cell_shift);
+            std::size_t j = i + 1;
+            while (j < n && g.keys[j] >> (3 * cell_shift) == code) ++j;
+            const auto c = unmorton3(code);
+            auto& r = runs[(c[0] + c[1] + c[2]) & 1];
+            r.push_back(std::uint32_t(i));
+            r.push_back(std::uint32_t(j));
+            i = j;
+        }
+    }
+
+    // relax(i) for every node in the order (forward) or its reverse.
+    template <class Relax>
+    void sweep(bool forward, Relax&& relax) const {
+        const auto colour = [&](int c) {
+            const std::vector<std::uint32_t>& r = runs[c];
+            const auto count = std::ptrdiff_t(r.size() / 2);
+#pragma omp parallel for schedule(dynamic, 64)
+            for (std::ptrdiff_t k = 0; k < count; ++k) {
+                const std::size_t begin = r[2 * std::size_t(k)], end = r[2 * std::size_t(k) + 1];
+                if (forward) {
+                    for (std::size_t i = begin; i < end; ++i)
+                        if (!is_lone(i)) relax(i);
+                } else {
+                    for (std::size_t i = end; i-- > begin;)
+                        if (!is_lone(i)) relax(i);
+                }
+            }
+        };
+        if (forward) {
+            colour(0);
+            colour(1);
+            for (const std::uint32_t i : lone) relax(i);
+        } else {
+            for (auto i = lone.rbegin(); i != lone.rend(); ++i) relax(*i);
+            colour(1);
+            colour(0);
+        }
+    }
+};
+
 }  // namespace
 
 std::vector<ZeroSample> merge_by_cell(const Octree& tree, const std::vector<ZeroSample>& samples, int level,
@@ -280,6 +363,7 @@ struct OctreePoisson::Impl {
         Vec area;         // A_j per sample (μ: Impl::mu)
         Prolongation P;                          // from the next (coarser) level; empty on the coarsest
         std::vector<std::uint32_t> merged_from;  // the finer level's samples: their merged one here
+        SweepOrder order;                        // Gauss–Seidel's, on both threads (μ = 0)
     };
     const Octree& tree;
     double mu = 0;
@@ -289,6 +373,7 @@ struct OctreePoisson::Impl {
     Level make_level(NodeGraph graph, std::vector<ZeroSample> samples) const {
         Level lv;
         lv.graph = std::move(graph);
+        lv.order = SweepOrder(lv.graph, tree.depth());
         lv.samples = std::move(samples);
         lv.area.resize(Eigen::Index(lv.samples.size()));
         for (std::size_t j = 0; j < lv.samples.size(); ++j) lv.area[Eigen::Index(j)] = lv.samples[j].area;
@@ -394,29 +479,30 @@ struct OctreePoisson::Impl {
 
     // One Gauss–Seidel sweep on x (the V-cycle's correction: double on the finest level, float
     // below), b of either precision. t = S x on entry and on return: the samples' values follow
-    // each node's update, so a node's penalty row costs its samples, not their products.
+    // each node's update, so a node's penalty row costs its samples, not their products. With a
+    // penalty a sample's nodes span cells of one colour, so that sweep stays on one thread (it
+    // is the zero-set fit's, on a coarse level); without one the level's SweepOrder runs it on
+    // all of them.
     template <class B, class X>
     void gauss_seidel(const Level& lv, const B& b, X& x, Vec& t, bool forward) const {
-        const auto n = std::ptrdiff_t(lv.graph.size());
-        for (std::ptrdiff_t s = 0; s < n; ++s) {
-            const std::ptrdiff_t i = forward ? s : n - 1 - s;
-            const double xi = x[i];
+        const auto relax = [&](std::size_t i) {
+            const double xi = x[Eigen::Index(i)];
             // The diagonal is made on the way (the weights are read anyway), not stored.
-            double sum = double(b[i]), d = 0;
+            double sum = double(b[Eigen::Index(i)]), d = 0;
             for (int a = 0; a < 3; ++a) {
-                if (const std::int32_t j = lv.graph.next(std::size_t(i), a); j >= 0) {
-                    const double w = lv.graph.weight(std::size_t(i), a);
+                if (const std::int32_t j = lv.graph.next(i, a); j >= 0) {
+                    const double w = lv.graph.weight(i, a);
                     sum += w * x[j];
                     d += w;
                 }
-                if (const std::int32_t j = lv.graph.prev(std::size_t(i), a); j >= 0) {
+                if (const std::int32_t j = lv.graph.prev(i, a); j >= 0) {
                     const double w = lv.graph.weight(std::size_t(j), a);
                     sum += w * x[j];
                     d += w;
                 }
             }
             if (mu > 0) {
-                for (SpMat::InnerIterator k(lv.St, i); k; ++k) {
+                for (SpMat::InnerIterator k(lv.St, Eigen::Index(i)); k; ++k) {
                     const double f = mu * lv.area[k.col()] * k.value();
                     sum -= f * (t[k.col()] - k.value() * xi);
                     d += f * k.value();
@@ -426,10 +512,16 @@ struct OctreePoisson::Impl {
             }
             const auto updated = typename X::Scalar(sum / d);
             const double delta = double(updated) - xi;
-            x[i] = updated;
+            x[Eigen::Index(i)] = updated;
             if (mu > 0)
-                for (SpMat::InnerIterator k(lv.St, i); k; ++k) t[k.col()] += k.value() * delta;
+                for (SpMat::InnerIterator k(lv.St, Eigen::Index(i)); k; ++k) t[k.col()] += k.value() * delta;
+        };
+        if (mu == 0) {
+            lv.order.sweep(forward, relax);
+            return;
         }
+        const std::size_t n = lv.graph.size();
+        for (std::size_t s = 0; s < n; ++s) relax(forward ? s : n - 1 - s);
     }
 
     // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
@@ -442,6 +534,7 @@ struct OctreePoisson::Impl {
     void conjugate_gradients(std::size_t k, Eigen::Ref<Vec> r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
                              std::vector<double>& history, const ProgressFn& progress) const {
         const Level& lv = levels[k];
+        if (mu == 0) remove_mean(r);
         const double bn = r.norm();
         const auto n = std::ptrdiff_t(lv.graph.size());
         if (k + 1 == levels.size()) {  // small enough to factor: exact
@@ -451,28 +544,31 @@ struct OctreePoisson::Impl {
             history.push_back(bn > 0 ? (r - z).norm() / bn : 0.0);
             return;
         }
-        Vec z;
+        VecF z;
         vcycle(k, r, z);
-        Vec p = z;
+        if (mu == 0) remove_mean(z);
+        Vec p = z.cast<double>();
         double rz = dot(r, z);
         for (int it = 0; it < max_iterations && bn > 0; ++it) {
             const Vec at = penalty_of(lv, p);
             const double pap = blocked_sum(n, [&](std::ptrdiff_t i) { return double(p[i]) * row(lv, p, at, std::size_t(i)); });
             const double alpha = rz / pap;
-            const double rr = blocked_sum(n, [&](std::ptrdiff_t i) {
+            double rr = blocked_sum(n, [&](std::ptrdiff_t i) {
                 x[i] += alpha * double(p[i]);
                 r[i] -= alpha * row(lv, p, at, std::size_t(i));
                 return r[i] * r[i];
             });
+            if (mu == 0) rr = remove_mean(r);
             const double rel = std::sqrt(rr) / bn;
             history.push_back(rel);
             if (progress) progress("solve", std::clamp(std::log(std::max(rel, 1e-300)) / std::log(tolerance), 0.0, 1.0));
             if (rel <= tolerance) break;
             vcycle(k, r, z);
+            if (mu == 0) remove_mean(z);
             const double rz_new = dot(r, z);
             const double beta = rz_new / rz;
 #pragma omp parallel for schedule(static)
-            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+            for (std::ptrdiff_t i = 0; i < n; ++i) p[i] = double(z[i]) + beta * p[i];
             rz = rz_new;
         }
     }
@@ -493,6 +589,17 @@ struct OctreePoisson::Impl {
         double sum = 0;
         for (const double v : part) sum += v;
         return sum;
+    }
+
+    // v −= mean(v); returns the new v·v.
+    template <class V>
+    static double remove_mean(V& v) {
+        const auto n = std::ptrdiff_t(v.size());
+        const double mean = blocked_sum(n, [&](std::ptrdiff_t i) { return double(v[i]); }) / double(n);
+        return blocked_sum(n, [&](std::ptrdiff_t i) {
+            v[i] -= mean;
+            return double(v[i]) * double(v[i]);
+        });
     }
 
     // r·v without a copy of either (r is a Ref: a Vec parameter would copy it).
@@ -529,8 +636,13 @@ struct OctreePoisson::Impl {
 #pragma omp parallel for schedule(static)
         for (std::ptrdiff_t i = 0; i < b.size(); ++i) fine[i] = float(double(b[i]) - row(lv, x, at, std::size_t(i)));
         lv.P.restrict_in_place(lv.graph, std::span<float>(fine.data(), std::size_t(fine.size())), std::span<float>(rc.data(), std::size_t(rc.size())));
+        // The fine vector is let go while the coarser levels cycle, and rc once they have: the
+        // finest level's copy would otherwise sit beside all of theirs (~0.3 GB at depth 11).
+        VecF().swap(fine);
         VecF ec;
         vcycle(k + 1, rc, ec);
+        VecF().swap(rc);
+        fine.resize(b.size());
         lv.P.prolong(lv.graph, std::span<const float>(ec.data(), std::size_t(ec.size())), std::span<float>(fine.data(), std::size_t(fine.size())));
         x += fine.cast<typename X::Scalar>();
         if (mu > 0) t = samples_of(lv, x);

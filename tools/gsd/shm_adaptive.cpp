@@ -134,6 +134,9 @@ void add_shm_adaptive(CLI::App& shm) {
             note("nodes and step 3's operators: " + fmt("%.2f s", r.seconds_setup) + ", multigrid levels of " + mg + " nodes");
             note("step 3 (solve): " + fmt("%.2f s", r.seconds_solve) + ", " + std::to_string(r.residual_history.size()) +
                  " CG iterations, relative residual " + fmt("%.2e", r.residual_history.empty() ? 0.0 : r.residual_history.back()));
+            std::string history;
+            for (double v : r.residual_history) history += " " + fmt("%.2e", v);
+            note("step 3's residual after each iteration:" + history);
             if (r.fit_level >= 0) {
                 // The multigrid's coarsest level is factored: a fit there is one direct solve.
                 const bool direct = std::size_t(r.fit_level) + r.multigrid_nodes.size() == r.leaves_per_level.size();
