@@ -43,6 +43,8 @@ std::uint64_t morton3(std::uint32_t x, std::uint32_t y, std::uint32_t z) { retur
 
 std::array<std::uint32_t, 3> unmorton3(std::uint64_t code) { return {compact(code), compact(code >> 1), compact(code >> 2)}; }
 
+std::uint32_t morton_coordinate(std::uint64_t code, int axis) { return compact(code >> axis); }
+
 namespace {
 
 using Levels = std::vector<std::vector<std::uint64_t>>;
@@ -315,7 +317,7 @@ void code_weights(const Links& next, const std::vector<std::array<std::uint8_t, 
     const auto weight = [&](std::size_t i, int a) {
         const std::int32_t j = next[i][std::size_t(a)];
         if (j < 0 || quarters[i][std::size_t(a)] == 0) return 0.0f;
-        const double len = double(unmorton3(g.keys[std::size_t(j)])[std::size_t(a)] - unmorton3(g.keys[i])[std::size_t(a)]) * h;
+        const double len = double(morton_coordinate(g.keys[std::size_t(j)], a) - morton_coordinate(g.keys[i], a)) * h;
         return float(len * quarters[i][std::size_t(a)] / 4);
     };
     std::vector<float> distinct{0.0f};

@@ -22,6 +22,8 @@ namespace gsd::shm {
 std::uint64_t morton3(std::uint32_t x, std::uint32_t y, std::uint32_t z);
 /// Its inverse.
 std::array<std::uint32_t, 3> unmorton3(std::uint64_t code);
+/// One coordinate of it (axis 0, 1 or 2).
+std::uint32_t morton_coordinate(std::uint64_t code, int axis);
 
 class Octree {
 public:

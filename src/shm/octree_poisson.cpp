@@ -130,12 +130,12 @@ struct SweepOrder {
         for (std::ptrdiff_t w = 0; w < std::ptrdiff_t(lone_bits.size()); ++w) {
             std::uint64_t bits = 0;
             for (std::size_t i = std::size_t(w) * 64; i < std::min(n, std::size_t(w + 1) * 64); ++i) {
-                const auto p = unmorton3(g.keys[i]);
                 bool long_segment = false;
                 for (int a = 0; a < 3 && !long_segment; ++a) {
+                    const std::uint32_t at = morton_coordinate(g.keys[i], a);
                     const std::int32_t up = g.next(i, a), down = g.prev(i, a);
-                    long_segment = (up >= 0 && unmorton3(g.keys[std::size_t(up)])[std::size_t(a)] - p[std::size_t(a)] > cell) ||
-                                   (down >= 0 && p[std::size_t(a)] - unmorton3(g.keys[std::size_t(down)])[std::size_t(a)] > cell);
+                    long_segment = (up >= 0 && morton_coordinate(g.keys[std::size_t(up)], a) - at > cell) ||
+                                   (down >= 0 && at - morton_coordinate(g.keys[std::size_t(down)], a) > cell);
                 }
                 if (long_segment) bits |= std::uint64_t(1) << (i & 63);
             }
@@ -250,8 +250,8 @@ Prolongation::Prolongation(const Octree& tree, const NodeGraph& fine, const Node
             for (int a = 0; a < 3; ++a) {
                 if (!(off >> a & 1)) continue;
                 const std::int32_t up = fine.next(i, a), down = fine.prev(i, a);
-                nested = nested && up >= 0 && down >= 0 && unmorton3(fine.keys[std::size_t(up)])[std::size_t(a)] == p[std::size_t(a)] + half_ &&
-                         unmorton3(fine.keys[std::size_t(down)])[std::size_t(a)] + half_ == p[std::size_t(a)];
+                nested = nested && up >= 0 && down >= 0 && morton_coordinate(fine.keys[std::size_t(up)], a) == p[std::size_t(a)] + half_ &&
+                         morton_coordinate(fine.keys[std::size_t(down)], a) + half_ == p[std::size_t(a)];
             }
         }
     block_first_.resize(blocks);
@@ -747,7 +747,7 @@ std::vector<double> OctreePoisson::divergence(const std::vector<float>& Y) const
     // Each node gathers its two segments per axis, in parallel.
     auto flux = [&](std::size_t i, int a) {  // of the segment from i along +a
         const std::size_t j = std::size_t(g.next(i, a));
-        const double len = double(unmorton3(g.keys[j])[std::size_t(a)] - unmorton3(g.keys[i])[std::size_t(a)]) * h;
+        const double len = double(morton_coordinate(g.keys[j], a) - morton_coordinate(g.keys[i], a)) * h;
         const double ybar = 0.5 * (double(Y[3 * i + std::size_t(a)]) + double(Y[3 * j + std::size_t(a)]));
         return lv.graph.weight(i, a) * len * ybar;
     };
