@@ -527,10 +527,13 @@ struct OctreePoisson::Impl {
     // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
     // coarsest: factored, exact). r is the residual throughout; x starts at 0. A p is not
     // stored: p·Ap and r −= αAp each apply A on the way, so r stays b − A x to double rounding
-    // and CG keeps four vectors, not five. They stay double: p's and z's smooth parts are up to
-    // (2^D/π)² times their rough parts, so float's rounding of the one could swamp the other on
-    // large grids (on a 2·10⁶-point scan at depth 11 float p and z did not change the iteration
-    // count, measured; deeper grids were not tried).
+    // and CG keeps four vectors, not five. z is float: its rounding only perturbs the
+    // preconditioner, as x and r move along the same p (the residuals did not change, measured
+    // at depths 9 and 11). p stays double: its smooth part is up to (2^D/π)² times its rough
+    // part, and its rounding would carry over the iterations. Without a penalty the constant is
+    // free (the pin only nudges it) and the V-cycle's coarsest solve is the pseudo-inverse: r and
+    // z are kept free of their means, or the constant that rounding lets in grows until the
+    // residual climbs back (a 2·10⁶-point scan at depth 11: 10 iterations instead of 5).
     void conjugate_gradients(std::size_t k, Eigen::Ref<Vec> r, Eigen::Ref<Vec> x, double tolerance, int max_iterations,
                              std::vector<double>& history, const ProgressFn& progress) const {
         const Level& lv = levels[k];
