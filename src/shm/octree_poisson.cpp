@@ -477,12 +477,12 @@ struct OctreePoisson::Impl {
         for (std::ptrdiff_t i = 0; i < n; ++i) y[i] = row(lv, x, at, std::size_t(i));
     }
 
-    // One Gauss–Seidel sweep on x (the V-cycle's correction: double on the finest level, float
-    // below), b of either precision. t = S x on entry and on return: the samples' values follow
-    // each node's update, so a node's penalty row costs its samples, not their products. With a
-    // penalty a sample's nodes span cells of one colour, so that sweep stays on one thread (it
-    // is the zero-set fit's, on a coarse level); without one the level's SweepOrder runs it on
-    // all of them.
+    // One Gauss–Seidel sweep on x (the V-cycle's correction, float; summed in double), b of
+    // either precision. t = S x on entry and on return: the samples' values follow each node's
+    // update, so a node's penalty row costs its samples, not their products. With a penalty a
+    // sample's nodes can lie in two cells of one colour (diagonal neighbours), so that sweep
+    // stays on one thread (it is the zero-set fit's, on a coarse level); without one the level's
+    // SweepOrder runs it on all of them.
     template <class B, class X>
     void gauss_seidel(const Level& lv, const B& b, X& x, Vec& t, bool forward) const {
         const auto relax = [&](std::size_t i) {
@@ -526,8 +526,8 @@ struct OctreePoisson::Impl {
 
     // Solves level k's system A x = r by CG preconditioned with V-cycles from level k (the
     // coarsest: factored, exact). r is the residual throughout; x starts at 0. A p is not
-    // stored: p·Ap and r −= αAp each apply A on the way, so r stays b − A x to double rounding
-    // and CG keeps four vectors, not five. z is float: its rounding only perturbs the
+    // stored: p·Ap and r −= αAp each apply A on the way, so r stays b − A x (μ = 0: its part free
+    // of the constant) to double rounding and CG keeps four vectors, not five. z is float: its rounding only perturbs the
     // preconditioner, as x and r move along the same p (the residuals did not change, measured
     // at depths 9 and 11). p stays double: its smooth part is up to (2^D/π)² times its rough
     // part, and its rounding would carry over the iterations. Without a penalty the constant is
@@ -611,8 +611,8 @@ struct OctreePoisson::Impl {
         return blocked_sum(r.size(), [&](std::ptrdiff_t i) { return r[i] * double(v[i]); });
     }
 
-    // x ≈ A⁻¹ b on level k by one V-cycle: x in double on the finest level (CG's z), in float on
-    // the coarser ones, as their residuals b and the transfers are.
+    // x ≈ A⁻¹ b on level k by one V-cycle, x in float on every level (CG's z on the first), as
+    // the coarser levels' residuals b and the transfers are; sums in double.
     template <class B, class X>
     void vcycle(std::size_t k, const B& b, X& x) const {
         const Level& lv = levels[k];
@@ -661,8 +661,9 @@ OctreePoisson::OctreePoisson(const Octree& tree, NodeGraph finest, std::vector<Z
     Impl& m = *impl_;
     if (samples.empty()) throw Error("the source lies outside the adaptive grid's bounds");
     if (!(penalty >= 0) || !std::isfinite(penalty)) throw Error("OctreePoisson: the penalty must be finite and ≥ 0");
-    if (finest.level != tree.depth() || finest.down.size() != finest.size() || finest.weight_code.size() != finest.size())
-        throw Error("OctreePoisson: the finest graph must be build_node_graph(tree, tree.depth())");
+    if (finest.level != tree.depth() || finest.keys_packed() || finest.down.size() != finest.size() ||
+        finest.weight_code.size() != finest.size())
+        throw Error("OctreePoisson: the finest graph must be build_node_graph(tree, tree.depth()), keys unpacked");
     // Reserved: a Level's copy constructor is what growth would use (Eigen's sparse matrices
     // have no noexcept move), copying the finest level's arrays.
     m.levels.reserve(std::size_t(tree.depth()) + 1);
@@ -800,8 +801,8 @@ std::vector<double> OctreePoisson::solve(std::vector<double> b_in, double tolera
     const auto n = Eigen::Index(b_in.size());
     std::vector<double> phi(b_in.size(), 0.0);
     Eigen::Map<Vec> x(phi.data(), n);
-    // Through the iterations x (φ), r (in b's memory), z and p in double (conjugate_gradients),
-    // and the V-cycle's residual in float: 36 bytes a node.
+    // Through the iterations x (φ), r (in b's memory) and p in double, z and the V-cycle's
+    // residual in float (conjugate_gradients): 32 bytes a node.
     Eigen::Map<Vec> r(b_in.data(), n);  // b's memory is r's
     // The iterations walk the steps alone: the keys wait packed (8 bytes a node → about 1).
     try {

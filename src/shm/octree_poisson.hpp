@@ -92,7 +92,9 @@ public:
     /// b of the normal equations from Y (3 floats per finest node).
     std::vector<double> divergence(const std::vector<float>& Y) const;
     /// Solves to ‖b − Aφ‖ ≤ tolerance·‖b‖ or max_iterations (b is taken: its memory holds the
-    /// residual while the solve iterates).
+    /// residual while the solve iterates). Without a penalty the constant is free (the pin only
+    /// nudges it): b and the residuals are taken free of their means, the tolerance is on those
+    /// (and so is `residual_history`), and φ's constant is CG's; the caller sets it.
     /// Not const: the levels' keys are held packed while it iterates (NodeGraph::pack_keys).
     std::vector<double> solve(std::vector<double> b, double tolerance, int max_iterations, OctreePoissonStats& stats,
                               const ProgressFn& progress = {});

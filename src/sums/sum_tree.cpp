@@ -67,7 +67,10 @@ double trace(const double* s) { return s[0] + s[1] + s[2]; }
 // SHM step 1's walk and element sums compiled twice, for any x86-64 and for x86-64-v3 (AVX2,
 // FMA), the copy chosen once at load time (an ifunc): 1.12–1.14× on step 1 on the 2-core Zen 4
 // (a 2·10⁵-point scan at depth 9). gcc only: the clang builds are the sanitizers' and fuzzers'.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+// Needs an ELF target with glibc's ifuncs and gcc ≥ 11 (arch=x86-64-v3); anywhere else one copy.
+// The v3 copy fuses multiply-adds, so its sums may differ from the other's in the last bits.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && __GNUC__ >= 11 && defined(__ELF__) && \
+    defined(__GLIBC__) && !defined(__SANITIZE_ADDRESS__)
 #define GSD_CLONES_V3 __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define GSD_CLONES_V3
@@ -241,10 +244,8 @@ GSD_ALWAYS_INLINE void screened_piece_expansion(const double* v, const double* c
     for (int a = 0; a < 3; ++a) X[a] += v[a] * w;
 }
 
-}  // namespace
-
-
-GSD_CLONES_V3 double point_triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
+// point_triangle_distance2's body, inlined into the walks (and so into their x86-64-v3 copies).
+GSD_ALWAYS_INLINE double triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) {
     // Closest point by Voronoi regions of the triangle (vertices, edges, face); degenerate
     // triangles (zero area) fall back to their three segments.
     const Vec3 ab = b - a, ac = c - a, ap = x - a;
@@ -274,6 +275,10 @@ GSD_CLONES_V3 double point_triangle_distance2(const Vec3& x, const Vec3& a, cons
     const double s = n.dot(ap);
     return s * s / n.squaredNorm();
 }
+
+}  // namespace
+
+double point_triangle_distance2(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c) { return triangle_distance2(x, a, b, c); }
 
 double triangle_winding(const Vec3& x, const Vec3& a0, const Vec3& b0, const Vec3& c0) {
     return detail::triangle_solid_angle(x, a0, b0, c0) / kFourPi;
@@ -641,7 +646,7 @@ double SumTree::nearest_distance(const Vec3& x, double bound, std::uint32_t* nea
 
 double SumTree::element_distance(const Vec3& x, std::uint32_t j) const {
     const double* c = corners(j);
-    return std::sqrt(sums::point_triangle_distance2(x, vec(c), vec(c + 3), vec(c + 6)));
+    return std::sqrt(triangle_distance2(x, vec(c), vec(c + 3), vec(c + 6)));
 }
 
 template <int L, class Element2>
@@ -738,7 +743,7 @@ void SumTree::nearest_lanes(const double* p, int n, const double* r_bound, std::
                             std::uint32_t* each) const {
     nearest_walk<kScreenedLanes>(p, n, r_bound, nearest, r_min, each, [&](std::uint32_t j, int l, const double (*q)[kScreenedLanes]) {
         const double* c = corners(j);
-        return sums::point_triangle_distance2(Vec3(q[0][l], q[1][l], q[2][l]), vec(c), vec(c + 3), vec(c + 6));
+        return triangle_distance2(Vec3(q[0][l], q[1][l], q[2][l]), vec(c), vec(c + 3), vec(c + 6));
     });
 }
 
@@ -773,7 +778,7 @@ void SumTree::nearest_triangles(const double* p, int n, std::uint32_t* nearest, 
         const double x[3] = {q[0][l], q[1][l], q[2][l]};
         if (r.flat) {
             const double* c = corners(j);
-            return sums::point_triangle_distance2(Vec3(x[0], x[1], x[2]), vec(c), vec(c + 3), vec(c + 6));
+            return triangle_distance2(Vec3(x[0], x[1], x[2]), vec(c), vec(c + 3), vec(c + 6));
         }
         // point_triangle_distance2's Voronoi regions, with d3 … d6 from d1, d2 and the records'
         // dot products (bp = ap − ab, cp = ap − ac).
