@@ -529,7 +529,7 @@ struct OctreePoisson::Impl {
     // stored: p·Ap and r −= αAp each apply A on the way, so r stays b − A x (μ = 0: its part free
     // of the constant) to double rounding and CG keeps four vectors, not five. z is float: its rounding only perturbs the
     // preconditioner, as x and r move along the same p (the residuals did not change, measured
-    // at depths 9 and 11). p stays double: its smooth part is up to (2^D/π)² times its rough
+    // at depths 9, 11 and 12). p stays double: its smooth part is up to (2^D/π)² times its rough
     // part, and its rounding would carry over the iterations. Without a penalty the constant is
     // free (the pin only nudges it) and the V-cycle's coarsest solve is the pseudo-inverse: r and
     // z are kept free of their means, or the constant that rounding lets in grows until the
