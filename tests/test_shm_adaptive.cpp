@@ -311,8 +311,8 @@ TEST_CASE("octree Poisson: the zero-set fit as a correction on a coarser level")
     // took 14 iterations here.
     CHECK(stats.residual_history.size() <= 8);
     // The same φ₀, to the bit, on one thread as on three: the smoother's order and the sums'
-    // do not depend on the threads (nor does the coarsest solve: CHOLMOD's BLAS keeps its own
-    // threads, which omp_set_num_threads does not change).
+    // do not depend on the threads (the coarsest solve's does not either, with Debian's BLAS:
+    // a threaded BLAS that splits its sums by thread would show here).
     {
         const int threads = omp_get_max_threads();
         std::vector<std::vector<double>> by_threads;
